@@ -1,0 +1,83 @@
+"""The one interface every solver is called through.
+
+``integrate(solver, model, y0, t_eval, setting)`` returns a :class:`SolverRun`:
+the trajectory at ``t_eval`` plus cost counters and an outcome. A solver that
+fails never raises: it returns ``status`` FAILED or UNSTABLE with its message,
+and ``y`` is NaN from the first output time it did not reach.
+
+``setting`` is the step ``h`` (s) for fixed-step solvers and the relative
+tolerance for adaptive ones (see ``references.solvers`` for the absolute
+tolerance rule).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+__all__ = ["Status", "SolverRun", "FIXED_STEP", "ADAPTIVE", "SOLVER_NAMES"]
+
+
+class Status(str, Enum):
+    """Outcome of one run."""
+
+    OK = "ok"
+    FAILED = "failed"      # the solver gave up (error flag, step cap, exception inside)
+    UNSTABLE = "unstable"  # the state became non-finite (a blow-up)
+
+
+FIXED_STEP = ("rk4", "euler", "symplectic-euler")
+ADAPTIVE = ("dop853", "cvode-adams", "cvode-bdf", "heyoka")
+SOLVER_NAMES = FIXED_STEP + ADAPTIVE
+
+
+@dataclass
+class SolverRun:
+    """One integration of one model by one solver at one setting.
+
+    Attributes
+    ----------
+    solver : str
+    setting : float
+        ``h`` (s) for fixed-step solvers, ``rtol`` for adaptive ones.
+    t : ndarray, shape (m,)
+        The requested output times.
+    y : ndarray, shape (2 n_dof, m)
+        States at ``t``; NaN where the run did not get.
+    nfev : int
+        Right-hand-side evaluations (heyoka: 0, see ``taylor_order``).
+    n_steps : int
+        Steps taken.
+    wall_s : float
+        Integration wall time (s), compilation excluded.
+    compile_s : float
+        One-off compilation/setup time (s) (heyoka JIT, numba), 0 if none.
+    status : Status
+    message : str
+    atol : float or None
+        Absolute tolerance used (adaptive solvers).
+    taylor_order : int or None
+        heyoka's Taylor order.
+    t_fail : float or None
+        Time of failure or blow-up.
+    """
+
+    solver: str
+    setting: float
+    t: np.ndarray
+    y: np.ndarray
+    nfev: int
+    n_steps: int
+    wall_s: float
+    compile_s: float = 0.0
+    status: Status = Status.OK
+    message: str = ""
+    atol: float | None = None
+    taylor_order: int | None = None
+    t_fail: float | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status is Status.OK
