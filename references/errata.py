@@ -1,0 +1,173 @@
+"""The seed's known errata (DESIGN.md, "Known errata in the seed"), recomputed.
+
+:func:`errata_rows` returns one row per corrected quantity. In the
+``thesis`` column a number the thesis prints is quoted as printed (typed:
+it is a quotation); where the thesis prints only a formula, the column holds
+what that formula gives, evaluated here, and the note says so. Every number
+in the ``corrected`` column is computed by the code (closed forms, the
+models' eigenproblems and forces, the dispersion relation), never typed.
+
+Units: SI (kg, N/m, m, s, rad/s, Hz, J, N).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from references import closed_forms as cf
+from references import dispersion as disp
+from rk4core.models import Chain, Oscillator2D, Planar4
+
+__all__ = ["errata_rows", "errata_markdown", "THESIS_PRINTED"]
+
+#: Numbers as printed in the thesis (quotations, not results).
+THESIS_PRINTED = {
+    "table_4_3": {1: (50.9198, 264.7758, 2.5898), 2: (50.9198, 264.7758, 2.5898),
+                  3: (50.9202, 152.7607, 1.9671)},  # omega_1, omega_2 (labelled rad/s), f_max (Hz)
+    "table_4_6": {"omega": 10.30, "T": 0.61},
+    "code_03_l": 1.0,    # natural length (m) hard-coded in Code 03
+    "table_4_4_l": 0.01,  # natural length (m) in Tables 4.4-4.5
+}
+
+#: Table 4.4's initial state (x, y) in m.
+_TABLE_4_4_X0 = (0.005, 0.0)
+
+
+def _printed_planar4_force(q, m, k, l):  # noqa: E741 - the thesis' symbol
+    """x-force (N) of eqs. 2.63-2.78 as printed: the spring extension is
+    ``length - l^2`` (erratum 3), the geometry otherwise exact."""
+    x, y = q
+    fx = 0.0
+    for ax, ay in ((-l, 0.0), (l, 0.0), (0.0, -l), (0.0, l)):
+        dx, dy = x - ax, y - ay
+        L = math.hypot(dx, dy)
+        fx -= k * (L - l * l) * dx / L
+    return fx
+
+
+def _row(item, quantity, thesis, corrected, note):
+    return {"item": item, "quantity": quantity, "thesis": thesis, "corrected": corrected, "note": note}
+
+
+def _table_4_3_rows():
+    rows = []
+    printed = THESIS_PRINTED["table_4_3"]
+    for r in cf.thesis_table_4_3():
+        if r["case"] == 2:  # same parameters as case 1 (only x0 differs): same frequencies
+            continue
+        w1p, w2p, fp = printed[r["case"]]
+        for name, p, w in (("omega_1", w1p, r["omega_1"]), ("omega_2", w2p, r["omega_2"])):
+            rows.append(_row(
+                1, f"Table 4.3 case {r['case']}: {name} (rad/s)", p, w,
+                f"the printed value is {name}^2 = {w * w:.4f} rad^2/s^2 (eq. 2.28); "
+                f"eigenproblem: {r[name + '_eig']:.4f} rad/s"))
+        rows.append(_row(
+            1, f"Table 4.3 case {r['case']}: f_max (Hz)", fp, r["f_max"],
+            "f_max = omega_2 / (2 pi); printed correctly"))
+    return rows
+
+
+def errata_rows(with_wavepacket: bool = False) -> list[dict]:
+    """The errata table, one dict per corrected quantity.
+
+    Parameters
+    ----------
+    with_wavepacket : bool
+        Also integrate a wave packet with RK4 (about 0.3 s) and quote its
+        measured group velocity in item 7's note.
+
+    Returns
+    -------
+    list of dict
+        Keys ``item`` (int, DESIGN.md's numbering), ``quantity`` (str, with
+        units), ``thesis`` (float or str), ``corrected`` (float or str),
+        ``note`` (str).
+    """
+    rows = _table_4_3_rows()
+
+    # 2. eq. 2.2's potential: k3 x3^2 -> k3 x2^2 (there is no x3 in the 2-DOF system).
+    case1 = cf.TABLE_4_3_CASES[0]
+    chain = Chain([case1["m1"], case1["m2"]], [case1["k1"], case1["k2"], case1["k3"]])
+    V0 = 1e3 * float(chain.potential(np.array(case1["x0"])))
+    rows.append(_row(
+        2, "Table 4.1 initial potential energy V(x0) (mJ)", "k1 x^2/2 + k2 (x2 - x1)^2/2 + k3 x3^2/2",
+        V0, "eq. 2.2's last term is k3 x2^2 / 2 (x3 does not exist); corrected value from "
+            "the chain model's potential at x0 = (0.005, 0.005) m"))
+
+    # 3. eqs. 2.63-2.78: extension length - l^2 -> length - l (Table 4.4's state).
+    m, k, l_tab = 0.815, 41.5, THESIS_PRINTED["table_4_4_l"]
+    exact = Planar4(m, k, l_tab)
+    fx_exact = float(exact.force(np.array(_TABLE_4_4_X0))[0])
+    fx_printed = _printed_planar4_force(_TABLE_4_4_X0, m, k, l_tab)
+    rows.append(_row(
+        3, "planar4 force F_x (N) at Table 4.4's x = 0.005 m, y = 0, l = 0.01 m", fx_printed, fx_exact,
+        "thesis column: eqs. 2.63-2.78 as printed (extension sqrt(...) - l^2), evaluated; "
+        f"corrected: extension length - l; small-oscillation -2kx = {-2 * k * _TABLE_4_4_X0[0]:.4f} N"))
+
+    # 4. Code 03's natural length 1 m vs the tables' 0.01 m.
+    code03 = Planar4(m, k, THESIS_PRINTED["code_03_l"])
+    fx_code03 = float(code03.force(np.array(_TABLE_4_4_X0))[0])
+    rows.append(_row(
+        4, "planar4 force F_x (N) at x = 0.005 m, y = 0: Code 03 (l = 1 m) vs Tables 4.4-4.5 (l = 0.01 m)",
+        fx_code03, fx_exact,
+        f"with l = 1 m the amplitude is x/l = {_TABLE_4_4_X0[0] / THESIS_PRINTED['code_03_l']:g} and "
+        f"the motion is linear ({fx_code03 / (-2 * k * _TABLE_4_4_X0[0]):.6f} x -2kx); with l = 0.01 m "
+        f"x/l = {_TABLE_4_4_X0[0] / l_tab:g} and the force is {fx_exact / (-2 * k * _TABLE_4_4_X0[0]):.4f} x -2kx"))
+
+    # 5. Table 4.6: omega = sqrt(2k/m), T = 2 pi / omega.
+    t46 = cf.thesis_table_4_6()
+    rows.append(_row(5, "Table 4.6 omega (rad/s)", THESIS_PRINTED["table_4_6"]["omega"], t46["omega"],
+                     "omega = sqrt(2k/m), m = 0.815 kg, k = 41.5 N/m (m x'' = -2kx, eqs. 2.81-2.82)"))
+    rows.append(_row(5, "Table 4.6 period T (s)", THESIS_PRINTED["table_4_6"]["T"], t46["T"],
+                     "T = 2 pi / omega"))
+
+    # 6. eqs. 2.41-2.43: m x_n'' = k (x_{n-1} - 2 x_n + x_{n+1}).
+    lat = disp.THESIS_LATTICE
+    kp_edge = math.pi / lat["d"]
+    # Printed eq. 2.42, m x_n'' = k (x_{n-1} + 2 x_n - x_{n+1}), with x_n ~ exp(i (kp n d - omega t)):
+    # -m omega^2 = k (exp(-i kp d) + 2 - exp(i kp d)); at kp d = pi this is 2k, so omega^2 = -2k/m.
+    w2_printed = -2.0 * lat["k"] / lat["m"]
+    w2_edge = float(disp.omega(kp_edge, lat["m"], lat["k"], lat["d"])) ** 2
+    rows.append(_row(
+        6, "lattice omega^2 at the zone edge kp = pi/d (rad^2/s^2)", w2_printed, w2_edge,
+        "thesis column: printed eq. 2.42 m x_n'' = k (x_{n-1} + 2 x_n - x_{n+1}), evaluated "
+        "(omega^2 < 0: growth, not oscillation); corrected m x_n'' = k (x_{n-1} - 2 x_n + x_{n+1}) "
+        "gives omega_0^2 = 4k/m (eq. 2.50)"))
+
+    # 7. eq. 2.53: v_g = d omega / d kp (a steady wave's omega does not change in time).
+    kp = 0.3 * math.pi / lat["d"]
+    vg = float(disp.group_velocity(kp, lat["m"], lat["k"], lat["d"]))
+    note = ("thesis column: d omega / dt, which is 0 for a wave of fixed frequency; corrected: "
+            "d omega / d kp = d sqrt(k/m) cos(kp d/2) (eq. 2.54 is right)")
+    if with_wavepacket:
+        from validation.wavepacket import measure_group_velocity
+
+        wp = measure_group_velocity(kp, m=lat["m"], k=lat["k"], d=lat["d"])
+        note += (f"; an RK4 wave packet (N = {wp.N}, sigma = {wp.sigma / lat['d']:g} d) measures "
+                 f"{wp.v_measured:.5f} m/s, its spectrum's mean v_g is {wp.v_spectral:.5f} m/s")
+    rows.append(_row(7, "group velocity at kp = 0.3 pi/d (m/s), thesis lattice", 0.0, vg, note))
+
+    # 8. abstract: omega_x = sqrt(2) omega_y, not sqrt(2 omega_y); omega_y of Table 4.6.
+    ky = 2.0 * t46["k"]  # the four-spring mass: effective stiffness 2k per axis
+    osc = Oscillator2D(t46["m"], kx=2.0 * ky, ky=ky)
+    (w_y, w_x), _ = osc.modes()
+    rows.append(_row(
+        8, "anisotropic omega_x (rad/s) for omega_y = sqrt(2k/m) of Table 4.6", math.sqrt(2.0 * w_y), float(w_x),
+        f"thesis column: sqrt(2 omega_y) evaluated (not even a frequency: units rad^1/2 s^-1/2); "
+        f"corrected: sqrt(2) omega_y, the oscillator2d with kx = 2 ky (omega_y = {w_y:.4f} rad/s)"))
+    return rows
+
+
+def _fmt(v, digits):
+    return f"{v:.{digits}f}" if isinstance(v, float) else str(v)
+
+
+def errata_markdown(rows: list[dict] | None = None, digits: int = 4) -> str:
+    """The rows as a Markdown table (numbers to ``digits`` decimals)."""
+    rows = errata_rows() if rows is None else rows
+    lines = ["| item | quantity | thesis | corrected | note |", "|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['item']} | {r['quantity']} | {_fmt(r['thesis'], digits)} | "
+                     f"{_fmt(r['corrected'], digits)} | {r['note']} |")
+    return "\n".join(lines) + "\n"
