@@ -31,7 +31,8 @@ class FixedStepResult:
     y : ndarray, shape (n, m)
         States at ``t``; on failure, only the times reached before the blow-up.
     nfev : int
-        Right-hand-side evaluations.
+        Right-hand-side evaluations: ``n_stages`` per step, plus one per step
+        that holds off-grid ``t_eval`` points (the Hermite end slope).
     h : float
         Step actually used, ``(t1 - t0) / n_steps``.
     n_steps : int
@@ -121,12 +122,13 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4") -
         theta[on_grid] = 0.0
         dense = "grid" if on_grid.all() else "hermite"
         ys = np.empty((t_eval.shape[0], y.shape[0]))
-        out_ptr = 0
-        out_ptr = _emit(ys, out_ptr, idx, theta, 0, y, None, None, step, fun, t0)
+        out_ptr, _ = _emit(ys, 0, idx, theta, 0, y, None, step, fun, t0, None)
     nfev = 0
-    f_prev = None
     status, message, t_fail = 0, "The solver successfully reached the end of the integration interval.", None
-    with np.errstate(over="ignore", invalid="ignore"):
+    # A blow-up is reported through status/message, so the floating-point
+    # warnings on the way to it (overflow, inf - inf, division by a zero length)
+    # are not raised, even under -W error.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for i in range(n):
             t = t0 + i * step
             y_new = rk_step(fun, t, y, step, tab, k)
@@ -142,8 +144,8 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4") -
             if grid_out:
                 ys[i + 1] = y_new
             else:
-                f0 = f_prev if f_prev is not None else None
-                out_ptr = _emit(ys, out_ptr, idx, theta, i + 1, y_new, y, f0, step, fun, t0, k=k, tab=tab)
+                out_ptr, extra = _emit(ys, out_ptr, idx, theta, i + 1, y_new, y, step, fun, t0, k)
+                nfev += extra
             y = y_new
         else:
             n_done = n
@@ -161,26 +163,34 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4") -
     )
 
 
-def _emit(ys, ptr, idx, theta, i_step, y_new, y_old, _f0, step, fun, t0, k=None, tab=None):
+def _emit(ys, ptr, idx, theta, i_step, y_new, y_old, step, fun, t0, k):
     """Write every output point that falls at grid point ``i_step`` or inside
-    step ``i_step - 1`` (Hermite cubic on [y_old, y_new]) into ``ys``."""
+    step ``i_step - 1`` (cubic Hermite on [y_old, y_new]) into ``ys``.
+
+    Returns the next output index and the number of extra ``fun`` calls (the
+    end slope, evaluated at most once per step and only for off-grid points).
+    """
     m = idx.shape[0]
+    f1 = None
+    extra = 0
     while ptr < m:
         j = idx[ptr]
         if j == i_step and theta[ptr] == 0.0:
             ys[ptr] = y_new
         elif j == i_step - 1 and theta[ptr] > 0.0:
-            # Cubic Hermite on the step: slopes at both ends. The start slope is
-            # the method's first stage (k[0] = f(t_n, y_n)) for every tableau here.
+            # Cubic Hermite on the step with the slopes at both ends. The start
+            # slope is the method's first stage (k[0] = f(t_n, y_n)) for every
+            # tableau here; the end slope costs one evaluation.
             th = theta[ptr]
-            f0 = k[0]
-            f1 = fun(t0 + i_step * step, y_new)
+            if f1 is None:
+                f1 = fun(t0 + i_step * step, y_new)
+                extra += 1
             h00 = (1 + 2 * th) * (1 - th) ** 2
             h10 = th * (1 - th) ** 2
             h01 = th * th * (3 - 2 * th)
             h11 = th * th * (th - 1)
-            ys[ptr] = h00 * y_old + h10 * step * f0 + h01 * y_new + h11 * step * f1
+            ys[ptr] = h00 * y_old + h10 * step * k[0] + h01 * y_new + h11 * step * f1
         else:
             break
         ptr += 1
-    return ptr
+    return ptr, extra

@@ -83,7 +83,10 @@ def check_t_span(t_span):
 
 
 def check_y0(y0) -> np.ndarray:
-    y = np.array(y0, dtype=float)
+    try:
+        y = np.array(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"`y0` must be a 1-D array of real numbers, got {y0!r}") from None
     if y.ndim != 1:
         raise ValueError(f"`y0` must be 1-dimensional, got shape {y.shape}")
     if y.size == 0:
@@ -107,7 +110,10 @@ def check_step_args(t0, t1, h, n_steps, step_count) -> int:
 def check_t_eval(t_eval, t0, t1):
     if t_eval is None:
         return None
-    t = np.asarray(t_eval, dtype=float)
+    try:
+        t = np.asarray(t_eval, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"`t_eval` must be an array of real numbers, got {t_eval!r}") from None
     if t.ndim != 1 or t.size == 0:
         raise ValueError(f"`t_eval` must be a non-empty 1-D array, got shape {t.shape}")
     if not np.all(np.isfinite(t)):

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import inspect
+from collections.abc import Mapping
 
 from .base import HEYOKA, NUMPY, Model
 from .chain import Chain
@@ -27,8 +28,10 @@ def model_parameters(name: str) -> tuple[list[str], list[str]]:
 def make_model(name: str, params: dict) -> Model:
     """Build model ``name`` from a parameter dict; unknown or missing keys and
     bad values raise ``ValueError`` naming the parameter."""
-    if name not in MODELS:
+    if not isinstance(name, str) or name not in MODELS:
         raise ValueError(f"`model` must be one of {sorted(MODELS)}, got {name!r}")
+    if not isinstance(params, Mapping):
+        raise ValueError(f"`params` must be a mapping of parameter names to values, got {params!r}")
     required, optional = model_parameters(name)
     unknown = sorted(set(params) - set(required) - set(optional))
     if unknown:

@@ -1,0 +1,215 @@
+"""The compiled fast path (rk4core.fast) against the generic rk4core.solve.
+
+The fast path repeats the generic path's floating-point operations in the same
+order, so the numbers must agree to round-off (tolerance 1e-14 relative, as
+issue 5 asks), including where and how a run blows up.
+"""
+import numpy as np
+import pytest
+
+import rk4core
+import rk4core.fast as fast
+from references.exact import modal_solution
+from rk4core.methods import Tableau
+
+CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]}
+
+# (id, model name, parameters, x0, v0): every built-in model and chain wall variant.
+MODEL_CASES = [
+    ("chain-2dof-case1", "chain", CASE1, [0.005, 0.005], [0.0, 0.0]),
+    ("chain-walls-none", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0], "walls": "none"},
+     [0.003, -0.001, 0.002], [0.01, 0.0, -0.02]),
+    ("chain-walls-left", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0, 4.0], "walls": "left"},
+     [0.003, -0.001, 0.002], [0.0, 0.01, 0.0]),
+    ("chain-walls-right", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0, 4.0], "walls": "right"},
+     [0.003, -0.001, 0.002], [0.0, 0.01, 0.0]),
+    ("planar4-exact", "planar4", {"m": 0.5, "k": 20.0, "l": 0.01}, [0.004, -0.003], [0.02, 0.05]),
+    ("planar4-linear", "planar4", {"m": 0.5, "k": 20.0, "l": 0.01, "linear": True}, [0.004, -0.003], [0.02, 0.05]),
+    ("pendulums-exact", "pendulums", {"m": 1.0, "length": 1.0, "g": 9.81, "k": 2.0}, [0.6, -0.2], [0.0, 0.5]),
+    ("pendulums-linear", "pendulums", {"m": 1.0, "length": 1.0, "g": 9.81, "k": 2.0, "linear": True},
+     [0.6, -0.2], [0.0, 0.5]),
+    ("triangle", "triangle", {"m": 1.0, "k": 10.0, "side": 1.0},
+     [0.05, -0.02, 0.0, 0.03, -0.04, 0.01], [0.0, 0.1, -0.1, 0.0, 0.05, 0.0]),
+    ("oscillator2d", "oscillator2d", {"m": 1.0, "kx": 2.0, "ky": 4.0}, [0.005, 0.002], [0.0, 0.01]),
+]
+METHODS = ["rk4", "euler", "symplectic-euler"]
+
+
+def _model(case):
+    _, name, params, x0, v0 = case
+    model = rk4core.make_model(name, params)
+    return model, model.state(x0, v0)
+
+
+def _assert_same(fast_res, gen_res, rtol=1e-14):
+    """Same grid, counters, status and message; states within rtol of the
+    generic path's largest component."""
+    assert fast_res.success == gen_res.success
+    assert fast_res.status == gen_res.status
+    assert fast_res.message == gen_res.message
+    assert fast_res.t_fail == gen_res.t_fail
+    assert (fast_res.n_steps, fast_res.nfev, fast_res.h) == (gen_res.n_steps, gen_res.nfev, gen_res.h)
+    assert fast_res.dense == gen_res.dense and fast_res.method == gen_res.method
+    np.testing.assert_array_equal(fast_res.t, gen_res.t)
+    assert fast_res.y.shape == gen_res.y.shape
+    scale = np.max(np.abs(gen_res.y))
+    assert np.max(np.abs(fast_res.y - gen_res.y)) <= rtol * scale
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("case", MODEL_CASES, ids=[c[0] for c in MODEL_CASES])
+def test_fast_equals_generic_every_step(case, method):
+    model, y0 = _model(case)
+    assert fast.supports(model)
+    kw = dict(h=0.01, method=method)
+    _assert_same(fast.solve_model(model, (0.0, 1.5), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.5), y0, **kw))
+
+
+@pytest.mark.parametrize("case", MODEL_CASES, ids=[c[0] for c in MODEL_CASES])
+def test_fast_equals_generic_t_eval(case):
+    # Off-grid points (Hermite), grid points, repeated points and both ends.
+    model, y0 = _model(case)
+    t_eval = np.array([0.0, 0.0, 0.013, 0.25, 0.25, 0.2501, 0.7, 1.0 / 3.0 + 0.5, 1.5])
+    t_eval.sort()
+    kw = dict(h=0.01, t_eval=t_eval)
+    res = fast.solve_model(model, (0.0, 1.5), y0, **kw)
+    assert res.dense == "hermite"
+    _assert_same(res, rk4core.solve(model.rhs, (0.0, 1.5), y0, **kw))
+
+
+def test_t_eval_on_grid_is_returned_exactly():
+    model, y0 = _model(MODEL_CASES[0])
+    every = fast.solve_model(model, (0.0, 2.0), y0, h=0.01)
+    t_eval = every.t[::7]
+    res = fast.solve_model(model, (0.0, 2.0), y0, h=0.01, t_eval=t_eval)
+    assert res.dense == "grid"
+    np.testing.assert_array_equal(res.y, every.y[:, ::7])
+    assert res.nfev == 4 * res.n_steps  # no Hermite end slopes needed
+
+
+def test_custom_tableau_is_data_not_code():
+    # Heun's second-order method: a tableau neither path has seen by name.
+    heun = Tableau("heun", np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2)
+    model, y0 = _model(MODEL_CASES[6])
+    kw = dict(n_steps=120, method=heun)
+    _assert_same(fast.solve_model(model, (0.0, 1.2), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.2), y0, **kw))
+
+
+def test_large_chain_equals_generic():
+    # O(N) tridiagonal kernel on a random 2000-mass chain, free ends.
+    rng = np.random.default_rng(5)
+    N = 2000
+    model = rk4core.make_model("chain", {"masses": list(rng.uniform(0.5, 2.0, N)),
+                                         "springs": list(rng.uniform(1.0, 3.0, N - 1)), "walls": "none"})
+    y0 = np.concatenate([rng.normal(0, 1e-3, N), rng.normal(0, 1e-3, N)])
+    kw = dict(n_steps=50, method="rk4")
+    _assert_same(fast.solve_model(model, (0.0, 1.0), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.0), y0, **kw))
+
+
+def test_fast_rk4_error_within_phase_error_bound():
+    # Independent of the generic path: RK4 multiplies each mode by
+    # R(i theta) = 1 - theta^2/2 + theta^4/24 - i(theta - theta^3/6), whose phase
+    # lags exp(-i theta) by theta^5/120 + O(theta^7) per step, so after n steps a
+    # mode of amplitude a is off by at most a n theta^5 / 120 (|R| < 1 adds a
+    # smaller amplitude error). Displacements are summed over the two modes.
+    model, y0 = _model(MODEL_CASES[0])
+    res = fast.solve_model(model, (0.0, 10.0), y0, h=0.01)
+    exact = modal_solution(model, y0)
+    err = np.max(np.abs(res.y[:2] - exact(res.t)[:2]))
+    theta = exact.omega * res.h
+    amp = np.max(np.abs(exact.phi), axis=0) * np.hypot(exact.eta0, exact.deta0 / exact.omega)
+    bound = np.sum(amp * res.n_steps * theta**5 / 120)
+    assert 0.2 * bound < err < 1.05 * bound
+
+
+# Blow-ups: RK4 on an undamped mode is stable for h omega < 2 sqrt(2) and
+# amplifies by |R(i h omega)| > 1 per step beyond; explicit Euler by
+# sqrt(1 + (h omega)^2) always. Planar4 with a huge step throws the mass through
+# an anchor region where the force is huge or undefined.
+BLOWUP_CASES = [
+    ("chain-rk4", 0, "rk4", 0.5),           # h omega_max = 8.1 > 2.83
+    ("chain-euler", 0, "euler", 0.3),
+    ("chain-symplectic-euler", 0, "symplectic-euler", 0.5),  # stable only for h omega < 2
+    ("planar4-exact-rk4", 4, "rk4", 1.0),
+    ("pendulums-linear-rk4", 7, "rk4", 2.0),
+    ("triangle-rk4", 8, "rk4", 1.5),
+]
+
+
+@pytest.mark.parametrize("case_i, method, h", [c[1:] for c in BLOWUP_CASES], ids=[c[0] for c in BLOWUP_CASES])
+@pytest.mark.parametrize("with_t_eval", [False, True], ids=["every-step", "t_eval"])
+def test_blow_up_same_as_generic(case_i, method, h, with_t_eval):
+    model, y0 = _model(MODEL_CASES[case_i])
+    t_span = (0.0, 2000.0)
+    kw = dict(h=h, method=method)
+    if with_t_eval:
+        kw["t_eval"] = np.linspace(*t_span, 1001)
+    gen = rk4core.solve(model.rhs, t_span, y0, **kw)
+    assert not gen.success  # the case must actually blow up
+    res = fast.solve_model(model, t_span, y0, **kw)
+    assert res.status == -1 and "non-finite" in res.message
+    _assert_same(res, gen)
+    assert np.all(np.isfinite(res.y))
+
+
+def test_symplectic_euler_stable_below_its_limit():
+    # Symplectic Euler on x'' = -w^2 x is stable for h w < 2 (trace of the
+    # one-step matrix is 2 - (h w)^2): just below the limit no blow-up.
+    model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})
+    res = fast.solve_model(model, (0.0, 2000.0), model.state([1.0, 0.5]), h=1.99, method="symplectic-euler",
+                           record_every=1000)
+    assert res.success
+
+
+@pytest.mark.parametrize("every", [1, 7, 150])
+def test_record_every_keeps_every_kth_step_and_the_last(every):
+    model, y0 = _model(MODEL_CASES[4])
+    full = rk4core.solve(model.rhs, (0.0, 1.0), y0, n_steps=100)
+    res = fast.solve_model(model, (0.0, 1.0), y0, n_steps=100, record_every=every)
+    cols = sorted(set(range(0, 101, every)) | {100})
+    np.testing.assert_array_equal(res.t, full.t[cols])
+    assert np.max(np.abs(res.y - full.y[:, cols])) <= 1e-14 * np.max(np.abs(full.y))
+    assert res.n_steps == 100 and res.nfev == 400
+
+
+def test_supports_only_builtin_models():
+    model, _ = _model(MODEL_CASES[0])
+
+    class MyChain(type(model)):
+        def _force(self, x, ops):  # a user's change the compiled kernel does not know
+            return 2.0 * super()._force(x, ops)
+
+    assert fast.supports(model)
+    assert not fast.supports(MyChain(**model.params()))
+    assert not fast.supports(object())
+    with pytest.raises(ValueError, match="`model`"):
+        fast.solve_model(MyChain(**model.params()), (0.0, 1.0), [0.0] * 4, h=0.1)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(y0=[0.0, 0.0, 0.0], h=0.1), "y0"),
+    (dict(y0=[0.0] * 4, h=0.1, record_every=0), "record_every"),
+    (dict(y0=[0.0] * 4, h=0.1, record_every=2, t_eval=[0.0, 1.0]), "record_every"),
+    (dict(y0=[0.0] * 4, h=-0.1), "h"),
+    (dict(y0=[0.0] * 4, h=0.1, method="rk5"), "method"),
+    (dict(y0=[0.0] * 4, h=0.1, t_eval=[0.0, 2.0]), "t_eval"),
+])
+def test_bad_arguments_raise_value_error_naming_them(kwargs, name):
+    model, _ = _model(MODEL_CASES[0])
+    y0 = kwargs.pop("y0")
+    with pytest.raises(ValueError, match=f"`{name}"):
+        fast.solve_model(model, (0.0, 1.0), y0, **kwargs)
+
+
+def test_warm_up_reports_compile_time_apart_and_one_signature_serves_all():
+    assert fast.warm_up() >= 0.0
+    assert fast.compile_time() is not None and fast.compile_time() >= 0.0
+    for case in (MODEL_CASES[0], MODEL_CASES[6], MODEL_CASES[8]):
+        model, y0 = _model(case)
+        for method in METHODS:
+            fast.solve_model(model, (0.0, 0.1), y0, h=0.01, method=method, t_eval=[0.0, 0.055, 0.1])
+    # Every model and method runs through one compiled signature of the loop
+    # (so the first call of a process compiles, or loads from cache, once).
+    from rk4core.fast import _kernels
+
+    assert len(_kernels.integrate.signatures) == 1
