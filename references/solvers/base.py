@@ -56,7 +56,8 @@ class SolverRun:
     status : Status
     message : str
     atol : float or None
-        Absolute tolerance used (adaptive solvers).
+        Absolute tolerance of the position components (adaptive solvers; the
+        whole per-component vector is ``extra["atol_state"]``).
     taylor_order : int or None
         heyoka's Taylor order.
     t_fail : float or None

@@ -1,0 +1,123 @@
+"""Every solver behind one call: ``integrate(solver, model, y0, t_eval, setting)``.
+
+Solvers (``SOLVER_NAMES``)
+--------------------------
+``rk4``, ``euler``, ``symplectic-euler``
+    ``rk4core.solve`` on ``model.rhs``; ``setting`` is the step ``h`` (s).
+``dop853``
+    scipy's explicit RK 8(5,3) on ``model.rhs``; ``setting`` is ``rtol``.
+``cvode-adams``, ``cvode-bdf``
+    SUNDIALS CVODE (scikit-sundae) on ``model.rhs``, analytic Jacobian, banded
+    for chains; ``setting`` is ``rtol``.
+``heyoka``
+    heyoka's Taylor integrator, double precision, on ``model.heyoka_system()``
+    (the same ``_force`` code as ``model.rhs``); ``setting`` is ``rtol``.
+
+Absolute tolerance rule (adaptive solvers, ``atol=None``)
+---------------------------------------------------------
+``atol_i = rtol * s_i`` with one scale for the positions and one for the
+velocities, from the initial state and the model's fastest linearised
+frequency ``w`` (Gershgorin bound ``sqrt(max_i sum_j |K_ij| / m_i)``):
+``s_q = max(max|q0|, max|v0| / w)``, ``s_v = max(max|v0|, w max|q0|)`` (a zero
+scale becomes 1). Millimetre states are so judged relative to millimetres.
+heyoka, which has one tolerance (absolute below 1, relative above), integrates
+the scaled state ``y / s`` with ``tol = rtol``: the same rule. A caller's
+``atol`` (scalar or per component) replaces the rule; heyoka then uses the
+scales ``atol / rtol`` (smallest per group). ``run.atol`` is the position
+component's atol, ``run.extra["atol_state"]`` the whole vector.
+
+Outcome
+-------
+A run never raises once its arguments are valid: a solver's error flag, step
+cap, non-finite state or any exception inside becomes ``status`` FAILED or
+UNSTABLE with ``message`` and ``t_fail``; ``y`` is NaN where not reached.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from rk4core.validate import choice, positive
+
+from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
+from .cvode import DEFAULT_MAX_STEPS, run_cvode
+from .dop853 import run_dop853
+from .fixed import run_fixed
+from .taylor import run_heyoka
+from .tolerances import absolute_tolerance
+
+__all__ = ["integrate", "check_setting", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+           "SolverRun", "absolute_tolerance"]
+
+
+def check_setting(solver: str, setting) -> float:
+    """Validate ``setting`` for ``solver``: a finite step ``h > 0`` for the
+    fixed-step methods, a relative tolerance in (0, 1) for adaptive ones.
+
+    Raises ``ValueError`` naming the solver or the setting."""
+    choice("solver", solver, SOLVER_NAMES)
+    if solver in FIXED_STEP:
+        return positive(f"h ({solver})", setting)
+    rtol = positive(f"rtol ({solver})", setting)
+    if rtol >= 1.0:
+        raise ValueError(f"`rtol ({solver})` must be < 1, got {setting!r}")
+    return rtol
+
+
+def _check_inputs(model, y0, t_eval, atol, max_steps):
+    y0 = np.array(y0, dtype=float)
+    if y0.shape != (2 * model.n_dof,):
+        raise ValueError(f"`y0` must have length {2 * model.n_dof} for {model.name}, got shape {y0.shape}")
+    if not np.all(np.isfinite(y0)):
+        raise ValueError(f"`y0` must be finite, got {y0!r}")
+    t = np.array(t_eval, dtype=float)
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(f"`t_eval` must be a 1-D array of at least 2 times, got shape {t.shape}")
+    if not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        raise ValueError("`t_eval` must be finite and strictly increasing")
+    if atol is not None:
+        a = np.broadcast_to(np.asarray(atol, dtype=float), y0.shape).copy()
+        if not np.all(np.isfinite(a)) or not np.all(a > 0):
+            raise ValueError(f"`atol` must be finite and > 0, got {atol!r}")
+        atol = a
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise ValueError(f"`max_steps` must be an integer >= 1, got {max_steps!r}")
+    return y0, t, atol
+
+
+def integrate(solver: str, model, y0, t_eval, setting: float, *, atol=None,
+              max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
+    """Integrate ``model`` from ``y0`` at ``t_eval[0]`` to ``t_eval[-1]`` with ``solver``.
+
+    Parameters
+    ----------
+    solver : str
+        One of ``SOLVER_NAMES``.
+    model : rk4core.models.Model
+    y0 : array_like, shape (2 n_dof,)
+        Initial state ``[q, v]`` (SI units of the model's coordinates).
+    t_eval : array_like, shape (m,)
+        Output times (s), strictly increasing, ``m >= 2``.
+    setting : float
+        Step ``h`` (s) for ``FIXED_STEP`` solvers, ``rtol`` for ``ADAPTIVE`` ones.
+    atol : float or array_like, optional
+        Absolute tolerance (adaptive solvers); default: the rule in the module
+        docstring.
+    max_steps : int, optional
+        Cap on CVODE's total internal steps (ignored by the other solvers).
+
+    Returns
+    -------
+    SolverRun
+        ``y`` of shape (2 n_dof, m) at ``t_eval``.
+    """
+    setting = check_setting(solver, setting)
+    y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
+    if solver in FIXED_STEP:
+        return run_fixed(solver, model, y0, t, setting)
+    if atol is None:
+        atol = absolute_tolerance(model, y0, setting)
+    if solver == "dop853":
+        return run_dop853(model, y0, t, setting, atol)
+    if solver in ("cvode-adams", "cvode-bdf"):
+        return run_cvode(solver, model, y0, t, setting, atol, int(max_steps))
+    return run_heyoka(model, y0, t, setting, atol)

@@ -1,0 +1,161 @@
+"""heyoka's adaptive Taylor integrator (``heyoka.taylor_adaptive``), in double
+precision for the ``heyoka`` solver and in quadruple precision
+(``heyoka.real128``) for :mod:`references.truth`.
+
+Equations: ``model.heyoka_system()``, i.e. the model's one ``_force`` evaluated
+on heyoka expressions, rewritten for the scaled state ``z = y / s`` with the
+two scales ``s = (s_q, s_v)`` as runtime parameters ``par[0], par[1]``:
+``zq' = (s_v / s_q) zv``, ``zv' = a(s_q zq) / s_v``. heyoka's single
+tolerance is absolute while ``max |z_i| < 1`` and relative above it; with
+``tol = rtol`` and ``s`` from :mod:`references.solvers.tolerances` this is the
+rule ``atol_i = rtol * s_i`` of the other adaptive solvers. The model constants
+are Python floats in the expressions, so the real128 integration uses exactly
+the doubles the double-precision solvers use.
+
+Compilation happens once per (model, parameters, tolerance, precision): the
+integrator is cached and reused across initial states and runs (time, state
+and the scale parameters are reset each run; a Taylor step depends only on
+the current state, so a reused integrator gives the same result as a fresh
+one). ``compile_s`` is the JIT time, 0 when the cache was hit. Output times
+come from ``propagate_grid`` (Taylor dense output). heyoka evaluates no
+right-hand side: ``nfev = 0``, ``n_steps`` = Taylor steps, ``taylor_order`` =
+the order heyoka chose for the tolerance.
+
+References
+----------
+F. Biscani, D. Izzo, "Revisiting high-order Taylor methods for astrodynamics and
+celestial mechanics", MNRAS 504 (2021) 2614-2628.
+"""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+from .base import SolverRun, Status
+
+__all__ = ["scaled_system", "get_integrator", "propagate", "run_heyoka", "model_key", "clear_cache"]
+
+#: (model key, tol, fp_type) -> taylor_adaptive
+_CACHE: dict = {}
+#: Systems with more state components than this are compiled in compact mode.
+COMPACT_ABOVE = 40
+
+
+def model_key(model) -> str:
+    """A string identifying the model's equations (name and parameters)."""
+    cls = f"{type(model).__module__}.{type(model).__qualname__}"
+    return json.dumps({"name": model.name, "class": cls, "params": model.params()}, sort_keys=True,
+                      default=repr)
+
+
+def clear_cache() -> None:
+    _CACHE.clear()
+
+
+def scaled_system(model):
+    """``(zvars, [(z_i, dz_i/dt)])`` for the scaled state ``z = y / s``.
+
+    Runtime parameters: ``par[0] = s_q``, ``par[1] = s_v``, ``par[2 + i]`` = the
+    generalized mass ``m_i``. The force is the model's ``_force`` on heyoka
+    expressions (as in ``model.heyoka_system()``), but the mass enters as a
+    parameter: heyoka folds ``f / m`` with a numeric ``m`` into ``f * fl(1/m)``
+    with the reciprocal rounded to double, which in real128 is a different
+    mass (relative 1e-17) and breaks energy conservation at that level.
+    """
+    import heyoka as hy
+
+    from rk4core.models import HEYOKA
+
+    n = model.n_dof
+    names = [f"z{i}" for i in range(2 * n)]
+    zs = hy.make_vars(*names)
+    zs = list(zs) if isinstance(zs, (list, tuple)) else [zs]
+    sq, sv = hy.par[0], hy.par[1]
+    q = np.array([sq * zs[i] for i in range(n)], dtype=object)
+    f = np.asarray(model._force(q, HEYOKA), dtype=object).reshape(-1)
+    dq = [(sv * zs[n + i]) / sq for i in range(n)]
+    dv = [f[i] / (sv * hy.par[2 + i]) for i in range(n)]
+    return zs, list(zip(zs, dq + dv))
+
+
+def _pars(model, scales, dtype=float):
+    return np.concatenate([np.asarray(scales, dtype=float), np.asarray(model.mass, dtype=float)]).astype(dtype)
+
+
+def get_integrator(model, tol: float, fp_type: str = "double"):
+    """The cached ``taylor_adaptive`` for ``(model, tol, fp_type)`` and the
+    compile time spent now (0.0 on a cache hit)."""
+    import heyoka as hy
+
+    key = (model_key(model), float(tol), fp_type)
+    ta = _CACHE.get(key)
+    if ta is not None:
+        return ta, 0.0
+    _, sys = scaled_system(model)
+    n2 = 2 * model.n_dof
+    start = time.perf_counter()
+    if fp_type == "real128":
+        R = hy.real128
+        ta = hy.taylor_adaptive(sys, np.zeros(n2, dtype=R), tol=R(tol), fp_type=R,
+                                pars=_pars(model, (1.0, 1.0), R), compact_mode=True)
+    else:
+        ta = hy.taylor_adaptive(sys, np.zeros(n2), tol=float(tol), pars=_pars(model, (1.0, 1.0)),
+                                compact_mode=n2 > COMPACT_ABOVE)
+    compile_s = time.perf_counter() - start
+    _CACHE[key] = ta
+    return ta, compile_s
+
+
+def propagate(ta, model, y0, scales, t_eval, dtype=float):
+    """Reset ``ta`` to ``y0`` at ``t_eval[0]`` and propagate over ``t_eval``.
+
+    Returns ``(outcome, n_steps, y)`` with ``y`` of shape (2n, m) in
+    ``dtype`` (unscaled), NaN where heyoka did not get.
+    """
+    n2 = y0.shape[0]
+    n = n2 // 2
+    s = np.concatenate([np.full(n, scales[0]), np.full(n, scales[1])]).astype(dtype)
+    ta.time = dtype(t_eval[0]) if dtype is not float else float(t_eval[0])
+    ta.state[:] = np.asarray(y0).astype(dtype) / s
+    ta.pars[:] = _pars(model, scales, dtype)
+    grid = np.asarray(t_eval).astype(dtype)
+    res = ta.propagate_grid(grid)
+    outcome, n_steps, zs = res[0], int(res[3]), res[5]
+    y = (np.asarray(zs) * s).T
+    return outcome, n_steps, y
+
+
+def run_heyoka(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray) -> SolverRun:
+    """Integrate ``model`` with double-precision heyoka at ``tol = rtol``; the
+    scales are ``atol / rtol`` (per group: the smallest). Never raises."""
+    import heyoka as hy
+
+    n = model.n_dof
+    scales = (float(np.min(atol[:n])) / rtol, float(np.min(atol[n:])) / rtol)
+    m = t_eval.shape[0]
+    y = np.full((2 * n, m), np.nan)
+    extra = {"atol_state": atol, "scales": scales}
+    compile_s, order, n_steps, t_fail = 0.0, None, 0, None
+    try:
+        ta, compile_s = get_integrator(model, rtol)
+        extra["cached"] = compile_s == 0.0
+        order = int(ta.order)
+        start = time.perf_counter()
+        with np.errstate(over="ignore", invalid="ignore"):
+            outcome, n_steps, y = propagate(ta, model, y0, scales, t_eval)
+        wall = time.perf_counter() - start
+        if outcome == hy.taylor_outcome.time_limit:
+            status, message = Status.OK, "heyoka: reached the end of the interval"
+        else:
+            t_fail = float(ta.time)
+            status = Status.UNSTABLE if outcome == hy.taylor_outcome.err_nf_state else Status.FAILED
+            message = f"heyoka: propagate_grid stopped with {outcome} at t = {t_fail:.6g}"
+            y[:, t_eval > t_fail] = np.nan
+    except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
+        wall = 0.0
+        status, message, t_fail = Status.FAILED, f"heyoka: {type(exc).__name__}: {exc}", float(t_eval[0])
+        y = np.full((2 * n, m), np.nan)
+    return SolverRun("heyoka", rtol, t_eval, y, 0, n_steps, wall, compile_s=compile_s, status=status,
+                     message=message, atol=float(atol[0]), taylor_order=order, t_fail=t_fail, extra=extra)
