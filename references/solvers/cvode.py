@@ -4,7 +4,8 @@ orders 1-12) and BDF (``cvode-bdf``, orders 1-5), both with Newton iteration.
 Every option that matters is set explicitly (scikit-sundae's defaults are BDF,
 rtol 1e-5, atol 1e-6 and 500 steps per output): ``method``, ``rtol``, ``atol``
 (the vector of :mod:`references.solvers.tolerances`), ``max_num_steps`` and the
-linear solver with an analytic Jacobian.
+linear solver (dense with an analytic Jacobian, or banded with CVODE's own
+banded difference-quotient Jacobian).
 
 State ordering and linear algebra
 ---------------------------------
@@ -14,15 +15,20 @@ once from ``model.stiffness_matrix(sparse=True)`` (dense ``K`` for models
 without a sparse form); when ``K`` has half-bandwidth ``b`` the interleaved
 Jacobian has lower bandwidth ``2b + 1`` and upper bandwidth ``max(1, 2b - 1)``
 -- 3 and 1 for a chain -- and the banded direct solver is used, so that the cost
-per step grows linearly with N. Nonlinear models (at most 6 DOF here) use the
+per step grows linearly with N. The banded path deliberately passes no
+``jacfn``: scikit-sundae 1.2 hands a user Jacobian a dense (2N)^2 array even
+for the band solver (588 MB at N = 4000, ~320 GB at N = 1e5), while CVODE's
+banded difference quotient costs ``lband + uband + 1`` = 5 RHS calls per
+Jacobian and O(N) memory. Nonlinear models (at most 6 DOF here) use the
 dense solver and ``model.jacobian(t, y)`` (central differences of the force:
 two vectorised force evaluations per Jacobian, not included in ``nfev``).
 
 Counters
 --------
-``nfev`` is CVODE's right-hand-side count (``CVodeGetNumRhsEvals``); no RHS
-call is spent on difference-quotient Jacobians since every Jacobian is
-supplied. ``extra["njev"]`` counts Jacobian evaluations. ``n_steps`` counts
+``nfev`` counts every call of the right-hand side, including those CVODE spends
+on banded difference-quotient Jacobians (counted by the wrapper that CVODE
+calls; CVODE's own ``CVodeGetNumRhsEvals``, which leaves those out, is
+``extra["nfev_cvode"]``). ``extra["njev"]`` counts Jacobian evaluations. ``n_steps`` counts
 internal steps: the run advances with ``CV_ONE_STEP`` up to ``tstop = t_end``
 and reads the output times that fall in each step from CVODE's interpolant
 (``CV_NORMAL`` towards a time already passed), which is what ``CV_NORMAL``
@@ -99,8 +105,8 @@ def _options(model, perm, method, rtol, atol, max_steps):
 
         if lband + uband + 1 < n2:
             opts.update(linsolver="band", lband=lband, uband=uband)
-        else:
-            opts.update(linsolver="dense")
+            return opts  # CVODE's banded difference quotient: see the module docstring
+        opts.update(linsolver="dense")
     else:
         ix = np.ix_(perm, perm)
 
@@ -126,7 +132,10 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
     y[:, 0] = y0
     ybuf = np.empty(n2)
 
+    calls = [0]
+
     def rhsfn(t, z, zp):
+        calls[0] += 1
         ybuf[perm] = z
         zp[:] = model.rhs(t, ybuf)[perm]
 
@@ -179,5 +188,6 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
     if status is not Status.OK:
         y[:, k:] = np.nan
     extra["njev"] = int(njev)
-    return SolverRun(solver_name, rtol, t_eval, y, int(nfev), n_steps, wall, status=status,
+    extra["nfev_cvode"] = int(nfev)
+    return SolverRun(solver_name, rtol, t_eval, y, int(calls[0]), n_steps, wall, status=status,
                      message=message, atol=float(atol[0]), t_fail=t_fail, extra=extra)
