@@ -1,0 +1,106 @@
+"""The committed ``reports/`` is the output of the current code: the quick
+scenes' deterministic tables are regenerated and compared with it (timing
+columns excluded), and the errata numbers are the ones the tables compute.
+
+When this fails after a change, regenerate: ``python validation/run_all.py``.
+"""
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from validation import report
+from validation.run_all import run
+from validation.scenes import load_scenes
+
+REPO = Path(__file__).resolve().parent.parent
+COMMITTED = REPO / "reports"
+#: Deterministic tables and the timing columns left out of the comparison.
+COMPARED = {name: cols or set() for name, cols in report.TIMING.items() if cols is not None}
+COMPARED.update({name: set() for name in report.COLUMNS if name not in report.TIMING})
+#: Same machine: bit-identical. Allowance for another CPU's round-off (e.g. FMA in heyoka's JIT).
+RTOL = 1e-9
+
+
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory):
+    out = tmp_path_factory.mktemp("quick")
+    # the stability study's own scenes make only stability.csv, which holds timings: not compared
+    scenes = [s for s in load_scenes(quick=True) if "stability" not in s.outputs]
+    results, failures = run(scenes, out, quick=True, repeats=1, figures=False)
+    return out, {s.name for s in scenes}, failures
+
+
+def _read(path):
+    return pd.read_csv(path, keep_default_na=True)
+
+
+def _same(a: pd.Series, b: pd.Series) -> np.ndarray:
+    if pd.api.types.is_numeric_dtype(a) and pd.api.types.is_numeric_dtype(b):
+        x, y = a.to_numpy(float), b.to_numpy(float)
+        return (np.isnan(x) & np.isnan(y)) | np.isclose(x, y, rtol=RTOL, atol=0.0)
+    return (a.fillna("").astype(str).to_numpy() == b.fillna("").astype(str).to_numpy())
+
+
+@pytest.mark.parametrize("table", sorted(COMPARED))
+def test_committed_tables_match_regenerated_quick_run(regenerated, table):
+    out, names, _ = regenerated
+    new_path = out / f"{table}.csv"
+    if not new_path.exists():
+        pytest.skip(f"the quick scenes produce no {table}.csv")
+    assert (COMMITTED / f"{table}.csv").exists(), "reports/ is missing: run python validation/run_all.py"
+    new = _read(new_path)
+    old = _read(COMMITTED / f"{table}.csv")
+    old = old[old["scene"].isin(names)].reset_index(drop=True)
+    cols = [c for c in new.columns if c not in COMPARED[table]]
+    assert list(old.columns) == list(new.columns), "columns changed: regenerate reports/"
+    assert len(old) == len(new), f"{table}: {len(new)} rows now, {len(old)} committed: regenerate reports/"
+    for c in cols:
+        same = _same(new[c], old[c])
+        bad = np.flatnonzero(~same)
+        assert same.all(), (f"{table}.csv column {c} differs from the committed report at rows "
+                            f"{bad[:5].tolist()}: now {new[c].iloc[bad[:3]].tolist()}, committed "
+                            f"{old[c].iloc[bad[:3]].tolist()}; regenerate reports/")
+
+
+def test_quick_run_meets_every_expectation(regenerated):
+    assert regenerated[2] == []
+
+
+def _errata(quantity_start):
+    return [r for r in report.errata_rows() if str(r["quantity"]).startswith(quantity_start)]
+
+
+@pytest.mark.parametrize("where", ["regenerated", "committed"])
+@pytest.mark.parametrize("case, scene", [("case 1", "thesis-2dof-case1"), ("case 3", "thesis-2dof-case3")])
+def test_errata_frequencies_are_the_tables_frequencies(regenerated, where, case, scene):
+    # Erratum 1: Table 4.3 prints omega^2; the corrected omega must be the value modes.csv holds
+    # (the same eigenproblem), and the printed number its square.
+    path = (regenerated[0] if where == "regenerated" else COMMITTED) / "modes.csv"
+    modes = _read(path)
+    rows = modes[modes["scene"] == scene]
+    if rows.empty:
+        pytest.skip(f"{scene} is not in the {where} tables")
+    omega = rows.sort_values("mode")["omega_rad_s"].to_numpy()
+    errata = _errata(f"Table 4.3 {case}: omega_")
+    assert len(errata) == 2
+    for j, row in enumerate(sorted(errata, key=lambda r: r["quantity"])):
+        assert row["corrected"] == pytest.approx(omega[j], rel=1e-12)
+        assert row["thesis"] == pytest.approx(omega[j] ** 2, abs=5e-5)  # printed to 4 decimals
+
+
+def test_errata_table_in_committed_index_is_the_computed_one():
+    index = (COMMITTED / "index.md").read_text()
+    section = index[index.index("## Errata"):]
+    for row in report.errata_rows():
+        assert report._md_cell(row["corrected"]) in section, row
+
+
+def test_table_4_6_frequency_is_the_oscillator_scenes_frequency():
+    modes = _read(COMMITTED / "modes.csv")
+    iso = modes[modes["scene"] == "oscillator-iso-delta-pi4"]["omega_rad_s"].to_numpy()
+    (row,) = _errata("Table 4.6 omega")
+    assert iso == pytest.approx([row["corrected"]] * 2, rel=1e-12)
+    assert math.isclose(row["corrected"], math.sqrt(2 * 41.5 / 0.815), rel_tol=1e-15)

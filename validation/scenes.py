@@ -1,0 +1,356 @@
+"""Scene files: one physical situation and what to measure on it (DESIGN.md "Scenes").
+
+A scene is a TOML file::
+
+    name = "thesis-2dof-case1"          # [a-z0-9_-], unique; figure names start with it
+    description = "Table 4.1: ..."
+    model = "chain"                     # a key of rk4core.models.MODELS
+    quick = true                        # optional: part of the --quick subset
+    [params]                            # the model's parameters (rk4core.make_model)
+    [initial]
+    x = [...]                           # generalized coordinates (m or rad), flat
+    v = [...]                           # their time derivatives (optional: zeros)
+    # or, instead of x: mode = 2 (1-based, ascending omega) [and amplitude]:
+    # x = amplitude * phi[:, mode-1], the mass-normalised mode shape (Code 02)
+    [run]
+    t_end = 100.0                       # s
+    h = [...]                           # fixed steps (s) for rk4 / euler / symplectic-euler
+    tolerances = [...]                  # rtol of the adaptive solvers, in (0, 1)
+    solvers = [...]                     # references.solvers.base.SOLVER_NAMES
+    outputs = [...]                     # OUTPUTS below
+    output_dt = 0.1                     # optional: spacing of the output grid (s)
+    [convergence]                       # optional, see validation.experiments
+    t_end = 0.5
+    theta = [0.4, 0.2, 0.1, 0.05]       # omega_max * h of the RK4 sweep
+    theta_euler = [...]                 # ... of the Euler / symplectic Euler sweep
+    [stability]                         # optional, validated by validation.stability
+
+Errors and accuracy are measured on the output grid ``0, output_dt, ...,
+t_end``; every ``h`` must divide ``output_dt`` (default: the largest ``h``) and
+``output_dt`` must divide ``t_end``, so every output time is a step of every
+fixed-step run (no interpolation enters the error).
+
+A malformed scene raises :class:`SceneError`, one line ``FILE: field `F`:
+problem (got VALUE)``, before anything runs.
+"""
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from numbers import Real
+from pathlib import Path
+
+import numpy as np
+
+from references.solvers.base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES
+
+__all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "OUTPUTS", "SCENE_DIR"]
+
+OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
+           "stability", "dispersion")
+SCENE_DIR = Path(__file__).resolve().parent / "scenes"
+
+_TOP = {"name", "description", "model", "quick", "params", "initial", "run", "convergence",
+        "stability"}
+_INITIAL = {"x", "v", "mode", "amplitude"}
+_RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt"}
+_CONVERGENCE = {"t_end", "theta", "theta_euler"}
+_NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
+_DIVIDES = 1e-9  # relative slack when checking that one step divides another
+
+
+class SceneError(ValueError):
+    """A malformed scene: one line naming the file, the field and the value."""
+
+    def __init__(self, path, fld: str, problem: str, value=None):
+        self.path, self.field, self.problem, self.value = str(path), fld, problem, value
+        got = "" if value is None else f" (got {_show(value)})"
+        super().__init__(f"{self.path}: field `{fld}`: {problem}{got}")
+
+
+def _show(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+@dataclass
+class Scene:
+    """A validated scene. Lists are plain Python floats/strings."""
+
+    name: str
+    description: str
+    model: str
+    params: dict
+    initial_x: list
+    initial_v: list
+    t_end: float
+    h: list
+    tolerances: list
+    solvers: list
+    outputs: list
+    quick: bool = False
+    stability: dict | None = None
+    path: Path | None = None
+    output_dt: float = 0.0
+    convergence: dict = field(default_factory=dict)
+
+    def build_model(self):
+        """The rk4core model the scene names."""
+        from rk4core import make_model
+
+        return make_model(self.model, dict(self.params))
+
+    def y0(self) -> np.ndarray:
+        """Flat initial state ``[x, v]``."""
+        return np.concatenate([np.asarray(self.initial_x, float), np.asarray(self.initial_v, float)])
+
+    def t_eval(self) -> np.ndarray:
+        """The output grid ``0, output_dt, ..., t_end`` (s)."""
+        n = int(round(self.t_end / self.output_dt))
+        return np.linspace(0.0, self.t_end, n + 1)
+
+    @property
+    def fixed_solvers(self) -> list:
+        return [s for s in self.solvers if s in FIXED_STEP]
+
+    @property
+    def adaptive_solvers(self) -> list:
+        return [s for s in self.solvers if s in ADAPTIVE]
+
+
+# -- field checks --------------------------------------------------------------
+def _is_num(x) -> bool:
+    return isinstance(x, Real) and not isinstance(x, bool)
+
+
+def _number(path, fld, value, *, positive=False, open_unit=False) -> float:
+    if not _is_num(value):
+        raise SceneError(path, fld, "must be a number", value)
+    v = float(value)
+    if not math.isfinite(v):
+        raise SceneError(path, fld, "must be finite", value)
+    if positive and v <= 0.0:
+        raise SceneError(path, fld, "must be > 0", value)
+    if open_unit and not 0.0 < v < 1.0:
+        raise SceneError(path, fld, "must lie in (0, 1)", value)
+    return v
+
+
+def _numbers(path, fld, value, **kw) -> list:
+    if not isinstance(value, list):
+        raise SceneError(path, fld, "must be a list of numbers", value)
+    if not value:
+        raise SceneError(path, fld, "must not be empty", value)
+    return [_number(path, f"{fld}[{i}]", v, **kw) for i, v in enumerate(value)]
+
+
+def _strings(path, fld, value, allowed) -> list:
+    if not isinstance(value, list) or not value:
+        raise SceneError(path, fld, "must be a non-empty list of names", value)
+    for i, v in enumerate(value):
+        if v not in allowed:
+            raise SceneError(path, f"{fld}[{i}]", f"must be one of {', '.join(allowed)}", v)
+    if len(set(value)) != len(value):
+        raise SceneError(path, fld, "lists a name twice", value)
+    return list(value)
+
+
+def _table(path, fld, value, allowed_keys) -> dict:
+    if not isinstance(value, dict):
+        raise SceneError(path, fld, "must be a table", value)
+    unknown = sorted(set(value) - set(allowed_keys))
+    if unknown:
+        raise SceneError(path, f"{fld}.{unknown[0]}" if fld else unknown[0],
+                         f"unknown key (known: {', '.join(sorted(allowed_keys))})")
+    return value
+
+
+def _divides(small: float, big: float) -> bool:
+    r = big / small
+    return abs(r - round(r)) <= _DIVIDES * max(1.0, r)
+
+
+_MSG = re.compile(r"^`([^`]+)` (.*?)(?:, got (.*))?$")
+
+
+def _from_value_error(path, prefix, err) -> SceneError:
+    """Turn an rk4core ValueError ("`name` must be ..., got X") into a SceneError."""
+    text = str(err).splitlines()[0] if str(err) else type(err).__name__
+    m = _MSG.match(text)
+    if m:
+        return SceneError(path, f"{prefix}.{m.group(1)}", m.group(2), _Raw(m.group(3)) if m.group(3) else None)
+    m = re.search(r"`([^`]+)`", text)
+    name = f"{prefix}.{m.group(1)}" if m else prefix
+    return SceneError(path, name, text)
+
+
+class _Raw(str):
+    def __repr__(self):
+        return str(self)
+
+
+# -- loading -------------------------------------------------------------------
+def load_scene(path) -> Scene:
+    """Read and validate one scene file. Raises :class:`SceneError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise SceneError(path, "file", f"cannot be read: {e.__class__.__name__}: {e}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(path, "file", f"is not valid TOML: {e}") from None
+    return scene_from_dict(doc, path)
+
+
+def scene_from_dict(doc: dict, path="<scene>") -> Scene:
+    """Validate a parsed scene document (see the module docstring)."""
+    from rk4core import MODELS, make_model
+
+    _table(path, "", doc, _TOP)
+    for key in ("name", "model", "params", "initial", "run"):
+        if key not in doc:
+            raise SceneError(path, key, "is missing")
+    name = doc["name"]
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise SceneError(path, "name", "must be lowercase letters, digits, '-' or '_'", name)
+    description = doc.get("description", "")
+    if not isinstance(description, str):
+        raise SceneError(path, "description", "must be a string", description)
+    quick = doc.get("quick", False)
+    if not isinstance(quick, bool):
+        raise SceneError(path, "quick", "must be true or false", quick)
+    model_name = doc["model"]
+    if model_name not in MODELS:
+        raise SceneError(path, "model", f"must be one of {', '.join(sorted(MODELS))}", model_name)
+    params = _table(path, "params", doc["params"], _model_keys(model_name))
+    try:
+        model = make_model(model_name, dict(params))
+    except ValueError as e:
+        raise _from_value_error(path, "params", e) from None
+    except TypeError as e:
+        raise SceneError(path, "params", f"has a value of the wrong type: {e}") from None
+
+    n = model.n_dof
+    ini = _table(path, "initial", doc["initial"], _INITIAL)
+    if ("x" in ini) == ("mode" in ini):
+        raise SceneError(path, "initial", "give exactly one of `x` and `mode`")
+    if "x" in ini:
+        if "amplitude" in ini:
+            raise SceneError(path, "initial.amplitude", "only goes with `mode`")
+        x = _numbers(path, "initial.x", ini["x"])
+        if len(x) != n:
+            raise SceneError(path, "initial.x", f"must have {n} entries for this {model_name}", ini["x"])
+    else:
+        x = _mode_shape(path, model, ini)
+    v = _numbers(path, "initial.v", ini["v"]) if "v" in ini else [0.0] * n
+    if len(v) != n:
+        raise SceneError(path, "initial.v", f"must have {n} entries for this {model_name}", ini["v"])
+
+    run = _table(path, "run", doc["run"], _RUN)
+    for key in ("t_end", "solvers", "outputs"):
+        if key not in run:
+            raise SceneError(path, f"run.{key}", "is missing")
+    t_end = _number(path, "run.t_end", run["t_end"], positive=True)
+    solvers = _strings(path, "run.solvers", run["solvers"], SOLVER_NAMES)
+    outputs = _strings(path, "run.outputs", run["outputs"], OUTPUTS)
+    h = []
+    if any(s in FIXED_STEP for s in solvers) or "h" in run:
+        if "h" not in run:
+            raise SceneError(path, "run.h", "is missing (needed by the fixed-step solvers)")
+        h = _numbers(path, "run.h", run["h"], positive=True)
+        for i, hi in enumerate(h):
+            if hi > t_end:
+                raise SceneError(path, f"run.h[{i}]", f"must be <= t_end = {t_end}", hi)
+    tolerances = []
+    if any(s in ADAPTIVE for s in solvers) or "tolerances" in run:
+        if "tolerances" not in run:
+            raise SceneError(path, "run.tolerances", "is missing (needed by the adaptive solvers)")
+        tolerances = _numbers(path, "run.tolerances", run["tolerances"], open_unit=True)
+    default_dt = max(h) if h else t_end / 1000.0
+    output_dt = _number(path, "run.output_dt", run.get("output_dt", default_dt), positive=True)
+    if output_dt > t_end or not _divides(output_dt, t_end):
+        raise SceneError(path, "run.output_dt", f"must divide t_end = {t_end}", output_dt)
+    for i, hi in enumerate(h):
+        if not _divides(hi, output_dt):
+            raise SceneError(path, f"run.h[{i}]", f"must divide the output spacing {output_dt}", hi)
+
+    conv = _table(path, "convergence", doc.get("convergence", {}), _CONVERGENCE)
+    convergence = {}
+    if "t_end" in conv:
+        convergence["t_end"] = _number(path, "convergence.t_end", conv["t_end"], positive=True)
+    for key in ("theta", "theta_euler"):
+        if key in conv:
+            vals = _numbers(path, f"convergence.{key}", conv[key], positive=True)
+            if len(vals) < 3:
+                raise SceneError(path, f"convergence.{key}", "needs at least 3 values for a fit", conv[key])
+            convergence[key] = vals
+
+    stability = doc.get("stability")
+    if "stability" in outputs or stability is not None:
+        stability = _stability(path, stability if stability is not None else {})
+
+    return Scene(name=name, description=description, model=model_name, params=dict(params),
+                 initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
+                 h=h, tolerances=tolerances, solvers=solvers, outputs=outputs, quick=quick,
+                 stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence)
+
+
+def _model_keys(model_name):
+    from rk4core.models import model_parameters
+
+    required, optional = model_parameters(model_name)
+    return set(required) | set(optional)
+
+
+def _mode_shape(path, model, ini) -> list:
+    """``amplitude * phi[:, mode - 1]`` with a fixed sign (first nonzero entry > 0)."""
+    mode = ini["mode"]
+    if isinstance(mode, bool) or not isinstance(mode, int) or not 1 <= mode <= model.n_dof:
+        raise SceneError(path, "initial.mode", f"must be an integer in 1..{model.n_dof}", mode)
+    amp = _number(path, "initial.amplitude", ini.get("amplitude", 1.0))
+    try:
+        _, phi = model.modes()
+    except NotImplementedError:
+        raise SceneError(path, "initial.mode", f"model {model.name!r} has no modes") from None
+    shape = phi[:, mode - 1]
+    first = np.flatnonzero(np.abs(shape) > 1e-12 * np.max(np.abs(shape)))[0]
+    return list(amp * np.sign(shape[first]) * shape)
+
+
+def _stability(path, params) -> dict:
+    if not isinstance(params, dict):
+        raise SceneError(path, "stability", "must be a table", params)
+    try:
+        from validation.stability import validate_params
+    except ImportError as e:
+        raise SceneError(path, "stability", f"the stability study is not available ({e})") from None
+    try:
+        return validate_params(dict(params), str(path))
+    except ValueError as e:
+        text = str(e).splitlines()[0]
+        if text.startswith(str(path)):
+            raise SceneError(path, "stability", text[len(str(path)):].lstrip(": ")) from None
+        raise _from_value_error(path, "stability", e) from None
+
+
+def load_scenes(paths=None, *, quick=False) -> list[Scene]:
+    """Load ``paths`` (default: every ``*.toml`` in :data:`SCENE_DIR`, sorted).
+
+    With ``quick``, keep the scenes marked ``quick = true``. Every file is
+    validated before any is run; the first bad one raises :class:`SceneError`;
+    two scenes with one name are refused too.
+    """
+    files = sorted(SCENE_DIR.glob("*.toml")) if not paths else [Path(p) for p in paths]
+    scenes = [load_scene(p) for p in files]
+    seen = {}
+    for s in scenes:
+        if s.name in seen:
+            raise SceneError(s.path, "name", f"is also used by {seen[s.name]}", s.name)
+        seen[s.name] = s.path
+    if quick and not paths:
+        scenes = [s for s in scenes if s.quick]
+    return scenes
