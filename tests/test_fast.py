@@ -201,15 +201,101 @@ def test_bad_arguments_raise_value_error_naming_them(kwargs, name):
         fast.solve_model(model, (0.0, 1.0), y0, **kwargs)
 
 
-def test_warm_up_reports_compile_time_apart_and_one_signature_serves_all():
+def test_warm_up_reports_compile_time_apart_and_signatures_stay_few():
+    from rk4core.fast import _kernels, codegen
+
     assert fast.warm_up() >= 0.0
     assert fast.compile_time() is not None and fast.compile_time() >= 0.0
     for case in (MODEL_CASES[0], MODEL_CASES[6], MODEL_CASES[8]):
         model, y0 = _model(case)
         for method in METHODS:
+            assert fast.warm_up(model, method) >= 0.0
             fast.solve_model(model, (0.0, 0.1), y0, h=0.01, method=method, t_eval=[0.0, 0.055, 0.1])
-    # Every model and method runs through one compiled signature of the loop
-    # (so the first call of a process compiles, or loads from cache, once).
-    from rk4core.fast import _kernels
-
+    # The generic loop (long chains) has one signature for every model and
+    # method; each generated loop serves one (method, state size) and has one.
     assert len(_kernels.integrate.signatures) == 1
+    for loop in codegen._KERNELS.values():
+        assert len(loop.signatures) == 1
+
+
+def test_one_generated_loop_per_method_for_every_small_model():
+    from rk4core.fast import codegen
+
+    heun = Tableau("heun", np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2)
+    model, y0 = _model(MODEL_CASES[6])  # pendulums, exact geometry
+    fast.solve_model(model, (0.0, 0.1), y0, n_steps=3, method=heun)
+    before = codegen.compiled_kernels()
+    for case in (MODEL_CASES[0], MODEL_CASES[4], MODEL_CASES[9]):  # other kinds, same size
+        other, y0o = _model(case)
+        fast.solve_model(other, (0.0, 0.1), y0o, n_steps=3, method=heun)
+    assert codegen.compiled_kernels() == before
+    chain3, y03 = _model(MODEL_CASES[1])  # larger: the generic loop
+    fast.solve_model(chain3, (0.0, 0.1), y03, n_steps=3, method=heun)
+    assert codegen.compiled_kernels() == before
+
+
+def test_generated_source_skips_zero_coefficients():
+    # RK4 has 3 nonzero a_ij and 4 nonzero b_i: one product h * coefficient
+    # for each and each half (q, v) of the state, and no other.
+    from rk4core.fast import _kernels, codegen
+    from rk4core.methods import RK4
+
+    text = codegen.source(RK4, 4)
+    n_products = sum(1 for line in text.splitlines() if line.strip().startswith(("hq", "hv")) and "= step *" in line)
+    assert n_products == 2 * (np.count_nonzero(RK4.A) + np.count_nonzero(RK4.b))
+    assert "* 0.0" not in text
+    assert text.count("K.rhs_chain(") == RK4.n_stages + 1  # the stages and the Hermite end slope
+
+
+UNROLLED_CASES = [c for c in MODEL_CASES if len(c[3]) == 2]  # 2 degrees of freedom: a generated loop
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("case", UNROLLED_CASES, ids=[c[0] for c in UNROLLED_CASES])
+def test_generated_loop_is_bit_identical_to_generic_loop(case, method):
+    # Both compiled loops call the same right-hand side (same elementary functions),
+    # so the straight-line loop must reproduce the array loop exactly.
+    from rk4core.fast import _kernels, codegen, pack
+    from rk4core.fast.solve import _output_points, _tableau_arrays
+    from rk4core.methods import get_method
+
+    model, y0 = _model(case)
+    kind, ip, fp, mass = pack.pack(model)
+    tab = get_method(method)
+    n, step = 150, 0.01
+    idx, theta, _ = _output_points(0.0, step, n, np.array([0.0, 0.013, 0.5, 0.7071, 1.5]), 1)
+    ys_gen, ys_fast = np.empty((idx.size, y0.size)), np.empty((idx.size, y0.size))
+    ret_gen = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys_gen)
+    ret_fast = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys_fast)
+    assert tuple(ret_fast) == tuple(ret_gen)
+    np.testing.assert_array_equal(ys_fast, ys_gen)
+
+
+def test_finite_state_whose_sum_overflows_is_not_a_blow_up():
+    # The loop tests finiteness on the sum of the state; two finite
+    # components of 1.5e308 sum to inf, which must not stop the run.
+    model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1e-300, "ky": 1e-300})
+    y0 = np.array([1.5e308, 1.5e308, 0.0, 0.0])
+    kw = dict(n_steps=10, method="euler")
+    res = fast.solve_model(model, (0.0, 1.0), y0, **kw)
+    assert res.success
+    _assert_same(res, rk4core.solve(model.rhs, (0.0, 1.0), y0, **kw))
+
+
+def test_second_process_loads_the_loops_from_the_disk_cache():
+    # After this process has compiled (or loaded) them, a new process finds
+    # every loop it needs in numba's on-disk cache: no compilation.
+    import subprocess
+    import sys
+
+    model, y0 = _model(MODEL_CASES[0])
+    fast.warm_up(model, "rk4")
+    code = ("import rk4core, rk4core.fast as fast\n"
+            "from rk4core.fast import _kernels, codegen\n"
+            f"m = rk4core.make_model('chain', {CASE1!r})\n"
+            "fast.warm_up(m, 'rk4')\n"
+            "(loop,) = codegen._KERNELS.values()\n"
+            "print(sum(loop.stats.cache_misses.values()), sum(loop.stats.cache_hits.values()))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    misses, hits = map(int, out.stdout.split())
+    assert (misses, hits) == (0, 1)

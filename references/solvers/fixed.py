@@ -31,7 +31,7 @@ def run_fixed(name: str, model, y0: np.ndarray, t_eval: np.ndarray, h: float) ->
     m = t_eval.shape[0]
     y = np.full((y0.shape[0], m), np.nan)
     use_fast = fast.supports(model)
-    compile_s = fast.warm_up() if use_fast else 0.0
+    compile_s = fast.warm_up(model, name) if use_fast else 0.0
     start = time.perf_counter()
     try:
         if use_fast:

@@ -16,6 +16,7 @@ from ..methods import Tableau, get_method
 from ..solver import FixedStepResult, step_count
 from ..validate import check_step_args, check_t_eval, check_t_span, check_y0
 from . import _kernels as K
+from .codegen import MAX_UNROLLED_DIM, kernel, kinds_for
 from .pack import pack
 
 __all__ = ["solve_model", "warm_up", "compile_time"]
@@ -79,9 +80,13 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
 
     Notes
     -----
-    The first call in a process compiles the kernels, or loads them from
-    numba's on-disk cache; call :func:`warm_up` first to keep that time out of
-    a timed run.
+    A state of up to ``codegen.MAX_UNROLLED_DIM`` components (the 2-DOF
+    models) runs a loop generated from the method's tableau with the state in
+    registers (:mod:`rk4core.fast.codegen`); larger states run the generic
+    array loop ``_kernels.integrate``. Both give the same numbers bit for bit.
+    The first call in a process for a method and state size compiles the loop,
+    or loads it from numba's on-disk cache; call :func:`warm_up` (with the
+    model and method) first to keep that time out of a timed run.
     """
     tab = get_method(method)
     kind, ip, fp, mass = pack(model)
@@ -96,9 +101,13 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     every = _record_every(record_every, t_eval)
     idx, theta, dense = _output_points(t0, step, n, t_eval, every)
     ys = np.empty((idx.shape[0], y.shape[0]))
-    A, b, c, A_v, b_v = _tableau_arrays(tab)
-    n_done, n_out, status, n_extra = K.integrate(kind, ip, fp, mass, y, t0, step, n, A, b, c, A_v, b_v,
-                                        idx, theta, ys)
+    if y.shape[0] <= MAX_UNROLLED_DIM and kind in kinds_for(y.shape[0]):
+        loop = kernel(tab, y.shape[0])
+        n_done, n_out, status, n_extra = loop(kind, ip, fp, mass, y, t0, step, n, idx, theta, ys)
+    else:
+        A, b, c, A_v, b_v = _tableau_arrays(tab)
+        n_done, n_out, status, n_extra = K.integrate(kind, ip, fp, mass, y, t0, step, n, A, b, c, A_v, b_v,
+                                                     idx, theta, ys)
     message = "The solver successfully reached the end of the integration interval."
     t_fail = None
     if status != K.STATUS_OK:
@@ -114,31 +123,39 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     else:
         t_out = t_eval[:n_out]
     return FixedStepResult(
-        t=t_out, y=ys[:n_out].T.copy(), nfev=nfev, h=step, n_steps=int(n_done),
+        t=t_out, y=ys[:n_out].T, nfev=nfev, h=step, n_steps=int(n_done),
         success=status == K.STATUS_OK, status=int(status), message=message, t_fail=t_fail,
         dense=dense, method=tab.name,
     )
 
 
-def warm_up(model=None) -> float:
-    """Compile the kernels, or load them from numba's on-disk cache.
+def warm_up(model=None, method="rk4") -> float:
+    """Compile the loop(s) ``solve_model(model, ..., method=method)`` will run,
+    or load them from numba's on-disk cache.
 
-    One compiled signature serves every model and method, so one warm-up
-    suffices per process; ``model`` is accepted for symmetry and ignored.
+    A state of up to ``MAX_UNROLLED_DIM`` components runs a loop generated for
+    its method, model kind and size (:mod:`rk4core.fast.codegen`); larger
+    states run the one generic loop. Without ``model`` the generic loop and
+    the loop of a two-mass chain are prepared.
 
     Returns
     -------
     float
         Seconds spent now (compilation or cache load); about 0 when the
-        kernels were already loaded in this process. :func:`compile_time` keeps
+        loops were already loaded in this process. :func:`compile_time` keeps
         the first figure.
     """
     global _COMPILE_S
-    start = time.perf_counter()
-    if not K.integrate.signatures:
-        from ..models import Chain
+    from ..models import Chain
 
-        solve_model(Chain([1.0], [1.0, 1.0]), (0.0, 1.0), [0.0, 0.0], n_steps=1, t_eval=[0.5])
+    start = time.perf_counter()
+    if model is None:  # a two-mass chain and a chain too long to unroll
+        models = [Chain([1.0] * N, [1.0] * (N + 1)) for N in (2, MAX_UNROLLED_DIM)]
+    else:
+        models = [model]
+    for m in models:
+        # One step with an on-grid and an off-grid output point loads every helper.
+        solve_model(m, (0.0, 1.0), np.zeros(2 * m.n_dof), n_steps=1, t_eval=[0.0, 0.5, 1.0], method=method)
     elapsed = time.perf_counter() - start
     if _COMPILE_S is None:
         _COMPILE_S = elapsed
