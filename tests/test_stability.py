@@ -106,6 +106,24 @@ def test_rk4_energy_loss_and_phase_lag_per_step(theta):
     assert d["phase_lag"] == pytest.approx(th - np.angle(R), rel=0.02)
 
 
+def test_rk4_rates_measured_while_a_fast_mode_decays_to_round_off():
+    # At theta = 1 the fast mode loses 1 - |R(i)|^2 = 1/72 - 1/576 of its energy
+    # per step: its amplitude reaches the round-off floor (1e-16 of the state)
+    # after about 2 ln(1e16) / 0.01215 ~ 6000 steps. A 20000-step run must still
+    # give the exact per-step rates for both modes (the fit must stop where the
+    # mode is gone, not average round-off noise into the slope).
+    model = rk4core.make_model(*TWO_DOF)
+    w = model.modes()[0]
+    d = LH.measure_drift_and_phase(model, model.state([0.005, 0.005]), 1.0 / w[-1], 20000)
+    th = d["theta"]
+    z = 1j * th
+    R = 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+    assert d["steps_fitted"][-1] < 20000  # the fast mode was cut off ...
+    assert d["steps_fitted"][0] == 20000  # ... the slow one was not
+    assert d["energy_loss"] == pytest.approx(1 - np.abs(R) ** 2, rel=0.02)
+    assert d["phase_lag"] == pytest.approx(th - np.angle(R), rel=0.02)
+
+
 @pytest.mark.parametrize("theta", [0.1, 0.2])
 def test_rk4_rates_match_leading_order_at_small_theta(theta):
     # leading terms theta^6/72 and theta^5/120: relative corrections theta^2/8 and

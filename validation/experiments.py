@@ -473,7 +473,8 @@ def _stability(scene, res, out_dir, quick, progress):
     study = stability.run(scene, out_dir, quick, progress=progress)
     for row in study.rows:
         res.add("stability", row)
-        if row.get("passed") is False:
+        passed = row.get("passed")
+        if isinstance(passed, (bool, np.bool_)) and not passed:  # numpy's False is not `False`
             res.failures.append(f"{scene.name}: stability {row.get('solver')} {row.get('quantity')}: "
                                 f"measured {row.get('measured')}, theory {row.get('theory')}")
     res.figures.extend(study.figures)

@@ -42,7 +42,7 @@ def row(scene, solver, quantity, measured, theory=math.nan, passed=None, status=
     quantity is informative only."""
     return {"scene": scene, "solver": solver, "quantity": quantity,
             "measured": float(measured), "theory": float(theory),
-            "passed": passed, "status": status, "note": note}
+            "passed": None if passed is None else bool(passed), "status": status, "note": note}
 
 
 def _fast_solver():
