@@ -99,12 +99,17 @@ def _settings(scene: Scene, solver: str):
     return scene.h if solver in EXPECTED_ORDER else scene.tolerances
 
 
-def planned_units(scene: Scene) -> int:
-    """Work units of a scene for the progress bar (one per solver run or study)."""
+def planned_units(scene: Scene, figures: bool = True) -> int:
+    """Work units of a scene for the progress bar: one per solver run and per
+    part, and for the stability study one per study it names (each says so
+    once; some say more, which the bar absorbs)."""
     n = 0
     if {"state", "energy", "work_precision"} & set(scene.outputs):
         n += sum(len(_settings(scene, s)) for s in scene.solvers)
-    n += sum(o in scene.outputs for o in ("convergence", "dispersion", "figures", "stability", "modes"))
+    n += sum(o in scene.outputs for o in ("convergence", "dispersion", "stability", "modes"))
+    n += bool(figures and "figures" in scene.outputs)
+    if "stability" in scene.outputs:
+        n += len((scene.stability or {}).get("studies") or ())
     return max(n, 1)
 
 
@@ -194,6 +199,7 @@ def _trajectories(scene, model, y0, res, repeats, draw, out_dir, tick):
             tick(f"{scene.name}: {solver} {setting:g}")
             row = {"scene": scene.name, "solver": solver, "setting": float(setting)}
             if timed is None:
+                res.failures.append(f"{scene.name}: {solver} at {setting:g} raised {err}")
                 res.add("accuracy", {**row, "error_max": math.nan, "error_rel": math.nan,
                                      "error_final": math.nan, "energy_drift_max": math.nan,
                                      "nfev": 0, "n_steps": 0, "wall_s": math.nan,
@@ -201,6 +207,7 @@ def _trajectories(scene, model, y0, res, repeats, draw, out_dir, tick):
                 continue
             run, wall = timed
             status = _status(run)
+            _note_status(scene, res, row, status, run)
             e_max = metrics.error_max(run.y, y_ref)
             drift = metrics.energy_drift_max(model, run.y)
             acc = {**row, "error_max": e_max, "error_rel": e_max / scale,
@@ -232,6 +239,18 @@ def _trajectories(scene, model, y0, res, repeats, draw, out_dir, tick):
     if draw and series:
         _figure(res, "energy_error", lambda f: f.energy_error(
             out_dir, scene.name, {lab: (tt, e) for lab, tt, e in series.values()}))
+
+
+def _note_status(scene, res, row, status, run):
+    """A ``failed`` run (a solver's error flag or an exception inside it) is a
+    failure line; an ``unstable`` one (non-finite state: a fixed step beyond the
+    stability boundary) is a measured result and a finding."""
+    message = (run.message or "").splitlines()[0] if run.message else ""
+    what = f"{scene.name}: {row['solver']} at {row['setting']:g}"
+    if status == "failed":
+        res.failures.append(f"{what} failed: {message or 'no message'}")
+    elif status == "unstable":
+        res.findings.append(f"{what} became unstable: {message or 'non-finite state'}")
 
 
 def _energy_row(scene, model, run, row, status, linear_modes, res):

@@ -3,28 +3,31 @@
 Usage::
 
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
+                                 [--max-output-points N] [--max-steps N]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
 ``quick = true``; ``--scene``: the files named) and writes CSV tables,
 figures and ``index.md`` into ``DIR`` (default: ``reports/`` at the
-repository root). All scenes are validated before anything runs.
+repository root). All scenes are validated, and their cost estimated
+(:mod:`validation.budget`), before anything runs.
 
-The report is written into a fresh temporary directory beside ``DIR`` and
-moved into place at the end (old -> backup, new -> DIR, backup removed), so an
-interrupted run never leaves a half-written report.
+The report is written into a fresh directory beside ``DIR`` and swapped into
+place at the end (:mod:`validation.atomic`: one atomic ``renameat2`` exchange
+where the filesystem has it), so an interrupted or killed run never leaves a
+half-written or mixed report; leftovers of killed runs are cleaned at the next
+start. SIGINT (Ctrl-C) and SIGTERM stop the run, remove its temporary
+directory and print which scenes had finished.
 
 Exit status: 0 every expectation held; 1 at least one failed (``index.md``
 lists them first); 2 bad input (one line on stderr naming the file and the
-field); 130 interrupted.
+field, or the flag); 130 interrupted by SIGINT, 143 by SIGTERM.
 """
 from __future__ import annotations
 
 import argparse
-import os
-import shutil
+import signal
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -34,7 +37,7 @@ if __name__ == "__main__" and __package__ in (None, ""):
     sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != REPO / "validation"]
     sys.path.insert(0, str(REPO))
 
-__all__ = ["main", "run"]
+__all__ = ["main", "run", "Interrupted"]
 
 DEFAULT_OUT = REPO / "reports"
 REPEATS_FULL, REPEATS_QUICK = 3, 1
@@ -46,15 +49,44 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def _int_at_least(lo):
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {text!r}") from None
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {text!r}")
+        return value
+    return parse
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text!r}")
+    return value
+
+
 def _parser():
+    from validation.budget import MAX_STEPS
+
     p = _Parser(prog="run_all", description="Run the RK4 validation scenes and write the report.")
     p.add_argument("--quick", action="store_true", help="run only the scenes marked quick = true")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output directory (default: reports/)")
     p.add_argument("--scene", action="append", default=[], metavar="PATH",
                    help="scene file to run (repeatable; default: all in validation/scenes/)")
-    p.add_argument("--repeats", type=int, default=None,
+    p.add_argument("--repeats", type=_int_at_least(1), default=None,
                    help=f"timing repeats per run (median; default {REPEATS_FULL}, --quick {REPEATS_QUICK})")
     p.add_argument("--no-figures", action="store_true", help="tables and index.md only")
+    p.add_argument("--max-output-points", type=_int_at_least(2), default=None, metavar="N",
+                   help="decimate each scene's output grid to at most N points (every k-th point; "
+                        "a scene's own [run] max_output_points wins)")
+    p.add_argument("--max-steps", type=_positive_float, default=MAX_STEPS, metavar="N",
+                   help=f"refuse scenes estimated above N integration steps (default {MAX_STEPS:g})")
     return p
 
 
@@ -68,7 +100,8 @@ class Progress:
         self.t0 = time.perf_counter()
 
     def __call__(self, msg):
-        self.done = min(self.done + 1, self.total)
+        self.done += 1
+        self.total = max(self.total, self.done)  # an estimate that fell short grows, never overflows
         el = time.perf_counter() - self.t0
         if self.tty:
             width = 30
@@ -85,14 +118,57 @@ class Progress:
             self.stream.flush()
 
 
+def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
+    from rk4core.validate import boolean
+
+    from validation.scenes import Scene
+
+    if isinstance(scenes, (str, bytes, Path)) or not hasattr(scenes, "__iter__"):
+        raise ValueError(f"`scenes` must be a list of Scene objects, got {scenes!r}")
+    scenes = list(scenes)
+    for i, s in enumerate(scenes):
+        if not isinstance(s, Scene):
+            raise ValueError(f"`scenes[{i}]` must be a Scene (validation.scenes.load_scene), got {s!r}")
+    if not isinstance(out_dir, (str, Path)) or not Path(out_dir).is_dir():
+        raise ValueError(f"`out_dir` must be an existing directory, got {out_dir!r}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"`repeats` must be an integer >= 1, got {repeats!r}")
+    boolean("quick", quick)
+    boolean("figures", figures)
+    if progress is not None and not callable(progress):
+        raise ValueError(f"`progress` must be callable or None, got {progress!r}")
+    return scenes
+
+
 def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None):
     """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
 
-    Returns ``(results, failures)``.
+    Parameters
+    ----------
+    scenes : list of validation.scenes.Scene
+    out_dir : str or Path
+        An existing directory; tables, figures and ``index.md`` are written
+        straight into it (:func:`main` passes a fresh temporary directory).
+    quick : bool
+        Quick mode (the stability study's ``*_quick`` settings).
+    repeats : int >= 1
+        Timing repeats per run (median).
+    figures : bool
+        Draw the figures.
+    progress : callable(str) or None
+        Called once per work unit.
+
+    Returns ``(results, failures)``. A fault inside a scene, solver or figure
+    is a failure line (and a ``failed`` row where a row exists), never an
+    exception; only ``KeyboardInterrupt`` (and :class:`Interrupted`) escape.
+    Bad arguments raise ``ValueError`` naming the argument. The names of the
+    scenes finished so far are kept in ``run.completed``.
     """
+    scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
     from validation import experiments, report
 
     t0 = time.perf_counter()
+    run.completed = []
     results, tables, failures, findings = [], {}, [], []
     for scene in scenes:
         try:
@@ -132,62 +208,139 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
 run.completed = []
 
 
-def _swap_into_place(tmp: Path, target: Path):
-    """Replace ``target`` by ``tmp``: two renames on one filesystem."""
-    backup = None
-    if target.exists():
-        backup = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
-        backup.rmdir()
-        os.replace(target, backup)
-    os.replace(tmp, target)
-    if backup is not None:
-        shutil.rmtree(backup, ignore_errors=True)
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived; ``signum`` says which."""
+
+    def __init__(self, signum):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class _Signals:
+    """SIGINT/SIGTERM raise :class:`Interrupted`, except inside ``critical()``
+    sections, where they are held until the section ends."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.held, self.pending, self.saved = False, None, {}
+
+    def _handler(self, signum, frame):
+        if self.held:
+            self.pending = self.pending or signum
+            return
+        raise Interrupted(signum)
+
+    def __enter__(self):
+        for s in self.SIGNALS:
+            self.saved[s] = signal.signal(s, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for s, h in self.saved.items():
+            signal.signal(s, h)
+        return False
+
+    def hold(self):
+        self.held = True
+
+    def release(self):
+        """End a held section; an interrupt that came meanwhile is raised now."""
+        self.held = False
+        if self.pending is not None:
+            signum, self.pending = self.pending, None
+            raise Interrupted(signum)
+
+
+def _fail(message) -> int:
+    sys.stderr.write(f"run_all: {message}\n")
+    return 2
 
 
 def main(argv=None) -> int:
+    """The command line (see the module docstring); returns the exit status."""
+    with _Signals() as sig:
+        try:
+            return _main(argv, sig)
+        except KeyboardInterrupt as e:  # before any output directory was made
+            signum = getattr(e, "signum", signal.SIGINT)
+            sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}) before any scene ran\n")
+            return 128 + signum
+
+
+def _main(argv, sig) -> int:
     args = _parser().parse_args(argv)
+    from validation import atomic, budget
     from validation.scenes import SceneError, load_scenes
 
     try:
         scenes = load_scenes(args.scene or None, quick=args.quick)
+        if args.max_output_points is not None:
+            scenes = [s if s.max_output_points is not None else _with_max_points(s, args.max_output_points)
+                      for s in scenes]
+        for s in scenes:
+            budget.check(s, max_steps=args.max_steps)
     except SceneError as e:
         sys.stderr.write(f"{e}\n")
         return 2
     if not scenes:
-        sys.stderr.write("run_all: no scenes to run\n")
-        return 2
+        return _fail("no scenes to run" + (" (none is marked quick = true)" if args.quick else ""))
     repeats = args.repeats if args.repeats is not None else (REPEATS_QUICK if args.quick else REPEATS_FULL)
-    if repeats < 1:
-        sys.stderr.write(f"run_all: --repeats must be >= 1, got {repeats}\n")
-        return 2
     target = Path(args.out).resolve()
     if target.exists() and not target.is_dir():
-        sys.stderr.write(f"run_all: --out {args.out} exists and is not a directory\n")
-        return 2
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.tmp-", dir=target.parent))
+        return _fail(f"--out {args.out} exists and is not a directory")
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        for line in atomic.recover(target):
+            sys.stderr.write(f"run_all: {line}\n")
+        tmp = atomic.fresh_dir(target)
+    except OSError as e:
+        return _fail(f"--out {args.out}: cannot write there ({e.strerror or e})")
     from validation.experiments import planned_units
 
-    progress = Progress(sum(planned_units(s) for s in scenes))
+    figures = not args.no_figures
+    progress, swapped = None, False
+    run.completed = []
     try:
-        _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats,
-                          figures=not args.no_figures, progress=progress)
-        progress.close()
-        _swap_into_place(tmp, target)
-    except KeyboardInterrupt:
-        progress.close()
-        shutil.rmtree(tmp, ignore_errors=True)
-        done = ", ".join(run.completed) or "none"
-        sys.stderr.write(f"run_all: interrupted; scenes completed: {done}; {args.out} left unchanged\n")
-        return 130
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        try:
+            progress = Progress(sum(planned_units(s, figures=figures) for s in scenes))
+            _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats, figures=figures,
+                              progress=progress)
+            progress.close()
+            sig.hold()  # the swap is not interrupted half-way
+            atomic.swap_into_place(tmp, target)
+            swapped = True
+        finally:
+            sig.held = True  # cleanup is not interrupted either
+            if not swapped:
+                import shutil
+
+                shutil.rmtree(tmp, ignore_errors=True)
+        sig.release()
+    except KeyboardInterrupt as e:
+        if progress is not None:
+            progress.close()
+        signum = getattr(e, "signum", signal.SIGINT)
+        done = run.completed
+        names = ", ".join(done) or "none"
+        state = (f"the report was written to {target}" if swapped
+                 else f"{args.out} left unchanged")
+        sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
+                         f"({len(done)} of {len(scenes)}): {names}; {state}\n")
+        return 128 + signum
+    finally:
+        sig.held, sig.pending = False, None
     print(f"report written to {target} ({len(scenes)} scene(s)); "
           f"{'all expectations held' if not failures else f'{len(failures)} expectation(s) failed'}")
     for f in failures:
         print(f"FAILED: {f}")
     return 1 if failures else 0
+
+
+def _with_max_points(scene, max_points):
+    import dataclasses
+
+    return dataclasses.replace(scene, max_output_points=max_points)
 
 
 if __name__ == "__main__":

@@ -19,6 +19,8 @@ A scene is a TOML file::
     solvers = [...]                     # references.solvers.base.SOLVER_NAMES
     outputs = [...]                     # OUTPUTS below
     output_dt = 0.1                     # optional: spacing of the output grid (s)
+    max_output_points = 100000          # optional: decimate the output grid to at most
+                                        # this many points (every k-th point, t_end kept)
     [convergence]                       # optional, see validation.experiments
     t_end = 0.5
     theta = [0.4, 0.2, 0.1, 0.05]       # omega_max * h of the RK4 sweep
@@ -28,7 +30,9 @@ A scene is a TOML file::
 Errors and accuracy are measured on the output grid ``0, output_dt, ...,
 t_end``; every ``h`` must divide ``output_dt`` (default: the largest ``h``) and
 ``output_dt`` must divide ``t_end``, so every output time is a step of every
-fixed-step run (no interpolation enters the error).
+fixed-step run (no interpolation enters the error). With ``max_output_points``
+the grid keeps every ``k``-th of those points (``k`` the smallest stride that
+fits) and always ``t_end``: decimated, but still on every step grid.
 
 A malformed scene raises :class:`SceneError`, one line ``FILE: field `F`:
 problem (got VALUE)``, before anything runs.
@@ -46,7 +50,8 @@ import numpy as np
 
 from references.solvers.base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES
 
-__all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "OUTPUTS", "SCENE_DIR"]
+__all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "scene_from_dict", "output_stride",
+           "OUTPUTS", "SCENE_DIR"]
 
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
            "stability", "dispersion")
@@ -55,7 +60,7 @@ SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 _TOP = {"name", "description", "model", "quick", "params", "initial", "run", "convergence",
         "stability"}
 _INITIAL = {"x", "v", "mode", "amplitude"}
-_RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt"}
+_RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt", "max_output_points"}
 _CONVERGENCE = {"t_end", "theta", "theta_euler"}
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
 _DIVIDES = 1e-9  # relative slack when checking that one step divides another
@@ -65,13 +70,17 @@ class SceneError(ValueError):
     """A malformed scene: one line naming the file, the field and the value."""
 
     def __init__(self, path, fld: str, problem: str, value=None):
+        problem = " ".join(str(problem).split("\n"))  # one line, whatever the source said
         self.path, self.field, self.problem, self.value = str(path), fld, problem, value
         got = "" if value is None else f" (got {_show(value)})"
         super().__init__(f"{self.path}: field `{fld}`: {problem}{got}")
 
 
 def _show(value) -> str:
-    text = repr(value)
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - e.g. an int too long to print
+        text = f"<{type(value).__name__}>"
     return text if len(text) <= 80 else text[:77] + "..."
 
 
@@ -95,6 +104,18 @@ class Scene:
     path: Path | None = None
     output_dt: float = 0.0
     convergence: dict = field(default_factory=dict)
+    max_output_points: int | None = None
+
+    @property
+    def n_intervals(self) -> int:
+        """Number of ``output_dt`` intervals in ``[0, t_end]``."""
+        return int(round(self.t_end / self.output_dt))
+
+    @property
+    def output_stride(self) -> int:
+        """Keep every ``output_stride``-th point of the ``output_dt`` grid
+        (1 unless ``max_output_points`` asks for fewer points)."""
+        return output_stride(self.n_intervals, self.max_output_points)
 
     def build_model(self):
         """The rk4core model the scene names."""
@@ -107,9 +128,22 @@ class Scene:
         return np.concatenate([np.asarray(self.initial_x, float), np.asarray(self.initial_v, float)])
 
     def t_eval(self) -> np.ndarray:
-        """The output grid ``0, output_dt, ..., t_end`` (s)."""
-        n = int(round(self.t_end / self.output_dt))
-        return np.linspace(0.0, self.t_end, n + 1)
+        """The output grid ``0, output_dt, ..., t_end`` (s); decimated to every
+        :attr:`output_stride`-th point, ``t_end`` always included."""
+        n, k = self.n_intervals, self.output_stride
+        idx = np.arange(0, n + 1, k, dtype=float)
+        if idx[-1] != n:
+            idx = np.append(idx, float(n))
+        # as np.linspace(0, t_end, n + 1)[::k] (bit for bit), without the full grid
+        t = idx * (self.t_end / n)
+        t[-1] = self.t_end
+        return t
+
+    @property
+    def n_output_points(self) -> int:
+        """Length of :meth:`t_eval` (without building it)."""
+        n, k = self.n_intervals, self.output_stride
+        return n // k + 1 + (n % k != 0)
 
     @property
     def fixed_solvers(self) -> list:
@@ -120,6 +154,17 @@ class Scene:
         return [s for s in self.solvers if s in ADAPTIVE]
 
 
+def output_stride(n_intervals: int, max_points: int | None) -> int:
+    """Smallest stride ``k`` for which the points ``0, k, 2k, ... (<= n)`` plus
+    the end point ``n`` number at most ``max_points`` (>= 2)."""
+    if max_points is None or n_intervals + 1 <= max_points:
+        return 1
+    k = max(1, -(-n_intervals // (max_points - 1)))
+    while n_intervals // k + 1 + (n_intervals % k != 0) > max_points:
+        k += 1
+    return k
+
+
 # -- field checks --------------------------------------------------------------
 def _is_num(x) -> bool:
     return isinstance(x, Real) and not isinstance(x, bool)
@@ -128,7 +173,10 @@ def _is_num(x) -> bool:
 def _number(path, fld, value, *, positive=False, open_unit=False) -> float:
     if not _is_num(value):
         raise SceneError(path, fld, "must be a number", value)
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond the double range
+        raise SceneError(path, fld, "must be finite (it exceeds the double range)", value) from None
     if not math.isfinite(v):
         raise SceneError(path, fld, "must be finite", value)
     if positive and v <= 0.0:
@@ -169,6 +217,8 @@ def _table(path, fld, value, allowed_keys) -> dict:
 
 def _divides(small: float, big: float) -> bool:
     r = big / small
+    if not math.isfinite(r):
+        return False
     return abs(r - round(r)) <= _DIVIDES * max(1.0, r)
 
 
@@ -224,7 +274,7 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
     if not isinstance(quick, bool):
         raise SceneError(path, "quick", "must be true or false", quick)
     model_name = doc["model"]
-    if model_name not in MODELS:
+    if not isinstance(model_name, str) or model_name not in MODELS:
         raise SceneError(path, "model", f"must be one of {', '.join(sorted(MODELS))}", model_name)
     params = _table(path, "params", doc["params"], _model_keys(model_name))
     try:
@@ -233,6 +283,8 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
         raise _from_value_error(path, "params", e) from None
     except TypeError as e:
         raise SceneError(path, "params", f"has a value of the wrong type: {e}") from None
+    except ArithmeticError as e:  # overflow in a derived quantity of extreme parameters
+        raise SceneError(path, "params", f"gives no usable model: {type(e).__name__}: {e}") from None
 
     n = model.n_dof
     ini = _table(path, "initial", doc["initial"], _INITIAL)
@@ -277,6 +329,10 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
     for i, hi in enumerate(h):
         if not _divides(hi, output_dt):
             raise SceneError(path, f"run.h[{i}]", f"must divide the output spacing {output_dt}", hi)
+    max_points = run.get("max_output_points")
+    if max_points is not None and (isinstance(max_points, bool) or not isinstance(max_points, int)
+                                   or max_points < 2):
+        raise SceneError(path, "run.max_output_points", "must be an integer >= 2", max_points)
 
     conv = _table(path, "convergence", doc.get("convergence", {}), _CONVERGENCE)
     convergence = {}
@@ -296,7 +352,8 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
     return Scene(name=name, description=description, model=model_name, params=dict(params),
                  initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
                  h=h, tolerances=tolerances, solvers=solvers, outputs=outputs, quick=quick,
-                 stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence)
+                 stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence,
+                 max_output_points=max_points)
 
 
 def _model_keys(model_name):
