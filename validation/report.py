@@ -91,7 +91,7 @@ def write_tables(out_dir, tables: dict) -> dict:
 
 
 def versions() -> dict:
-    """Versions of the interpreter and the numerical stack, and the machine."""
+    """Versions of the interpreter and the numerical stack, numpy's BLAS, and the machine."""
     import importlib.metadata as md
 
     v = {"python": sys.version.split()[0]}
@@ -102,9 +102,20 @@ def versions() -> dict:
             v[label] = md.version(dist)
         except md.PackageNotFoundError:
             v[label] = "not installed"
+    v["BLAS"] = _blas()
     v["machine"] = f"{platform.machine()}, {os.cpu_count()} CPUs, {platform.platform()}"
     v["processor"] = _cpu_name()
     return v
+
+
+def _blas() -> str:
+    """numpy's BLAS/LAPACK (it decides the round-off of eigen-decompositions)."""
+    try:
+        deps = np.show_config(mode="dicts")["Build Dependencies"]
+        blas = deps["blas"]
+        return f"{blas.get('name', '?')} {blas.get('version', '?')} (numpy build)"
+    except Exception:  # noqa: BLE001 - older numpy: no dict mode
+        return "unknown"
 
 
 def _cpu_name() -> str:

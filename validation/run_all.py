@@ -222,8 +222,8 @@ class _Signals:
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self):
-        self.held, self.pending, self.saved = False, None, {}
+    def __init__(self, restore=True):
+        self.held, self.pending, self.saved, self.restore = False, None, {}, restore
 
     def _handler(self, signum, frame):
         if self.held:
@@ -238,7 +238,8 @@ class _Signals:
 
     def __exit__(self, *exc):
         for s, h in self.saved.items():
-            signal.signal(s, h)
+            # the command line's outcome is decided: a late signal no longer changes it
+            signal.signal(s, h if self.restore else signal.SIG_IGN)
         return False
 
     def hold(self):
@@ -257,9 +258,12 @@ def _fail(message) -> int:
     return 2
 
 
-def main(argv=None) -> int:
-    """The command line (see the module docstring); returns the exit status."""
-    with _Signals() as sig:
+def main(argv=None, *, restore_signals=True) -> int:
+    """The command line (see the module docstring); returns the exit status.
+
+    SIGINT and SIGTERM handlers are installed for the call and restored after
+    it (``restore_signals=False``: ignored after it, for the process's exit)."""
+    with _Signals(restore_signals) as sig:
         try:
             return _main(argv, sig)
         except KeyboardInterrupt as e:  # before any output directory was made
@@ -344,4 +348,4 @@ def _with_max_points(scene, max_points):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(restore_signals=False))

@@ -260,6 +260,8 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
     """Validate a parsed scene document (see the module docstring)."""
     from rk4core import MODELS, make_model
 
+    if not isinstance(doc, dict):
+        raise SceneError(path, "file", "must hold a table of scene fields", doc)
     _table(path, "", doc, _TOP)
     for key in ("name", "model", "params", "initial", "run"):
         if key not in doc:
@@ -401,6 +403,8 @@ def load_scenes(paths=None, *, quick=False) -> list[Scene]:
     validated before any is run; the first bad one raises :class:`SceneError`;
     two scenes with one name are refused too.
     """
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
     files = sorted(SCENE_DIR.glob("*.toml")) if not paths else [Path(p) for p in paths]
     scenes = [load_scene(p) for p in files]
     seen = {}

@@ -1,0 +1,318 @@
+"""Faults are rows, not crashes; runaway scenes are refused up front or decimated;
+the report directory is swapped into place atomically and leftovers of killed
+runs are cleaned up."""
+import math
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from validation import atomic, budget
+from validation.run_all import main, run
+from validation.scenes import SceneError, load_scene, output_stride
+
+# One mass between two walls: omega = sqrt((2 + 2) / 1) = 2 rad/s.
+TINY = """
+name = "{name}"
+model = "chain"
+[params]
+masses = [1.0]
+springs = [2.0, 2.0]
+walls = "both"
+[initial]
+x = [0.01]
+v = [0.0]
+[run]
+t_end = {t_end}
+h = {h}
+tolerances = [1e-6, 1e-9]
+solvers = {solvers}
+outputs = {outputs}
+{extra}
+"""
+
+
+def _scene(tmp_path, name="tiny", t_end=2.0, h="[0.1, 0.05]", solvers='["rk4", "dop853"]',
+           outputs='["state"]', extra=""):
+    p = tmp_path / f"{name}.toml"
+    p.write_text(TINY.format(name=name, t_end=t_end, h=h, solvers=solvers, outputs=outputs, extra=extra))
+    return p
+
+
+def _main(argv):
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return e.code
+
+
+def _failures_section(index: str) -> str:
+    return index[index.index("## Failures"):index.index("## Main findings")]
+
+
+# -- faults are rows ------------------------------------------------------------------
+def _raise_for(solver_name, exc):
+    from references import solvers
+
+    real = solvers.integrate
+
+    def integrate(solver, *args, **kw):
+        if solver == solver_name:
+            raise exc
+        return real(solver, *args, **kw)
+    return integrate
+
+
+def test_solver_raising_is_a_failed_row_and_the_run_completes(tmp_path, monkeypatch, capsys):
+    import references.solvers
+
+    monkeypatch.setattr(references.solvers, "integrate",
+                        _raise_for("dop853", RuntimeError("injected fault\nsecond line")))
+    out = tmp_path / "out"
+    rc = _main(["--scene", str(_scene(tmp_path)), "--out", str(out), "--repeats", "1", "--no-figures"])
+    assert rc == 1  # a fault is a failed expectation, listed; nothing crashed
+    acc = pd.read_csv(out / "accuracy.csv")
+    dop = acc[acc.solver == "dop853"]
+    assert len(dop) == 2 and set(dop.status) == {"failed"}
+    assert all(m == "RuntimeError: injected fault" for m in dop.message)  # first line only
+    rk4 = acc[acc.solver == "rk4"]
+    assert set(rk4.status) == {"ok"} and rk4.error_max.notna().all()
+    fails = _failures_section((out / "index.md").read_text())
+    assert "tiny: dop853 at 1e-06 raised RuntimeError: injected fault" in fails
+    assert "FAILED: tiny: dop853 at 1e-09" in capsys.readouterr().out
+
+
+def test_cvode_error_is_a_failed_row(tmp_path, monkeypatch):
+    import sksundae.cvode
+
+    class BrokenCVODE:
+        def __init__(self, *args, **kw):
+            raise RuntimeError("CVODE flag -4 (injected)")
+
+    monkeypatch.setattr(sksundae.cvode, "CVODE", BrokenCVODE)
+    scene = load_scene(_scene(tmp_path, solvers='["rk4", "cvode-adams"]'))
+    results, failures = run([scene], tmp_path, repeats=1, figures=False)
+    rows = {(r["solver"], r["setting"]): r for r in results[0].tables["accuracy"]}
+    assert rows[("cvode-adams", 1e-6)]["status"] == "failed"
+    assert "CVODE flag -4 (injected)" in rows[("cvode-adams", 1e-6)]["message"]
+    assert rows[("rk4", 0.1)]["status"] == "ok"
+    assert len([f for f in failures if "cvode-adams" in f]) == 2
+
+
+def test_heyoka_failure_is_a_failed_row(tmp_path, monkeypatch):
+    from references.solvers import taylor
+
+    def broken(*args, **kw):
+        raise RuntimeError("heyoka exploded (injected)")
+
+    monkeypatch.setattr(taylor, "propagate", broken)
+    scene = load_scene(_scene(tmp_path, solvers='["rk4", "heyoka"]'))
+    results, failures = run([scene], tmp_path, repeats=1, figures=False)
+    hey = [r for r in results[0].tables["accuracy"] if r["solver"] == "heyoka"]
+    assert [r["status"] for r in hey] == ["failed", "failed"]
+    assert all("heyoka exploded (injected)" in r["message"] for r in hey)
+    assert any("heyoka" in f for f in failures)
+
+
+def test_model_raising_inside_the_rhs_is_a_failed_row(tmp_path, monkeypatch):
+    # DOP853 calls model.rhs; the fixed-step runs of built-in models and the exact
+    # modal reference do not, so only the dop853 rows may fail.
+    from rk4core.models.chain import Chain
+
+    def rhs(self, t, y):
+        raise FloatingPointError("model fault (injected)")
+
+    monkeypatch.setattr(Chain, "rhs", rhs)
+    scene = load_scene(_scene(tmp_path))
+    results, failures = run([scene], tmp_path, repeats=1, figures=False)
+    status = {(r["solver"], r["setting"]): r["status"] for r in results[0].tables["accuracy"]}
+    assert status == {("rk4", 0.1): "ok", ("rk4", 0.05): "ok",
+                      ("dop853", 1e-6): "failed", ("dop853", 1e-9): "failed"}
+
+
+def test_scene_raising_is_a_failure_line_and_other_scenes_run(tmp_path, monkeypatch):
+    from validation.scenes import Scene
+
+    real = Scene.build_model
+
+    def build_model(self):
+        if self.name == "broken":
+            raise RuntimeError("model constructor fault (injected)")
+        return real(self)
+
+    monkeypatch.setattr(Scene, "build_model", build_model)
+    scenes = [load_scene(_scene(tmp_path, name="broken")), load_scene(_scene(tmp_path, name="fine"))]
+    out = tmp_path / "out"
+    out.mkdir()
+    results, failures = run(scenes, out, repeats=1, figures=False)
+    assert failures == ["broken: the scene raised RuntimeError: model constructor fault (injected)"]
+    assert run.completed == ["broken", "fine"]
+    acc = pd.read_csv(out / "accuracy.csv")
+    assert set(acc.scene) == {"fine"} and set(acc.status) == {"ok"}
+    index = (out / "index.md").read_text()
+    assert "model constructor fault" in _failures_section(index)
+
+
+def test_rk4_blow_up_is_an_unstable_row_at_the_predicted_step(tmp_path, capsys):
+    # theta = omega h = 2 * 10 = 20, far beyond RK4's boundary 2.83. Per step the
+    # state (q, v / omega) turns and grows by |R(i theta)|, R(z) = 1 + z + z^2/2 +
+    # z^3/6 + z^4/24, from 0.01: it leaves the double range (1.8e308) after
+    # log(1.8e308 / 0.01) / log|R| steps (81.2 -> step 82); stages hold up to
+    # theta^4/24 times the state, so overflow may come one or two steps earlier.
+    p = _scene(tmp_path, t_end=1000.0, h="[10.0, 0.1]", solvers='["rk4"]', outputs='["state"]')
+    out = tmp_path / "out"
+    rc = _main(["--scene", str(p), "--out", str(out), "--repeats", "1", "--no-figures"])
+    assert rc == 0  # a blow-up is a measured result, not a failed expectation
+    acc = pd.read_csv(out / "accuracy.csv").set_index("setting")
+    assert acc.loc[10.0, "status"] == "unstable" and acc.loc[0.1, "status"] == "ok"
+    R = abs(1 + 20j + (20j) ** 2 / 2 + (20j) ** 3 / 6 + (20j) ** 4 / 24)
+    predicted = math.ceil((math.log(1.7976931348623157e308) - math.log(0.01)) / math.log(R))
+    step = int(re.search(r"step (\d+) of", acc.loc[10.0, "message"]).group(1))
+    assert predicted - 2 <= step <= predicted, acc.loc[10.0, "message"]
+    assert "tiny: rk4 at 10 became unstable" in (out / "index.md").read_text()
+
+
+# -- runaway work -----------------------------------------------------------------------
+def test_step_estimate_is_the_sum_of_the_fixed_step_runs(tmp_path):
+    # rk4 at h = 0.1 and 0.05 over 2 s: 20 + 40 steps; nothing else asked for.
+    s = load_scene(_scene(tmp_path, solvers='["rk4"]'))
+    est = budget.estimate(s)
+    assert est.steps == 60
+    assert est.output_points == 21 and est.trajectory_bytes == 8 * 2 * 21
+
+
+def test_runaway_steps_are_refused_with_the_estimate(tmp_path, capsys):
+    # 1e10 s at h = 1: 1e10 rk4 steps > 1e9
+    p = _scene(tmp_path, t_end=1e10, h="[1.0]", solvers='["rk4"]', extra="output_dt = 1e7")
+    out = tmp_path / "out"
+    rc = _main(["--scene", str(p), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1
+    assert err.startswith(f"{p}: field `run`:") and "about 1e+10 integration steps" in err
+    assert not out.exists()
+
+
+def test_runaway_memory_is_refused_then_runs_decimated(tmp_path, capsys):
+    # DOP853 only (few steps per period), 3e8 output points: 8 B x 2 x 3e8 = 4.5 GiB > 4 GiB.
+    p = _scene(tmp_path, t_end=3e7, h="[0.1]", solvers='["dop853"]', outputs='["modes"]',
+               extra="output_dt = 0.1")
+    with pytest.raises(SceneError, match=r"needs 4\.47 GiB per trajectory .* decimate"):
+        budget.check(load_scene(p))
+    p2 = _scene(tmp_path, name="dec", t_end=3e7, h="[0.1]", solvers='["dop853"]', outputs='["modes"]',
+                extra="output_dt = 0.1\nmax_output_points = 1000")
+    s = load_scene(p2)
+    est = budget.check(s)
+    assert est.output_points <= 1000
+    t = s.t_eval()
+    assert t.size == est.output_points and t[0] == 0.0 and t[-1] == 3e7
+
+
+@pytest.mark.parametrize("n, max_points", [(10, 2), (10, 3), (10, 6), (10, 11), (97, 10), (1000, 7),
+                                           (12345, 100)])
+def test_decimation_stride_is_the_smallest_that_fits(n, max_points):
+    k = output_stride(n, max_points)
+
+    def points(k):  # 0, k, 2k, ... <= n, plus n itself
+        return len(set(range(0, n + 1, k)) | {n})
+
+    assert points(k) <= max_points
+    assert k == 1 or points(k - 1) > max_points
+
+
+def test_decimated_grid_is_a_subset_with_the_same_final_error(tmp_path):
+    # Decimation keeps every k-th output point of the same step grid, so the RK4
+    # values there are the same numbers: the final error is identical and the
+    # largest error can only be smaller.
+    full = load_scene(_scene(tmp_path, name="full", solvers='["rk4"]', extra="output_dt = 0.1"))
+    dec = load_scene(_scene(tmp_path, name="dec", solvers='["rk4"]',
+                            extra="output_dt = 0.1\nmax_output_points = 6"))
+    tf, td = full.t_eval(), dec.t_eval()
+    np.testing.assert_array_equal(tf, np.linspace(0.0, 2.0, 21))
+    assert td.size <= 6 and set(td) <= set(tf) and td[-1] == 2.0
+    rows = {}
+    for s in (full, dec):
+        out = tmp_path / s.name
+        out.mkdir()
+        results, failures = run([s], out, repeats=1, figures=False)
+        assert failures == []
+        rows[s.name] = {r["setting"]: r for r in results[0].tables["accuracy"]}
+    for h in (0.1, 0.05):
+        assert rows["dec"][h]["error_final"] == rows["full"][h]["error_final"]
+        assert rows["dec"][h]["error_max"] <= rows["full"][h]["error_max"]
+
+
+def test_cli_max_output_points_lets_a_large_scene_through(tmp_path, capsys, monkeypatch):
+    p = _scene(tmp_path, t_end=3e7, h="[0.1]", solvers='["dop853"]', outputs='["modes"]',
+               extra="output_dt = 0.1")
+    out = tmp_path / "out"
+    # only the modes output: nothing integrates, the check is what is tested
+    rc = _main(["--scene", str(p), "--out", str(out), "--no-figures", "--max-output-points", "100"])
+    assert rc == 0, capsys.readouterr().err
+    assert pd.read_csv(out / "modes.csv")["omega_rad_s"].tolist() == pytest.approx([2.0], rel=1e-14)
+
+
+# -- atomic swap and recovery ----------------------------------------------------------------
+def _tree(d):
+    return {p.relative_to(d).as_posix(): p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def _make(d, files):
+    d.mkdir(exist_ok=True)
+    for name, text in files.items():
+        (d / name).write_text(text)
+    return d
+
+
+@pytest.mark.parametrize("exchange", [True, False], ids=["renameat2-exchange", "two-renames"])
+def test_swap_replaces_the_whole_directory(tmp_path, monkeypatch, exchange):
+    target = _make(tmp_path / "reports", {"index.md": "old", "stale.csv": "old"})
+    new = _make(atomic.fresh_dir(target), {"index.md": "new", "accuracy.csv": "new"})
+    if not exchange:
+        monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)
+    how = atomic.swap_into_place(new, target)
+    if exchange and not atomic.exchange_supported(tmp_path):
+        pytest.skip("this filesystem has no renameat2(RENAME_EXCHANGE)")
+    assert how == ("exchange" if exchange else "two renames")
+    assert _tree(target) == {"index.md": b"new", "accuracy.csv": b"new"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reports"]
+
+
+def test_fresh_dir_has_plain_mkdir_permissions(tmp_path):
+    d = atomic.fresh_dir(tmp_path / "reports")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert d.stat().st_mode & 0o777 == 0o777 & ~umask
+
+
+def _dead_pid():
+    p = subprocess.Popen([sys.executable, "-c", "pass"])
+    p.wait()
+    return p.pid
+
+
+def test_recover_removes_leftovers_of_dead_runs_only(tmp_path):
+    target = _make(tmp_path / "reports", {"index.md": "current"})
+    dead = _dead_pid()
+    stale_tmp = _make(tmp_path / f".reports.tmp-{dead}-abc", {"index.md": "half"})
+    stale_old = _make(tmp_path / f".reports.old-{dead}-def", {"index.md": "older"})
+    live = _make(tmp_path / f".reports.tmp-{os.getppid()}-ghi", {"index.md": "running"})
+    other = _make(tmp_path / f".other.tmp-{dead}-jkl", {})
+    done = atomic.recover(target)
+    assert len(done) == 2
+    assert not stale_tmp.exists() and not stale_old.exists()
+    assert live.exists() and other.exists()
+    assert _tree(target) == {"index.md": b"current"}
+
+
+def test_recover_restores_the_backup_when_killed_between_the_two_renames(tmp_path):
+    target = tmp_path / "reports"
+    dead = _dead_pid()
+    backup = _make(tmp_path / f".reports.old-{dead}-abc", {"index.md": "previous"})
+    new = _make(tmp_path / f".reports.tmp-{dead}-def", {"index.md": "new"})
+    atomic.recover(target)
+    assert _tree(target) == {"index.md": b"previous"}
+    assert not backup.exists() and not new.exists()
