@@ -13,26 +13,13 @@ import pytest
 
 from validation import report
 
+from _scenes import one_mass
+
 REPO = Path(__file__).resolve().parent.parent
 
 SCENES = {
-    "det-a": """
-name = "det-a"
-model = "chain"
-[params]
-masses = [1.0]
-springs = [2.0, 2.0]
-walls = "both"
-[initial]
-x = [0.01]
-v = [0.0]
-[run]
-t_end = 2.0
-h = [0.1, 0.05]
-tolerances = [1e-6, 1e-9]
-solvers = ["rk4", "dop853", "cvode-bdf", "heyoka"]
-outputs = ["state", "energy", "convergence", "work_precision", "modes"]
-""",
+    "det-a": one_mass("det-a", solvers='["rk4", "dop853", "cvode-bdf", "heyoka"]',
+                      outputs='["state", "energy", "convergence", "work_precision", "modes"]'),
     "det-b": """
 name = "det-b"
 model = "pendulums"

@@ -17,25 +17,12 @@ import pytest
 
 from validation import atomic
 
+from _scenes import one_mass
+
 REPO = Path(__file__).resolve().parent.parent
 
-SCENE_A = """
-name = "kill-a"
-model = "chain"
-[params]
-masses = [1.0]
-springs = [2.0, 2.0]
-walls = "both"
-[initial]
-x = [0.01]
-v = [0.0]
-[run]
-t_end = 2.0
-h = [0.1, 0.05]
-tolerances = [1e-6, 1e-9]
-solvers = ["rk4", "dop853", "cvode-bdf", "heyoka"]
-outputs = ["state", "energy", "convergence", "work_precision", "modes", "figures"]
-"""
+SCENE_A = one_mass("kill-a", solvers='["rk4", "dop853", "cvode-bdf", "heyoka"]',
+                   outputs='["state", "energy", "convergence", "work_precision", "modes", "figures"]')
 SCENE_B = """
 name = "kill-b"
 model = "chain"

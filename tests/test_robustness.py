@@ -15,31 +15,13 @@ from validation import atomic, budget
 from validation.run_all import main, run
 from validation.scenes import SceneError, load_scene, output_stride
 
-# One mass between two walls: omega = sqrt((2 + 2) / 1) = 2 rad/s.
-TINY = """
-name = "{name}"
-model = "chain"
-[params]
-masses = [1.0]
-springs = [2.0, 2.0]
-walls = "both"
-[initial]
-x = [0.01]
-v = [0.0]
-[run]
-t_end = {t_end}
-h = {h}
-tolerances = [1e-6, 1e-9]
-solvers = {solvers}
-outputs = {outputs}
-{extra}
-"""
+from _scenes import one_mass
 
 
 def _scene(tmp_path, name="tiny", t_end=2.0, h="[0.1, 0.05]", solvers='["rk4", "dop853"]',
            outputs='["state"]', extra=""):
     p = tmp_path / f"{name}.toml"
-    p.write_text(TINY.format(name=name, t_end=t_end, h=h, solvers=solvers, outputs=outputs, extra=extra))
+    p.write_text(one_mass(name, t_end=t_end, h=h, solvers=solvers, outputs=outputs, extra=extra))
     return p
 
 

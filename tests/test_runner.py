@@ -15,6 +15,8 @@ from references.solvers import integrate
 from validation import experiments
 from validation.scenes import SCENE_DIR, load_scene, load_scenes
 
+from _scenes import one_mass
+
 REPO = Path(__file__).resolve().parent.parent
 # the linear scenes whose convergence the runner checks (not the stability study's own scenes)
 LINEAR = [s for s in load_scenes() if s.build_model().linear and "convergence" in s.outputs]
@@ -92,24 +94,8 @@ def test_bad_flag_exits_2_with_one_line(tmp_path):
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
 
 
-TINY = """
-name = "tiny-oscillator"
-description = "one mass between two walls, for the runner's own test"
-model = "chain"
-[params]
-masses = [1.0]
-springs = [2.0, 2.0]          # omega = 2 rad/s
-walls = "both"
-[initial]
-x = [0.01]
-v = [0.0]
-[run]
-t_end = 2.0
-h = [0.1, 0.05]
-tolerances = [1e-5, 1e-9]
-solvers = ["rk4", "dop853"]
-outputs = ["state", "energy", "convergence", "work_precision", "modes", "figures"]
-"""
+TINY = one_mass("tiny-oscillator", tolerances="[1e-5, 1e-9]",
+                outputs='["state", "energy", "convergence", "work_precision", "modes", "figures"]')
 
 
 def test_small_run_writes_tables_and_index(tmp_path, previous_report):
