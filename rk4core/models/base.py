@@ -146,7 +146,14 @@ class Model:
 
     # -- heyoka evaluation --------------------------------------------------
     def heyoka_system(self):
-        """``(vars, rhs_exprs)`` for ``heyoka.taylor_adaptive``: state ``[q, v]``."""
+        """``(vars, rhs_exprs)`` for ``heyoka.taylor_adaptive``: state ``[q, v]``.
+
+        The masses are numeric constants here, and heyoka folds ``f / m`` into
+        ``f * fl(1/m)`` with the reciprocal rounded to double: exact to an ulp in
+        double precision, but a different mass (relative ~1e-17) in ``real128``.
+        The solvers therefore integrate
+        :func:`references.solvers.taylor.scaled_system`, which builds on the
+        same ``_force`` and passes the masses as runtime parameters."""
         import heyoka as hy
 
         names = [f"q{i}" for i in range(self.n_dof)] + [f"v{i}" for i in range(self.n_dof)]
