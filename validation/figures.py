@@ -788,7 +788,7 @@ def crossover(out_dir, df) -> tuple[Path, str]:
     ax.set_ylim(len(scenes) - 0.5, -0.5)
     ax.set_xticks(range(len(targets)), [f"{t:.0e}" for t in targets])
     ax.set_yticks(range(len(scenes)), scenes, fontsize=7 if len(scenes) > 10 else 8)
-    ax.set_xlabel("target error (max over time and components)")
+    ax.set_xlabel("target relative error (error_max / max |y_ref|)")
     ax.tick_params(length=0)
     path = _save(fig, out_dir, "crossover")
     sentence = ("For each scene (row) and target error (column), the solver that reaches the target in the least "
