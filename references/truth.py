@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rk4core.validate import check_model_y0, check_output_times
+
 from .exact import modal_solution
 from .solvers.base import Status
 from .solvers.taylor import get_integrator, model_key, propagate
@@ -159,14 +161,8 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
     -------
     Truth
     """
-    y0 = np.array(y0, dtype=float)
-    if y0.shape != (2 * model.n_dof,):
-        raise ValueError(f"`y0` must have length {2 * model.n_dof} for {model.name}, got shape {y0.shape}")
-    if not np.all(np.isfinite(y0)):
-        raise ValueError(f"`y0` must be finite, got {y0!r}")
-    t = np.array(t_eval, dtype=float)
-    if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
-        raise ValueError("`t_eval` must be a finite, strictly increasing 1-D array of at least 2 times")
+    y0 = check_model_y0(model, y0)
+    t = check_output_times(t_eval)
     if kind == "auto":
         kind = "exact-modal" if model.linear else "heyoka-real128"
     if kind not in KINDS:

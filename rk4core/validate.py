@@ -8,7 +8,7 @@ from numbers import Real
 import numpy as np
 
 __all__ = [
-    "check_t_span", "check_y0", "check_step_args", "check_t_eval",
+    "check_t_span", "check_y0", "check_model_y0", "check_step_args", "check_t_eval", "check_output_times",
     "positive", "finite", "nonnegative", "float_list", "choice", "boolean",
 ]
 
@@ -96,6 +96,15 @@ def check_y0(y0) -> np.ndarray:
     return y
 
 
+def check_model_y0(model, y0) -> np.ndarray:
+    """``y0`` as :func:`check_y0`, of the model's length ``2 n_dof`` (``y = [q, v]``)."""
+    y = check_y0(y0)
+    if y.shape[0] != 2 * model.n_dof:
+        raise ValueError(f"`y0` must have length {2 * model.n_dof} (y = [q, v]) for "
+                         f"{model.name}, got {y.shape[0]}")
+    return y
+
+
 def check_step_args(t0, t1, h, n_steps, step_count) -> int:
     if (h is None) == (n_steps is None):
         raise ValueError(f"give exactly one of `h` and `n_steps`, got h={h!r}, n_steps={n_steps!r}")
@@ -124,3 +133,17 @@ def check_t_eval(t_eval, t0, t1):
     if np.any(np.diff(t) < 0):
         raise ValueError("`t_eval` must be increasing")
     return np.clip(t, t0, t1)
+
+
+def check_output_times(t_eval) -> np.ndarray:
+    """Output times of a solver run: a finite, strictly increasing 1-D array of
+    at least 2 times (the first is the initial time)."""
+    try:
+        t = np.array(t_eval, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"`t_eval` must be an array of real numbers, got {t_eval!r}") from None
+    if t.ndim != 1 or t.size < 2:
+        raise ValueError(f"`t_eval` must be a 1-D array of at least 2 times, got shape {t.shape}")
+    if not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        raise ValueError("`t_eval` must be finite and strictly increasing")
+    return t

@@ -245,6 +245,11 @@ def test_bad_setting_raises_naming_it(solver, setting, named):
     ({"y0": [0.0, 0.0, 0.0]}, "y0"),
     ({"t_eval": [0.0]}, "t_eval"),
     ({"t_eval": [0.0, 1.0, 1.0]}, "t_eval"),
+    ({"t_eval": [[0.0, 1.0]]}, "t_eval"),
+    ({"t_eval": ["start", "end"]}, "t_eval"),
+    ({"t_eval": [0.0, float("nan")]}, "t_eval"),
+    ({"y0": [float("nan"), 0.0, 0.0, 0.0]}, "y0"),
+    ({"y0": "origin"}, "y0"),
     ({"atol": -1.0}, "atol"),
     ({"max_steps": 0}, "max_steps"),
 ])

@@ -149,6 +149,8 @@ def test_cache_dir_from_environment(monkeypatch, tmp_path):
     ("chain-2dof", {"kind": "rk4"}, "kind"),
     ("chain-2dof", {"y0": [0.0, 0.0]}, "y0"),
     ("chain-2dof", {"t_eval": [1.0, 0.0]}, "t_eval"),
+    ("chain-2dof", {"t_eval": ["start", "end"]}, "t_eval"),
+    ("chain-2dof", {"y0": [float("inf"), 0.0, 0.0, 0.0]}, "y0"),
 ])
 def test_bad_arguments_raise_naming_them(name, kwargs, named):
     model, y0 = scene(name)

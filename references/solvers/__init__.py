@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rk4core.validate import choice, positive
+from rk4core.validate import check_model_y0, check_output_times, choice, positive
 
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
 from .cvode import DEFAULT_MAX_STEPS, run_cvode
@@ -64,16 +64,8 @@ def check_setting(solver: str, setting) -> float:
 
 
 def _check_inputs(model, y0, t_eval, atol, max_steps):
-    y0 = np.array(y0, dtype=float)
-    if y0.shape != (2 * model.n_dof,):
-        raise ValueError(f"`y0` must have length {2 * model.n_dof} for {model.name}, got shape {y0.shape}")
-    if not np.all(np.isfinite(y0)):
-        raise ValueError(f"`y0` must be finite, got {y0!r}")
-    t = np.array(t_eval, dtype=float)
-    if t.ndim != 1 or t.size < 2:
-        raise ValueError(f"`t_eval` must be a 1-D array of at least 2 times, got shape {t.shape}")
-    if not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
-        raise ValueError("`t_eval` must be finite and strictly increasing")
+    y0 = check_model_y0(model, y0)
+    t = check_output_times(t_eval)
     if atol is not None:
         a = np.broadcast_to(np.asarray(atol, dtype=float), y0.shape).copy()
         if not np.all(np.isfinite(a)) or not np.all(a > 0):

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..methods import Tableau, get_method
 from ..solver import FixedStepResult, step_count
-from ..validate import check_step_args, check_t_eval, check_t_span, check_y0
+from ..validate import check_model_y0, check_step_args, check_t_eval, check_t_span
 from . import _kernels as K
 from .codegen import MAX_UNROLLED_DIM, kernel, kinds_for
 from .pack import pack
@@ -91,10 +91,7 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     tab = get_method(method)
     kind, ip, fp, mass = pack(model)
     t0, t1 = check_t_span(t_span)
-    y = check_y0(y0)
-    if y.shape[0] != 2 * model.n_dof:
-        raise ValueError(f"`y0` must have length {2 * model.n_dof} (y = [q, v]) for "
-                         f"{model.name}, got {y.shape[0]}")
+    y = check_model_y0(model, y0)
     n = check_step_args(t0, t1, h, n_steps, step_count)
     step = (t1 - t0) / n
     t_eval = check_t_eval(t_eval, t0, t1)
