@@ -92,6 +92,12 @@ SCENE_CASES = [
      "run.max_output_points", "10.5"),
     ("runaway-steps", "t_end = 1.0", "t_end = 1e8\noutput_dt = 1e4", "run", "integration steps"),
     ("runaway-memory", 'h = [0.1, 0.05]', "h = [0.1, 0.05]\noutput_dt = 0.1", "run", "GiB"),
+    ("name-with-newline", 'name = "valid"', 'name = "valid\\n"', "name", "'valid\\n'"),
+    ("name-too-long", 'name = "valid"', f'name = "{"v" * 101}"', "name", "vvvv"),
+    ("h-not-dividing-at-step-slack", "h = [0.1, 0.05]", "h = [0.03333333333]\noutput_dt = 0.1",
+     "run.h[0]", "0.03333333333"),
+    ("runaway-truth", 'model = "chain"', 'model = "planar4"', "run", "quadruple-precision steps"),
+    ("denormal-mass", "masses = [0.815, 3.099]", "masses = [5e-324, 3.099]", "params.masses[0]", "5e-324"),
 ]
 
 
@@ -102,10 +108,19 @@ def _memory_case(text):
         .replace('outputs = ["state", "energy"]', 'outputs = ["modes"]')
 
 
+def _truth_case(text):
+    # planar4 (nonlinear: a quadruple-precision reference) over 1e5 s: ~5e6 Taylor steps, ~80 min
+    return text.replace("masses = [0.815, 3.099]\nsprings = [41.5, 138.0, 157.8]\nwalls = \"both\"",
+                        "m = 0.815\nk = 41.5\nl = 0.01\nlinear = false") \
+        .replace("t_end = 1.0", "t_end = 1e5").replace("h = [0.1, 0.05]", "h = [0.1]") \
+        .replace('solvers = ["rk4", "dop853"]', 'solvers = ["heyoka"]') \
+        .replace("x = [0.005, 0.005]", "x = [0.001, 0.0]")
+
+
 def _scene_text(case, old, new):
     assert VALID.count(old) == 1, f"case {case}: {old!r} must occur once in VALID"
     text = VALID.replace(old, new)
-    return _memory_case(text) if case == "runaway-memory" else text
+    return {"runaway-memory": _memory_case, "runaway-truth": _truth_case}.get(case, lambda t: t)(text)
 
 
 def _load_and_check(path):
@@ -119,6 +134,60 @@ def test_valid_scene_is_accepted(tmp_path):
     p = tmp_path / "valid.toml"
     p.write_text(VALID)
     _load_and_check(p)
+
+
+def _fifo(d):
+    import os
+
+    p = d / "pipe.toml"
+    os.mkfifo(p)
+    return [p]
+
+
+def _oversize(d):
+    p = d / "big.toml"
+    p.write_text(VALID + "#" * (1 << 20))
+    return [p]
+
+
+def _dup(a, b):
+    def make(d):
+        pa, pb = d / "a.toml", d / "b.toml"
+        pa.write_text(VALID.replace('name = "valid"', f'name = "{a}"'))
+        pb.write_text(VALID.replace('name = "valid"', f'name = "{b}"'))
+        return [pa, pb]
+    return make
+
+
+# (case, make(dir) -> scene paths, field, text in the message); each must refuse within seconds
+FILE_CASES = [
+    ("fifo", _fifo, "file", "it is a FIFO"),
+    ("dev-zero", lambda d: [Path("/dev/zero")], "file", "it is a device"),
+    ("directory", lambda d: [d], "file", "it is a directory"),
+    ("oversize", _oversize, "file", "above the 1048576-byte cap"),
+    ("missing", lambda d: [d / "missing.toml"], "file", "cannot be read"),
+    ("not-utf8", lambda d: [d / "x.toml"] if (d / "x.toml").write_bytes(b"name = \"\xff\"") else [],
+     "file", "not UTF-8"),
+    ("same-name", _dup("dup-a", "dup-a"), "name", "is also used by"),
+    ("names-whose-figures-collide", _dup("dup-a", "dup_a"), "name", "figure files would collide"),
+]
+
+
+@pytest.mark.parametrize("case, make, fld, shown", FILE_CASES, ids=[c[0] for c in FILE_CASES])
+def test_bad_scene_file_kind_is_refused_promptly(tmp_path, case, make, fld, shown):
+    import time
+
+    paths = make(tmp_path)
+    start = time.monotonic()
+    with pytest.raises(SceneError) as info:
+        load_scenes(paths)
+    assert time.monotonic() - start < 5.0
+    assert info.value.field == fld and shown in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_scene_by_shipped_name():
+    assert [s.name for s in load_scenes(["three-blocks", "thesis_2dof_case1"])] == ["three-blocks",
+                                                                                    "thesis-2dof-case1"]
 
 
 @pytest.mark.parametrize("case, old, new, fld, shown", SCENE_CASES, ids=[c[0] for c in SCENE_CASES])
@@ -144,8 +213,9 @@ def _exit_code(argv):
 
 CLI_CASES = [
     # (case id, argv, text the one stderr line must hold)
-    ("repeats-zero", ["--repeats", "0"], "--repeats: must be an integer >= 1, got '0'"),
-    ("repeats-text", ["--repeats", "many"], "--repeats: must be an integer >= 1, got 'many'"),
+    ("repeats-zero", ["--repeats", "0"], "--repeats: must be an integer from 1 to 100, got '0'"),
+    ("repeats-text", ["--repeats", "many"], "--repeats: must be an integer from 1 to 100, got 'many'"),
+    ("repeats-huge", ["--repeats", "1000000000"], "--repeats: must be an integer from 1 to 100, got '1000000000'"),
     ("repeats-float", ["--repeats", "1.5"], "got '1.5'"),
     ("max-output-points-one", ["--max-output-points", "1"], "--max-output-points: must be an integer >= 2"),
     ("max-steps-negative", ["--max-steps", "-1"], "--max-steps: must be a positive finite number, got '-1'"),
@@ -187,6 +257,7 @@ API_CASES = [
     ("repeats-zero", lambda s, d: run([s], d, repeats=0), "`repeats`"),
     ("repeats-float", lambda s, d: run([s], d, repeats=1.5), "`repeats`"),
     ("repeats-bool", lambda s, d: run([s], d, repeats=True), "`repeats`"),
+    ("repeats-huge", lambda s, d: run([s], d, repeats=10**9), "`repeats`"),
     ("quick-string", lambda s, d: run([s], d, quick="yes"), "`quick`"),
     ("figures-int", lambda s, d: run([s], d, figures=2), "`figures`"),
     ("progress-not-callable", lambda s, d: run([s], d, progress=5), "`progress`"),

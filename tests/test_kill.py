@@ -59,7 +59,8 @@ def _tree(d: Path):
 
 
 def _leftovers(parent: Path):
-    return sorted(p.name for p in parent.iterdir() if p.name.startswith("."))
+    """Temporary and backup directories beside the report (the lock file stays by design)."""
+    return sorted(p.name for p in parent.iterdir() if p.name.startswith(".") and not p.name.endswith(".lock"))
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +79,8 @@ def setup(tmp_path_factory):
 
 
 def _assert_complete_new(out: Path):
-    files = {p.name for p in out.iterdir()}
+    files = {p.name for p in out.iterdir()} - {atomic.MARKER}
+    assert atomic.read_marker(out)["state"] == "complete"
     index = (out / "index.md").read_text()
     linked = set(re.findall(r"\]\(([^)]+)\)", index))
     assert files == linked | {"index.md"}, (files, linked)
@@ -137,16 +139,15 @@ def test_killed_run_leaves_previous_or_complete_report(setup, tmp_path, sig, win
 def test_next_run_after_kill_9_mid_run_succeeds_and_cleans_up(setup, tmp_path):
     a, b, prev = setup
     out, what = _kill_once(setup, tmp_path, signal.SIGKILL, 2.5)
-    dead = subprocess.Popen([sys.executable, "-c", "pass"])
-    dead.wait()
-    stale = tmp_path / f".reports.tmp-{dead.pid}-left"  # as a kill -9 leaves it
-    stale.mkdir()
+    stale = atomic.fresh_dir(out)  # as a kill -9 leaves it: marked incomplete, half-written
     (stale / "index.md").write_text("half-written")
+    foreign = tmp_path / ".reports.tmp-not-ours"  # no marker: not this tool's, never removed
+    foreign.mkdir()
     r = subprocess.run(_cli(["--scene", str(b), "--out", str(out), "--repeats", "1", "--no-figures"]),
                        cwd=REPO, env=_env(), capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert f"removed .reports.tmp-{dead.pid}-left" in r.stderr
-    assert _leftovers(tmp_path) == []
+    assert f"removed {stale.name} left by a killed run" in r.stderr
+    assert _leftovers(tmp_path) == [foreign.name]
     assert _tree(out).keys() == _tree(prev).keys()
 
 

@@ -182,7 +182,7 @@ def test_runaway_memory_is_refused_then_runs_decimated(tmp_path, capsys):
     # DOP853 only (few steps per period), 3e8 output points: 8 B x 2 x 3e8 = 4.5 GiB > 4 GiB.
     p = _scene(tmp_path, t_end=3e7, h="[0.1]", solvers='["dop853"]', outputs='["modes"]',
                extra="output_dt = 0.1")
-    with pytest.raises(SceneError, match=r"needs 4\.47 GiB per trajectory .* decimate"):
+    with pytest.raises(SceneError, match=r"needs about 54 GiB of memory \(12 trajectories of 8 B x 2 states x 3e\+08 output points\).* decimate"):
         budget.check(load_scene(p))
     p2 = _scene(tmp_path, name="dec", t_end=3e7, h="[0.1]", solvers='["dop853"]', outputs='["modes"]',
                 extra="output_dt = 0.1\nmax_output_points = 1000")
@@ -191,6 +191,76 @@ def test_runaway_memory_is_refused_then_runs_decimated(tmp_path, capsys):
     assert est.output_points <= 1000
     t = s.t_eval()
     assert t.size == est.output_points and t[0] == 0.0 and t[-1] == 3e7
+
+
+def _long_chain(tmp_path, n, outputs='["state"]', initial="x"):
+    p = tmp_path / f"chain{n}.toml"
+    x = "mode = 1" if initial == "mode" else "x = [" + ", ".join(["0.001"] + ["0.0"] * (n - 1)) + "]"
+    p.write_text(f"""name = "chain{n}"
+model = "chain"
+[params]
+masses = [{", ".join(["0.815"] * n)}]
+springs = [{", ".join(["41.5"] * (n + 1))}]
+walls = "both"
+[initial]
+{x}
+[run]
+t_end = 1.0
+h = [0.01]
+solvers = ["rk4"]
+outputs = {outputs}
+""")
+    return p
+
+
+@pytest.mark.parametrize("n", [2000, 10000])
+def test_the_estimate_needs_no_eigensolve(tmp_path, n):
+    """budget.check on 10,000 masses took ~15 min (a dense eigh); it must answer at once."""
+    import time
+
+    s = load_scene(_long_chain(tmp_path, n))
+    start = time.perf_counter()
+    if n > budget.MAX_DENSE_DOF:
+        with pytest.raises(SceneError, match=f"dense eigensolve of {n} degrees of freedom"):
+            budget.check(s)
+    else:
+        est = budget.check(s)
+        assert est.dense_dof == n and est.steps == 100
+        # the Gershgorin bound is an upper bound of the spectrum: 2 sqrt(k/m) for a uniform chain
+        assert math.isclose(est.omega_max, 2 * math.sqrt(41.5 / 0.815) * (1 if n > 1 else 0), rel_tol=1e-12)
+    assert time.perf_counter() - start < 2.0
+
+
+def test_a_mode_start_of_a_huge_chain_is_refused_at_load(tmp_path):
+    with pytest.raises(SceneError, match="initial.mode.*dense eigensolve of 6000"):
+        load_scene(_long_chain(tmp_path, 6000, initial="mode"))
+
+
+def test_the_quadruple_precision_reference_is_in_the_estimate(tmp_path):
+    # a nonlinear pendulum pair: its reference is heyoka real128 over the output grid
+    p = tmp_path / "pend.toml"
+    p.write_text("""name = "pend"
+model = "pendulums"
+[params]
+m = 1.0
+length = 1.0
+g = 9.81
+k = 0.5
+linear = false
+[initial]
+x = [0.1, 0.0]
+[run]
+t_end = 100.0
+tolerances = [1e-8]
+solvers = ["heyoka"]
+outputs = ["state"]
+""")
+    s = load_scene(p)
+    est = budget.estimate(s)
+    periods = 100.0 * est.omega_max / (2 * math.pi)
+    assert est.truth_steps == pytest.approx(budget.TRUTH_STEPS_PER_PERIOD * periods)
+    with pytest.raises(SceneError, match="quadruple-precision steps"):
+        budget.check(s, max_truth_steps=est.truth_steps / 2)
 
 
 @pytest.mark.parametrize("n, max_points", [(10, 2), (10, 3), (10, 6), (10, 11), (97, 10), (1000, 7),
@@ -251,15 +321,20 @@ def _make(d, files):
 
 @pytest.mark.parametrize("exchange", [True, False], ids=["renameat2-exchange", "two-renames"])
 def test_swap_replaces_the_whole_directory(tmp_path, monkeypatch, exchange):
-    target = _make(tmp_path / "reports", {"index.md": "old", "stale.csv": "old"})
+    target = tmp_path / "reports"
+    old = _make(atomic.fresh_dir(target), {"index.md": "old", "stale.csv": "old"})
+    atomic.swap_into_place(old, target, scope="full", scenes=["a"])
     new = _make(atomic.fresh_dir(target), {"index.md": "new", "accuracy.csv": "new"})
     if not exchange:
         monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)
-    how = atomic.swap_into_place(new, target)
+    how = atomic.swap_into_place(new, target, scope="full", scenes=["a"])
     if exchange and not atomic.exchange_supported(tmp_path):
         pytest.skip("this filesystem has no renameat2(RENAME_EXCHANGE)")
     assert how == ("exchange" if exchange else "two renames")
-    assert _tree(target) == {"index.md": b"new", "accuracy.csv": b"new"}
+    tree = _tree(target)
+    assert tree.pop(atomic.MARKER)  # the ownership marker, with the manifest of the rest
+    assert tree == {"index.md": b"new", "accuracy.csv": b"new"}
+    assert set(atomic.read_marker(target)["manifest"]) == {"index.md", "accuracy.csv"}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["reports"]
 
 
@@ -268,33 +343,5 @@ def test_fresh_dir_has_plain_mkdir_permissions(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert d.stat().st_mode & 0o777 == 0o777 & ~umask
+    assert atomic.read_marker(d) == {"magic": "rk4h-report v1", "state": "incomplete", "target": "reports"}
 
-
-def _dead_pid():
-    p = subprocess.Popen([sys.executable, "-c", "pass"])
-    p.wait()
-    return p.pid
-
-
-def test_recover_removes_leftovers_of_dead_runs_only(tmp_path):
-    target = _make(tmp_path / "reports", {"index.md": "current"})
-    dead = _dead_pid()
-    stale_tmp = _make(tmp_path / f".reports.tmp-{dead}-abc", {"index.md": "half"})
-    stale_old = _make(tmp_path / f".reports.old-{dead}-def", {"index.md": "older"})
-    live = _make(tmp_path / f".reports.tmp-{os.getppid()}-ghi", {"index.md": "running"})
-    other = _make(tmp_path / f".other.tmp-{dead}-jkl", {})
-    done = atomic.recover(target)
-    assert len(done) == 2
-    assert not stale_tmp.exists() and not stale_old.exists()
-    assert live.exists() and other.exists()
-    assert _tree(target) == {"index.md": b"current"}
-
-
-def test_recover_restores_the_backup_when_killed_between_the_two_renames(tmp_path):
-    target = tmp_path / "reports"
-    dead = _dead_pid()
-    backup = _make(tmp_path / f".reports.old-{dead}-abc", {"index.md": "previous"})
-    new = _make(tmp_path / f".reports.tmp-{dead}-def", {"index.md": "new"})
-    atomic.recover(target)
-    assert _tree(target) == {"index.md": b"previous"}
-    assert not backup.exists() and not new.exists()

@@ -61,11 +61,15 @@ def _cli(args, *, module=False, cwd=REPO):
 
 @pytest.fixture
 def previous_report(tmp_path):
-    """An output directory that already holds a report, to check it is not damaged."""
+    """An output directory that already holds a report this tool wrote, to check
+    it is not damaged (and that it may be replaced)."""
+    from validation import atomic
+
     out = tmp_path / "reports"
-    out.mkdir()
-    (out / "index.md").write_text("previous report\n")
-    (out / "accuracy.csv").write_text("scene\nold\n")
+    tmp = atomic.fresh_dir(out)
+    (tmp / "index.md").write_text("previous report\n")
+    (tmp / "accuracy.csv").write_text("scene\nold\n")
+    atomic.swap_into_place(tmp, out, scope="subset", scenes=["old"])
     return out
 
 
@@ -86,7 +90,7 @@ def test_bad_scene_exits_2_with_one_line_and_leaves_out_dir_alone(tmp_path, prev
     assert len(lines) == 1 and "Traceback" not in r.stderr
     assert "bad.toml" in lines[0] and "field `params.masses[1]`" in lines[0]
     assert _snapshot(previous_report) == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml", "reports"]  # no temp dir left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml", "reports"]  # no temp dir, no lock file
 
 
 def test_bad_flag_exits_2_with_one_line(tmp_path):

@@ -2,25 +2,41 @@
 
 A scene whose estimate exceeds a cap is refused up front (``run_all`` exits 2
 with the estimate in the message) instead of running for hours or exhausting
-memory:
+memory. The estimate is a sum over everything the scene will run, and it costs
+no eigensolve: the fastest frequency is the Gershgorin bound
+:func:`references.solvers.tolerances.omega_bound` (O(N) for a chain), an upper
+bound of the linearized spectrum.
 
 ``steps``
-    integration steps of the runs the scene asks for: every fixed-step run
-    (``ceil(t_end / h)`` per solver and step), the convergence sweeps
+    double-precision integration steps: every fixed-step run (``ceil(t_end /
+    h)`` per solver and step), the convergence sweeps
     (:func:`validation.experiments.order_sweep`), the RK4 run behind the state
-    figures, and for each adaptive run a lower bound of
-    :data:`ADAPTIVE_STEPS_PER_PERIOD` steps per period of the fastest
-    (linearized) mode. Timing repeats are not counted (runs longer than 1 s
-    are timed once). Cap: :data:`MAX_STEPS`.
-``trajectory_bytes``
-    one trajectory on the output grid, ``8 x state size x output points``
-    (float64). The runner holds a few of these at once (reference, run, their
-    difference), so peak memory is a small multiple of it. Cap:
+    figures, for each adaptive run a lower bound of
+    :data:`ADAPTIVE_STEPS_PER_PERIOD` steps per period of the fastest mode,
+    and the stability study (:func:`validation.stability.estimate_steps`).
+    Timing repeats are not counted (runs longer than 1 s are timed once).
+    Cap: :data:`MAX_STEPS` (``--max-steps``).
+``truth_steps``
+    quadruple-precision Taylor steps of the reference of a nonlinear model
+    (heyoka ``real128``, about 1 ms per step on a 2-DOF model on the
+    development machine): :data:`TRUTH_STEPS_PER_PERIOD` per period of the
+    fastest mode over each horizon that needs one (the output grid, the
+    convergence sweep, the figures when no RK4 run draws them). Linear models
+    have closed forms and cost none. Cap: :data:`MAX_TRUTH_STEPS`
+    (``--max-truth-steps``).
+``dense_dof``
+    the size of the dense eigenproblem ``K phi = omega^2 M phi`` the scene
+    solves (the exact modal reference of a linear model, the convergence
+    horizon, the modes table): ``n_dof``, or 0 when only the stability study
+    runs. O(n^3): 4.4 s at 3000 on the development machine, about 20 s at
+    5000, several minutes at 10^4. Cap: :data:`MAX_DENSE_DOF`.
+``memory_bytes``
+    the whole process: :data:`BASE_BYTES` for the interpreter and libraries,
+    plus :data:`TRAJECTORIES_HELD` trajectories on the output grid (the
+    reference and its low part, the run, its difference and energy, the
+    timing repeats), each ``8 x state size x output points`` bytes. Cap:
     :data:`MAX_BYTES`; decimated output (``[run] max_output_points`` or
     ``run_all --max-output-points``) lowers it.
-
-The stability study (``outputs = ["stability"]``) sizes its own runs from its
-``[stability]`` table and is not part of this estimate.
 """
 from __future__ import annotations
 
@@ -31,85 +47,145 @@ from references.solvers.base import ADAPTIVE, FIXED_STEP
 
 from .scenes import Scene, SceneError
 
-__all__ = ["Estimate", "estimate", "check", "MAX_STEPS", "MAX_BYTES", "ADAPTIVE_STEPS_PER_PERIOD"]
+__all__ = ["Estimate", "estimate", "check", "MAX_STEPS", "MAX_TRUTH_STEPS", "MAX_BYTES", "MAX_DENSE_DOF",
+           "ADAPTIVE_STEPS_PER_PERIOD", "TRUTH_STEPS_PER_PERIOD", "TRAJECTORIES_HELD", "BASE_BYTES"]
 
-#: Largest number of integration steps a scene may ask for.
+#: Largest number of double-precision integration steps a scene may ask for.
 MAX_STEPS = 1e9
-#: Largest trajectory (bytes) on a scene's output grid: 4 GiB.
+#: Largest number of quadruple-precision Taylor steps of a scene's reference
+#: (~1e3 s at ~1 ms per step on a 2-DOF model).
+MAX_TRUTH_STEPS = 1e6
+#: Largest dense eigenproblem (degrees of freedom) a scene may need.
+MAX_DENSE_DOF = 5000
+#: Largest estimated memory of the whole process (bytes): 4 GiB.
 MAX_BYTES = 4 * 2**30
 #: Adaptive solvers: at least this many steps per period of the fastest mode
 #: (a lower bound; DOP853 at rtol 1e-6 takes about 10).
 ADAPTIVE_STEPS_PER_PERIOD = 4
+#: heyoka real128 at tol 1e-32 (order 38): 9-25 steps per period of the
+#: Gershgorin frequency on the shipped nonlinear models; 30 bounds them.
+TRUTH_STEPS_PER_PERIOD = 30
+#: Trajectories on the output grid the runner holds at its peak: measured 9.8
+#: (maximum resident set 1.15 GB, 0.22 GB without the trajectories) on a
+#: one-mass scene with a 95 MiB trajectory, RK4 and DOP853, --repeats 3;
+#: 12 leaves a margin.
+TRAJECTORIES_HELD = 12
+#: The interpreter with numpy, scipy, numba, heyoka and matplotlib loaded.
+BASE_BYTES = 400 * 2**20
 
 
 @dataclass(frozen=True)
 class Estimate:
-    """What a scene will cost: steps, output points, state size, bytes."""
+    """What a scene will cost: steps, quadruple-precision steps, output points,
+    state size, the fastest frequency bound (rad/s)."""
 
     steps: float
+    truth_steps: float
     output_points: int
     state_size: int
     omega_max: float
+    dense_dof: int = 0
 
     @property
     def trajectory_bytes(self) -> float:
         return 8.0 * self.state_size * self.output_points
 
+    @property
+    def memory_bytes(self) -> float:
+        return BASE_BYTES + TRAJECTORIES_HELD * self.trajectory_bytes
 
-def _omega_max(model) -> float:
+
+def _omega_bound(model) -> float:
+    import numpy as np
+
+    from references.solvers.tolerances import omega_bound
+
     try:
-        w = float(max(model.modes()[0]))
-    except Exception:  # noqa: BLE001 - no (finite) linearization: no frequency-based estimate
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            w = float(omega_bound(model))
+    except (ValueError, ArithmeticError, TypeError, NotImplementedError):
         return math.nan
-    return w if math.isfinite(w) and w > 0 else math.nan
+    return w
+
+
+def _steps(t_end: float, h: float) -> float:
+    return math.ceil(t_end / h * (1 - 1e-12))
 
 
 def estimate(scene: Scene, model=None) -> Estimate:
-    """Estimate the cost of ``scene`` (see the module docstring)."""
-    from .experiments import EULER_THETAS, RK4_THETAS, convergence_horizon
+    """Estimate the cost of ``scene`` (see the module docstring). Raises
+    ``ValueError`` when the model's frequency bound is not a finite number."""
+    from .experiments import EULER_THETAS, RK4_THETAS
 
     model = model if model is not None else scene.build_model()
-    w = _omega_max(model)
+    w = _omega_bound(model)
+    if not math.isfinite(w) or w < 0:
+        raise ValueError(f"the fastest frequency bound of the model is {w!r} rad/s, not a finite number "
+                         f"(are the masses or stiffnesses extreme?)")
+    periods = lambda T: T * w / (2 * math.pi)  # noqa: E731
     want = set(scene.outputs)
-    steps = 0.0
+    steps = truth = 0.0
+    nonlinear = not getattr(model, "linear", True)
     if {"state", "energy", "work_precision"} & want:
         for s in scene.solvers:
             if s in FIXED_STEP:
-                steps += sum(math.ceil(scene.t_end / h * (1 - 1e-12)) for h in scene.h)
-            elif s in ADAPTIVE and math.isfinite(w):
-                steps += len(scene.tolerances) * ADAPTIVE_STEPS_PER_PERIOD * scene.t_end * w / (2 * math.pi)
-    if "figures" in want and scene.h and "rk4" in scene.solvers:
-        steps += math.ceil(scene.t_end / min(scene.h) * (1 - 1e-12))
-    if "convergence" in want and math.isfinite(w):
-        T = convergence_horizon(scene, model)
+                steps += sum(_steps(scene.t_end, h) for h in scene.h)
+            elif s in ADAPTIVE:
+                steps += len(scene.tolerances) * ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end)
+        truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
+    if "figures" in want:
+        if scene.h and "rk4" in scene.solvers:
+            steps += _steps(scene.t_end, min(scene.h))
+        else:
+            truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
+    if "convergence" in want and w > 0:
+        T = min(scene.convergence.get("t_end", 2.0 * math.pi / w), scene.t_end)
         for thetas in (scene.convergence.get("theta", RK4_THETAS),
                        scene.convergence.get("theta_euler", EULER_THETAS),
                        scene.convergence.get("theta_euler", EULER_THETAS)):
             top = max(thetas)
             n0 = max(1, math.ceil(T * w / top))
             steps += sum(n0 * max(1, round(top / th)) for th in thetas)
-    return Estimate(steps=steps, output_points=scene.n_output_points, state_size=2 * model.n_dof,
-                    omega_max=w)
+        truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
+    if "stability" in want:
+        from .stability import estimate_steps
+
+        steps += float(estimate_steps(scene))
+    if not (math.isfinite(steps) and math.isfinite(truth)):
+        raise ValueError(f"the estimate is not finite (steps {steps!r}, quadruple-precision steps {truth!r})")
+    dense = model.n_dof if set(scene.outputs) - {"stability"} else 0
+    return Estimate(steps=steps, truth_steps=truth, output_points=scene.n_output_points,
+                    state_size=2 * model.n_dof, omega_max=w, dense_dof=dense)
 
 
 def _gib(b: float) -> str:
     return f"{b / 2**30:.3g} GiB"
 
 
-def check(scene: Scene, *, max_steps: float = MAX_STEPS, max_bytes: float = MAX_BYTES) -> Estimate:
+def check(scene: Scene, *, max_steps: float = MAX_STEPS, max_truth_steps: float = MAX_TRUTH_STEPS,
+          max_bytes: float = MAX_BYTES) -> Estimate:
     """Refuse ``scene`` with a :class:`SceneError` (one line, the estimate in it)
-    when it exceeds ``max_steps`` or ``max_bytes``; return the estimate."""
+    when it exceeds a cap; return the estimate."""
     path = scene.path if scene.path is not None else scene.name
     try:
         est = estimate(scene)
     except (ValueError, ArithmeticError) as e:
-        raise SceneError(path, "run", f"its cost cannot be estimated: {type(e).__name__}: {e}") from None
+        raise SceneError(path, "run", f"its cost cannot be estimated: {e}") from None
     if est.steps > max_steps:
         raise SceneError(path, "run", f"asks for about {est.steps:.3g} integration steps, above the cap "
                          f"of {max_steps:.3g} (raise it with --max-steps)")
-    if est.trajectory_bytes > max_bytes:
-        raise SceneError(path, "run", f"needs {_gib(est.trajectory_bytes)} per trajectory (8 B x "
-                         f"{est.state_size} states x {est.output_points:.3g} output points), above the cap "
-                         f"of {_gib(max_bytes)}; decimate with [run] max_output_points or "
-                         f"--max-output-points")
+    if est.truth_steps > max_truth_steps:
+        raise SceneError(path, "run", f"needs about {est.truth_steps:.3g} quadruple-precision steps for its "
+                         f"reference (roughly {est.truth_steps * 1e-3 * est.state_size / 4 / 60:.3g} min), "
+                         f"above the cap of {max_truth_steps:.3g} (shorten t_end, or raise it with "
+                         f"--max-truth-steps)")
+    if est.dense_dof > MAX_DENSE_DOF:
+        raise SceneError(path, "run", f"needs a dense eigensolve of {est.dense_dof} degrees of freedom (its "
+                         f"modes and exact reference), above the cap of {MAX_DENSE_DOF} (minutes of O(n^3) "
+                         f"work); keep outputs = [\"stability\"] for chains this long")
+    if est.memory_bytes > max_bytes:
+        raise SceneError(path, "run", f"needs about {_gib(est.memory_bytes)} of memory ({TRAJECTORIES_HELD} "
+                         f"trajectories of 8 B x {est.state_size} states x {est.output_points:.3g} output "
+                         f"points), above the cap of {_gib(max_bytes)}; decimate with [run] "
+                         f"max_output_points or --max-output-points")
     return est

@@ -3,7 +3,8 @@
 Usage::
 
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
-                                 [--max-output-points N] [--max-steps N]
+                                 [--max-output-points N] [--max-steps N] [--max-truth-steps N]
+                                 [--replace]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
@@ -12,21 +13,41 @@ figures and ``index.md`` into ``DIR`` (default: ``reports/`` at the
 repository root). All scenes are validated, and their cost estimated
 (:mod:`validation.budget`), before anything runs.
 
+``DIR`` is replaced only if it is absent, empty, or a report this tool wrote
+and nothing has changed in since (:mod:`validation.atomic`: a marker file with
+a manifest); anything else is refused before any work, untouched. A ``--quick``
+or ``--scene`` run never replaces a full report unless ``--replace`` is given.
+Runs into one ``DIR`` are serialized by ``flock`` on ``.<DIR>.lock`` beside it.
 The report is written into a fresh directory beside ``DIR`` and swapped into
-place at the end (:mod:`validation.atomic`: one atomic ``renameat2`` exchange
-where the filesystem has it), so an interrupted or killed run never leaves a
-half-written or mixed report; leftovers of killed runs are cleaned at the next
-start. SIGINT (Ctrl-C) and SIGTERM stop the run, remove its temporary
-directory and print which scenes had finished.
+place at the end (one atomic ``renameat2`` exchange where the filesystem has
+it), so an interrupted or killed run never leaves a half-written or mixed
+report; leftovers of killed runs are cleaned at the next start. SIGINT
+(Ctrl-C) and SIGTERM stop the run, remove its temporary directory and print
+which scenes had finished.
 
 Exit status: 0 every expectation held; 1 at least one failed (``index.md``
 lists them first); 2 bad input (one line on stderr naming the file and the
-field, or the flag); 130 interrupted by SIGINT, 143 by SIGTERM.
+field, or the flag, or an ``--out`` it must not replace); 3 the environment
+refused (lock held, not writable, disk full, mount point, name too long: one
+line); 130 interrupted by SIGINT, 143 by SIGTERM.
 """
 from __future__ import annotations
 
-import argparse
+import os
 import signal
+
+if __name__ == "__main__":
+    # Until main() installs its handlers (imports take a while), a signal ends
+    # the process with one line; nothing has been written yet.
+    def _early_exit(signum, frame):
+        os.write(2, f"run_all: interrupted ({signal.Signals(signum).name}) before any scene ran\n".encode())
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGINT, _early_exit)
+    signal.signal(signal.SIGTERM, _early_exit)
+
+import argparse
+import errno
 import sys
 import time
 from pathlib import Path
@@ -41,6 +62,8 @@ __all__ = ["main", "run", "Interrupted"]
 
 DEFAULT_OUT = REPO / "reports"
 REPEATS_FULL, REPEATS_QUICK = 3, 1
+#: Largest --repeats (each timed run is repeated this often at most).
+MAX_REPEATS = 100
 
 
 class _Parser(argparse.ArgumentParser):
@@ -49,14 +72,16 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def _int_at_least(lo):
+def _int_at_least(lo, hi=None):
+    want = f"an integer >= {lo}" if hi is None else f"an integer from {lo} to {hi}"
+
     def parse(text):
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {text!r}") from None
-        if value < lo:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"must be {want}, got {text!r}") from None
+        if value < lo or (hi is not None and value > hi):
+            raise argparse.ArgumentTypeError(f"must be {want}, got {text!r}")
         return value
     return parse
 
@@ -72,21 +97,27 @@ def _positive_float(text):
 
 
 def _parser():
-    from validation.budget import MAX_STEPS
+    from validation.budget import MAX_STEPS, MAX_TRUTH_STEPS
 
     p = _Parser(prog="run_all", description="Run the RK4 validation scenes and write the report.")
     p.add_argument("--quick", action="store_true", help="run only the scenes marked quick = true")
     p.add_argument("--out", default=str(DEFAULT_OUT), help="output directory (default: reports/)")
     p.add_argument("--scene", action="append", default=[], metavar="PATH",
                    help="scene file to run (repeatable; default: all in validation/scenes/)")
-    p.add_argument("--repeats", type=_int_at_least(1), default=None,
-                   help=f"timing repeats per run (median; default {REPEATS_FULL}, --quick {REPEATS_QUICK})")
+    p.add_argument("--repeats", type=_int_at_least(1, MAX_REPEATS), default=None,
+                   help=f"timing repeats per run, 1..{MAX_REPEATS} (median; default {REPEATS_FULL}, "
+                        f"--quick {REPEATS_QUICK})")
+    p.add_argument("--replace", action="store_true",
+                   help="let a --quick or --scene run replace a full report in --out")
     p.add_argument("--no-figures", action="store_true", help="tables and index.md only")
     p.add_argument("--max-output-points", type=_int_at_least(2), default=None, metavar="N",
                    help="decimate each scene's output grid to at most N points (every k-th point; "
                         "a scene's own [run] max_output_points wins)")
     p.add_argument("--max-steps", type=_positive_float, default=MAX_STEPS, metavar="N",
                    help=f"refuse scenes estimated above N integration steps (default {MAX_STEPS:g})")
+    p.add_argument("--max-truth-steps", type=_positive_float, default=MAX_TRUTH_STEPS, metavar="N",
+                   help=f"refuse scenes whose quadruple-precision reference is estimated above N Taylor "
+                        f"steps (default {MAX_TRUTH_STEPS:g})")
     return p
 
 
@@ -131,8 +162,8 @@ def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
             raise ValueError(f"`scenes[{i}]` must be a Scene (validation.scenes.load_scene), got {s!r}")
     if not isinstance(out_dir, (str, Path)) or not Path(out_dir).is_dir():
         raise ValueError(f"`out_dir` must be an existing directory, got {out_dir!r}")
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
-        raise ValueError(f"`repeats` must be an integer >= 1, got {repeats!r}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
+        raise ValueError(f"`repeats` must be an integer from 1 to {MAX_REPEATS}, got {repeats!r}")
     boolean("quick", quick)
     boolean("figures", figures)
     if progress is not None and not callable(progress):
@@ -165,7 +196,7 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     scenes finished so far are kept in ``run.completed``.
     """
     scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
-    from validation import experiments, report
+    from validation import atomic, experiments, report
 
     t0 = time.perf_counter()
     run.completed = []
@@ -177,6 +208,8 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         except KeyboardInterrupt:
             raise
         except Exception as e:  # noqa: BLE001 - one scene's fault does not stop the run
+            if atomic.is_environment_error(e):
+                raise  # a full disk is not the scene's fault: the run stops (exit 3)
             r = experiments.SceneResult(scene.name)
             r.failures.append(f"{scene.name}: the scene raised {type(e).__name__}: "
                               f"{str(e).splitlines()[0] if str(e) else ''}")
@@ -272,6 +305,34 @@ def main(argv=None, *, restore_signals=True) -> int:
             return 128 + signum
 
 
+def _scope(args) -> str:
+    """What the run covers: ``full`` (every shipped scene), ``quick`` or ``subset``."""
+    return "subset" if args.scene else ("quick" if args.quick else "full")
+
+
+def _environment(message) -> int:
+    sys.stderr.write(f"run_all: {message}\n")
+    return 3
+
+
+def _check_name_length(target: Path) -> None:
+    """The temporary names beside ``target`` must fit the filesystem's limit."""
+    from validation import atomic
+
+    longest = len(os.fsencode(f".{target.name}.kept-{'0' * 12}"))
+    probe = target.parent
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    try:
+        limit = os.pathconf(probe, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    if longest > limit:
+        raise atomic.EnvironmentRefused(errno.ENAMETOOLONG, f"--out {target}: its name ({len(target.name)} "
+                                        f"characters) leaves no room for the temporary names beside it "
+                                        f"(limit {limit} bytes); choose a shorter name")
+
+
 def _main(argv, sig) -> int:
     args = _parser().parse_args(argv)
     from validation import atomic, budget
@@ -283,25 +344,47 @@ def _main(argv, sig) -> int:
             scenes = [s if s.max_output_points is not None else _with_max_points(s, args.max_output_points)
                       for s in scenes]
         for s in scenes:
-            budget.check(s, max_steps=args.max_steps)
+            budget.check(s, max_steps=args.max_steps, max_truth_steps=args.max_truth_steps)
     except SceneError as e:
         sys.stderr.write(f"{e}\n")
         return 2
     if not scenes:
         return _fail("no scenes to run" + (" (none is marked quick = true)" if args.quick else ""))
     repeats = args.repeats if args.repeats is not None else (REPEATS_QUICK if args.quick else REPEATS_FULL)
-    target = Path(args.out).resolve()
-    if target.exists() and not target.is_dir():
-        return _fail(f"--out {args.out} exists and is not a directory")
+    scope = _scope(args)
+    target = Path(os.path.abspath(args.out))
     try:
+        _check_name_length(target)
+        if target.is_symlink() and target.is_dir():
+            target = target.resolve()
+        atomic.check_target(target, scope=scope, n_scenes=len(scenes), replace=args.replace)
         target.parent.mkdir(parents=True, exist_ok=True)
-        for line in atomic.recover(target):
-            sys.stderr.write(f"run_all: {line}\n")
-        tmp = atomic.fresh_dir(target)
+        with atomic.Lock(target):
+            for line in atomic.recover(target):
+                sys.stderr.write(f"run_all: {line}\n")
+            # checked again under the lock: another run may have written meanwhile
+            atomic.check_target(target, scope=scope, n_scenes=len(scenes), replace=args.replace)
+            return _run_into(target, scenes, args, repeats, scope, sig)
+    except atomic.TargetRefused as e:
+        return _fail(str(e))
     except OSError as e:
-        return _fail(f"--out {args.out}: cannot write there ({e.strerror or e})")
+        if isinstance(e, atomic.EnvironmentRefused) or e.errno in atomic.ENVIRONMENT_ERRNOS:
+            where = f" ({e.filename})" if getattr(e, "filename", None) else ""
+            text = e.strerror if isinstance(e.strerror, str) and not isinstance(e, atomic.EnvironmentRefused) \
+                else (e.strerror or str(e))
+            return _environment(f"the environment refused: {text}{where}; {args.out} left unchanged")
+        raise
+
+
+def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
+    """Run ``scenes`` into a fresh directory beside ``target`` and swap it in
+    (the caller holds the lock)."""
+    import shutil
+
+    from validation import atomic
     from validation.experiments import planned_units
 
+    tmp = atomic.fresh_dir(target)
     figures = not args.no_figures
     progress, swapped = None, False
     run.completed = []
@@ -312,13 +395,11 @@ def _main(argv, sig) -> int:
                               progress=progress)
             progress.close()
             sig.hold()  # the swap is not interrupted half-way
-            atomic.swap_into_place(tmp, target)
+            atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
             swapped = True
         finally:
             sig.held = True  # cleanup is not interrupted either
             if not swapped:
-                import shutil
-
                 shutil.rmtree(tmp, ignore_errors=True)
         sig.release()
     except KeyboardInterrupt as e:
@@ -334,6 +415,9 @@ def _main(argv, sig) -> int:
         return 128 + signum
     finally:
         sig.held, sig.pending = False, None
+    if atomic.swap_into_place.kept is not None:
+        sys.stderr.write(f"run_all: the previous report changed during the run; it was kept aside as "
+                         f"{atomic.swap_into_place.kept}\n")
     print(f"report written to {target} ({len(scenes)} scene(s)); "
           f"{'all expectations held' if not failures else f'{len(failures)} expectation(s) failed'}")
     for f in failures:

@@ -40,7 +40,9 @@ problem (got VALUE)``, before anything runs.
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from numbers import Real
@@ -49,9 +51,10 @@ from pathlib import Path
 import numpy as np
 
 from references.solvers.base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES
+from rk4core.solver import _SLACK as _STEP_SLACK
 
-__all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "scene_from_dict", "output_stride",
-           "OUTPUTS", "SCENE_DIR"]
+__all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "resolve_scene", "scene_from_dict",
+           "output_stride", "OUTPUTS", "SCENE_DIR", "MAX_SCENE_BYTES"]
 
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
            "stability", "dispersion")
@@ -62,8 +65,14 @@ _TOP = {"name", "description", "model", "quick", "params", "initial", "run", "co
 _INITIAL = {"x", "v", "mode", "amplitude"}
 _RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt", "max_output_points"}
 _CONVERGENCE = {"t_end", "theta", "theta_euler"}
-_NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
-_DIVIDES = 1e-9  # relative slack when checking that one step divides another
+_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*")  # used with fullmatch: no trailing newline slips through
+_NAME_MAX = 100
+#: Relative slack when checking that one step divides another: the slack of
+#: rk4core's step count (``ceil((t1 - t0) / h)``), so a step that passes here
+#: is the step used, and every output time is a grid point of every run.
+_DIVIDES = _STEP_SLACK
+#: Largest scene file read (bytes); a scene is a few hundred bytes.
+MAX_SCENE_BYTES = 1 << 20
 
 
 class SceneError(ValueError):
@@ -242,13 +251,41 @@ class _Raw(str):
 
 
 # -- loading -------------------------------------------------------------------
+def _read_text(path: Path) -> str:
+    """The UTF-8 text of a regular file of at most :data:`MAX_SCENE_BYTES`.
+
+    A FIFO, a device (``/dev/zero``), a directory or a larger file is refused
+    before it is read, so a wrong path can neither block nor exhaust memory."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise SceneError(path, "file", f"cannot be read: {e.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        what = ("a directory" if stat.S_ISDIR(st.st_mode) else "a FIFO" if stat.S_ISFIFO(st.st_mode)
+                else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a regular file")
+        raise SceneError(path, "file", f"must be a regular file, but it is {what}")
+    if st.st_size > MAX_SCENE_BYTES:
+        raise SceneError(path, "file", f"is {st.st_size} bytes, above the {MAX_SCENE_BYTES}-byte cap for a scene")
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as f:
+            if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):  # swapped since the stat
+                raise SceneError(path, "file", "must be a regular file")
+            data = f.read(MAX_SCENE_BYTES + 1)
+    except OSError as e:
+        raise SceneError(path, "file", f"cannot be read: {e.strerror}") from None
+    if len(data) > MAX_SCENE_BYTES:
+        raise SceneError(path, "file", f"is above the {MAX_SCENE_BYTES}-byte cap for a scene")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SceneError(path, "file", f"is not UTF-8 text ({e.reason} at byte {e.start})") from None
+
+
 def load_scene(path) -> Scene:
     """Read and validate one scene file. Raises :class:`SceneError`."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as e:
-        raise SceneError(path, "file", f"cannot be read: {e.__class__.__name__}: {e}") from None
+    text = _read_text(path)
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -267,8 +304,9 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
         if key not in doc:
             raise SceneError(path, key, "is missing")
     name = doc["name"]
-    if not isinstance(name, str) or not _NAME.match(name):
-        raise SceneError(path, "name", "must be lowercase letters, digits, '-' or '_'", name)
+    if not isinstance(name, str) or not _NAME.fullmatch(name) or len(name) > _NAME_MAX:
+        raise SceneError(path, "name", f"must be 1 to {_NAME_MAX} lowercase letters, digits, '-' or '_', "
+                         f"starting with a letter or digit", name)
     description = doc.get("description", "")
     if not isinstance(description, str):
         raise SceneError(path, "description", "must be a string", description)
@@ -370,6 +408,11 @@ def _mode_shape(path, model, ini) -> list:
     mode = ini["mode"]
     if isinstance(mode, bool) or not isinstance(mode, int) or not 1 <= mode <= model.n_dof:
         raise SceneError(path, "initial.mode", f"must be an integer in 1..{model.n_dof}", mode)
+    from .budget import MAX_DENSE_DOF
+
+    if model.n_dof > MAX_DENSE_DOF:
+        raise SceneError(path, "initial.mode", f"needs a dense eigensolve of {model.n_dof} degrees of freedom, "
+                         f"above the cap of {MAX_DENSE_DOF}; give `x` instead", mode)
     amp = _number(path, "initial.amplitude", ini.get("amplitude", 1.0))
     try:
         _, phi = model.modes()
@@ -396,6 +439,26 @@ def _stability(path, params) -> dict:
         raise _from_value_error(path, "stability", e) from None
 
 
+def resolve_scene(arg) -> Path:
+    """``--scene`` argument -> file: an existing path as given, else a shipped
+    scene named by its ``name`` (``three-blocks``) or file stem (``three_blocks``)."""
+    p = Path(arg)
+    if p.exists() or os.sep in str(arg) or str(arg).endswith(".toml"):
+        return p
+    stem = str(arg).replace("-", "_")
+    candidate = SCENE_DIR / f"{stem}.toml"
+    if candidate.is_file():
+        return candidate
+    for f in sorted(SCENE_DIR.glob("*.toml")):
+        try:
+            if tomllib.loads(f.read_text(encoding="utf-8")).get("name") == arg:
+                return f
+        except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
+            continue
+    shipped = ", ".join(sorted(f.stem.replace("_", "-") for f in SCENE_DIR.glob("*.toml")))
+    raise SceneError(arg, "file", f"is neither a file nor a shipped scene (shipped: {shipped})")
+
+
 def load_scenes(paths=None, *, quick=False) -> list[Scene]:
     """Load ``paths`` (default: every ``*.toml`` in :data:`SCENE_DIR`, sorted).
 
@@ -405,13 +468,17 @@ def load_scenes(paths=None, *, quick=False) -> list[Scene]:
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
-    files = sorted(SCENE_DIR.glob("*.toml")) if not paths else [Path(p) for p in paths]
+    files = sorted(SCENE_DIR.glob("*.toml")) if not paths else [resolve_scene(p) for p in paths]
     scenes = [load_scene(p) for p in files]
     seen = {}
     for s in scenes:
-        if s.name in seen:
-            raise SceneError(s.path, "name", f"is also used by {seen[s.name]}", s.name)
-        seen[s.name] = s.path
+        # figure files are named after the scene with '-' and '_' alike: those names must differ too
+        key = s.name.replace("-", "_")
+        if key in seen:
+            other, other_name = seen[key]
+            also = "" if other_name == s.name else f" as {other_name!r} (figure files would collide)"
+            raise SceneError(s.path, "name", f"is also used by {other}{also}", s.name)
+        seen[key] = (s.path, s.name)
     if quick and not paths:
         scenes = [s for s in scenes if s.quick]
     return scenes
