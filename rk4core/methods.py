@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Tableau", "RK4", "EULER", "SYMPLECTIC_EULER", "METHODS", "get_method", "rk_step"]
+__all__ = ["Tableau", "RK4", "EULER", "SYMPLECTIC_EULER", "METHODS", "get_method", "rk_step", "stage_time"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,18 @@ def get_method(method: str | Tableau) -> Tableau:
         ) from None
 
 
-def rk_step(fun, t: float, y: np.ndarray, h: float, tab: Tableau, k: np.ndarray) -> np.ndarray:
+def stage_time(t: float, c: float, h: float, t_max: float | None) -> float:
+    """Time ``t + c h`` of a stage, never past ``t_max`` (None: no limit).
+
+    ``t + c h`` can round one ulp past the end of the interval on its last
+    step; the right-hand side is never evaluated outside ``t_span`` (as scipy's
+    ``solve_ivp`` after gh-17341)."""
+    ti = t + c * h
+    return ti if t_max is None or ti <= t_max else t_max
+
+
+def rk_step(fun, t: float, y: np.ndarray, h: float, tab: Tableau, k: np.ndarray, *,
+            t_max: float | None = None) -> np.ndarray:
     """Advance ``y`` by one step of size ``h``; pure apart from the scratch ``k``.
 
     Parameters
@@ -115,11 +126,15 @@ def rk_step(fun, t: float, y: np.ndarray, h: float, tab: Tableau, k: np.ndarray)
     fun : callable
         ``fun(t, y) -> dy/dt``.
     t, y, h : float, ndarray, float
-        Current time, state (shape (n,)) and step.
+        Current time, state (shape (n,), real or complex) and step.
     tab : Tableau
         The method.
     k : ndarray, shape (n_stages, n)
-        Scratch space for the stage slopes (overwritten).
+        Scratch space for the stage slopes (overwritten), of the state's dtype.
+    t_max : float, optional, keyword-only
+        End of the integration interval: stage times are
+        ``min(t + c_i h, t_max)`` (:func:`stage_time`), so ``fun`` is never
+        called past it. Default: no limit.
 
     Returns
     -------
@@ -133,7 +148,7 @@ def rk_step(fun, t: float, y: np.ndarray, h: float, tab: Tableau, k: np.ndarray)
             for j in range(i):
                 if A[i, j] != 0.0:
                     yi = yi + (h * A[i, j]) * k[j]
-            k[i] = fun(t + c[i] * h, yi)
+            k[i] = fun(stage_time(t, c[i], h, t_max), yi)
         y_new = y.copy()
         for i in range(tab.n_stages):
             if b[i] != 0.0:
@@ -148,7 +163,7 @@ def rk_step(fun, t: float, y: np.ndarray, h: float, tab: Tableau, k: np.ndarray)
                 yi[:n] += (h * A[i, j]) * k[j, :n]
             if A_v[i, j] != 0.0:
                 yi[n:] += (h * A_v[i, j]) * k[j, n:]
-        k[i] = fun(t + c[i] * h, yi)
+        k[i] = fun(stage_time(t, c[i], h, t_max), yi)
     y_new = y.copy()
     for i in range(tab.n_stages):
         if b[i] != 0.0:

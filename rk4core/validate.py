@@ -1,16 +1,32 @@
 """Argument validators, kept together. Each raises ``ValueError`` naming the
-argument and the offending value, in one line."""
+argument and the offending value, in one line.
+
+Size caps of the fixed-step integrators (:func:`rk4core.solve`,
+:func:`rk4core.fast.solve_model`), checked before anything is allocated:
+
+* :data:`MAX_STEPS` -- at most ``10**10`` steps per run;
+* :data:`MAX_OUTPUT_BYTES` -- the output array (rows x components x 8 bytes
+  per real component, 16 per complex one) at most ``2**33`` bytes (8 GiB).
+"""
 from __future__ import annotations
 
 import math
-from numbers import Real
+from numbers import Complex, Number, Real
 
 import numpy as np
 
 __all__ = [
     "check_t_span", "check_y0", "check_model_y0", "check_step_args", "check_t_eval", "check_output_times",
+    "check_output_size", "check_max_growth", "check_y_scale", "MAX_STEPS", "MAX_OUTPUT_BYTES",
     "positive", "finite", "nonnegative", "float_list", "choice", "boolean",
 ]
+
+#: Largest number of fixed steps one run may take (a run of 1e10 RK4 steps
+#: already takes minutes compiled and hours in Python).
+MAX_STEPS = 10**10
+#: Largest output array one run may allocate, in bytes (8 GiB): rows (output
+#: times) x state components x 8 bytes (16 for a complex state).
+MAX_OUTPUT_BYTES = 2**33
 
 
 def _is_number(x) -> bool:
@@ -79,26 +95,68 @@ def check_t_span(t_span):
     t1 = finite("t_span[1]", t1)
     if not t1 > t0:
         raise ValueError(f"`t_span` must have t1 > t0, got {t_span!r}")
+    if not math.isfinite(t1 - t0):
+        raise ValueError(f"`t_span` = ({t0!r}, {t1!r}) is too wide: t1 - t0 overflows float64")
     return t0, t1
 
 
-def check_y0(y0) -> np.ndarray:
+def _short(value, limit=80) -> str:
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
+    """The initial state: a non-empty, finite 1-D array of numbers.
+
+    Returns a new float64 array, or complex128 when ``allow_complex`` and
+    any entry is complex (the imaginary part is kept, as in
+    ``scipy.integrate.solve_ivp``). Strings, booleans and other non-numbers
+    are refused whatever the container (list, tuple, ndarray); complex values
+    are refused unless ``allow_complex``.
+    """
+    kind = "real or complex numbers" if allow_complex else "real numbers"
+    if isinstance(y0, (str, bytes)):
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got the string {_short(y0)}")
+    if isinstance(y0, (list, tuple)):
+        for i, v in enumerate(y0):
+            if isinstance(v, (bool, np.bool_)):
+                raise ValueError(f"`y0` must be a 1-D array of {kind}, got the boolean y0[{i}] = {v!r}")
     try:
-        y = np.array(y0, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"`y0` must be a 1-D array of real numbers, got {y0!r}") from None
+        raw = np.asarray(y0)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {_short(y0)}") from None
+    if raw.dtype.kind == "O":  # mixed or exotic entries: each must be a number
+        flat = raw.ravel()
+        for v in flat:
+            if not isinstance(v, Number) or isinstance(v, (bool, np.bool_)):
+                raise ValueError(f"`y0` must be a 1-D array of {kind}, got an entry {_short(v)}")
+        cplx = any(isinstance(v, Complex) and not isinstance(v, Real) for v in flat)
+    elif raw.dtype.kind in "iuf":
+        cplx = False
+    elif raw.dtype.kind == "c":
+        cplx = True
+    else:  # b (bool), U/S (text), V, M/m (dates)...
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got dtype {raw.dtype} ({_short(y0)})")
+    if cplx and not allow_complex:
+        raise ValueError(f"`y0` must be real here, got complex values ({_short(y0)}); only "
+                         f"rk4core.solve integrates a complex state")
+    try:
+        y = np.array(raw, dtype=np.complex128 if cplx else np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {_short(y0)}") from None
     if y.ndim != 1:
         raise ValueError(f"`y0` must be 1-dimensional, got shape {y.shape}")
     if y.size == 0:
         raise ValueError("`y0` must not be empty")
     if not np.all(np.isfinite(y)):
-        raise ValueError(f"`y0` must be finite, got {y0!r}")
+        raise ValueError(f"`y0` must be finite, got {_short(y0)}")
     return y
 
 
 def check_model_y0(model, y0) -> np.ndarray:
-    """``y0`` as :func:`check_y0`, of the model's length ``2 n_dof`` (``y = [q, v]``)."""
-    y = check_y0(y0)
+    """``y0`` as :func:`check_y0` (real only: a complex ``y0`` is refused
+    whatever its container), of the model's length ``2 n_dof`` (``y = [q, v]``)."""
+    y = check_y0(y0, allow_complex=False)
     if y.shape[0] != 2 * model.n_dof:
         raise ValueError(f"`y0` must have length {2 * model.n_dof} (y = [q, v]) for "
                          f"{model.name}, got {y.shape[0]}")
@@ -106,14 +164,56 @@ def check_model_y0(model, y0) -> np.ndarray:
 
 
 def check_step_args(t0, t1, h, n_steps, step_count) -> int:
+    """The number of steps from exactly one of ``h`` (``step_count((t0, t1), h)``)
+    and ``n_steps``, at most :data:`MAX_STEPS`."""
     if (h is None) == (n_steps is None):
         raise ValueError(f"give exactly one of `h` and `n_steps`, got h={h!r}, n_steps={n_steps!r}")
     if h is not None:
         h = positive("h", h)
+        ratio = (t1 - t0) / h  # may overflow to inf for a subnormal h
+        if not ratio <= MAX_STEPS:
+            raise ValueError(f"`h` = {h!r} implies {ratio:.3g} steps over t_span = ({t0!r}, {t1!r}), "
+                             f"more than MAX_STEPS = {MAX_STEPS:.0e}; use a larger h")
         return step_count((t0, t1), h)
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise ValueError(f"`n_steps` must be an integer >= 1, got {n_steps!r}")
+    if n_steps > MAX_STEPS:
+        raise ValueError(f"`n_steps` = {n_steps!r} is more than MAX_STEPS = {MAX_STEPS:.0e}")
     return int(n_steps)
+
+
+def check_output_size(name: str, value, rows: int, n_components: int, itemsize: int = 8) -> None:
+    """Refuse an output array of ``rows x n_components x itemsize`` bytes
+    above :data:`MAX_OUTPUT_BYTES`, naming the argument ``name`` (= ``value``)
+    that sets the number of rows (a ``str`` value is shown as is)."""
+    size = int(rows) * int(n_components) * int(itemsize)
+    if size > MAX_OUTPUT_BYTES:
+        shown = value if isinstance(value, str) else _short(value, 40)
+        raise ValueError(f"`{name}` = {shown} implies an output of {rows} rows x {n_components} "
+                         f"components x {itemsize} bytes = {size / 2**30:.3g} GiB, over the "
+                         f"MAX_OUTPUT_BYTES = 2**33 bytes (8 GiB) cap; keep fewer output times "
+                         f"(t_eval, or record_every on the fast path)")
+
+
+def check_max_growth(value) -> float | None:
+    """``max_growth``: None (growth test off) or a finite number >= 1."""
+    if value is None:
+        return None
+    v = finite("max_growth", value)
+    if not v >= 1.0:
+        raise ValueError(f"`max_growth` must be >= 1 (or None to disable the growth test), got {value!r}")
+    return v
+
+
+def check_y_scale(value, n: int) -> np.ndarray | None:
+    """``y_scale``: None, or ``n`` positive finite per-component scales."""
+    if value is None:
+        return None
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
+        raise ValueError(f"`y_scale` must be a list of {n} positive numbers, got {_short(value)}")
+    if len(value) != n:
+        raise ValueError(f"`y_scale` must have {n} entries (one per state component), got {len(value)}")
+    return float_list("y_scale", value, length=n, positive_items=True)
 
 
 def check_t_eval(t_eval, t0, t1):

@@ -224,8 +224,8 @@ CLI_CASES = [
     ("unknown-flag", ["--fast"], "unrecognized arguments: --fast"),
     ("flag-without-value", ["--out"], "--out: expected one argument"),
     ("missing-scene-file", ["--scene", "nowhere.toml"], "nowhere.toml: field `file`: cannot be read"),
-    ("scene-is-a-directory", ["--scene", "validation"], "validation: field `file`: cannot be read"),
-    ("out-is-a-file", ["--scene", "SCENE", "--out", "README.md"], "--out README.md exists and is not a directory"),
+    ("scene-is-a-directory", ["--scene", "validation"], "validation: field `file`: must be a regular file, but it is a directory"),
+    ("out-is-a-file", ["--scene", "SCENE", "--out", "README.md"], f"--out {REPO / 'README.md'} exists and is not a directory"),
 ]
 
 

@@ -119,20 +119,62 @@ BLOWUP_CASES = [
 ]
 
 
+# Each blow-up is stopped either by the growth test (default max_growth = 1e8:
+# a component past 1e8 times max|y0|) or, with the growth test off, when the
+# state becomes non-finite; both paths must stop at the same step, bit for bit.
+STOP_RULES = [("growth", {}), ("non-finite", {"max_growth": None})]
+
+
 @pytest.mark.parametrize("case_i, method, h", [c[1:] for c in BLOWUP_CASES], ids=[c[0] for c in BLOWUP_CASES])
 @pytest.mark.parametrize("with_t_eval", [False, True], ids=["every-step", "t_eval"])
-def test_blow_up_same_as_generic(case_i, method, h, with_t_eval):
+@pytest.mark.parametrize("reason, rule", STOP_RULES, ids=[r[0] for r in STOP_RULES])
+def test_blow_up_same_as_generic(case_i, method, h, with_t_eval, reason, rule):
     model, y0 = _model(MODEL_CASES[case_i])
     t_span = (0.0, 2000.0)
-    kw = dict(h=h, method=method)
+    kw = dict(h=h, method=method, **rule)
     if with_t_eval:
         kw["t_eval"] = np.linspace(*t_span, 1001)
     gen = rk4core.solve(model.rhs, t_span, y0, **kw)
     assert not gen.success  # the case must actually blow up
     res = fast.solve_model(model, t_span, y0, **kw)
-    assert res.status == -1 and "non-finite" in res.message
+    assert res.status == -1 and res.reason == gen.reason == reason
+    assert ("non-finite" if reason == "non-finite" else "grew past max_growth") in res.message
     _assert_same(res, gen)
+    np.testing.assert_array_equal(res.y, gen.y)  # bit for bit up to the stop
     assert np.all(np.isfinite(res.y))
+
+
+# Growth stops named in the task: explicit Euler on 2-DOF case 1 (|R| =
+# sqrt(1 + (h w)^2) > 1 every step) for 1e5 steps, and RK4 at omega_max h = 3,
+# beyond its stability limit 2 sqrt(2) = 2.83 (|R(3i)| = 1.505 per step).
+def _case1_rk4_beyond_limit():
+    model, y0 = _model(MODEL_CASES[0])
+    w = float(model.modes()[0][-1])
+    return model, y0, (0.0, 2000 * 3.0 / w), dict(n_steps=2000, method="rk4")
+
+
+def _case1_euler_1e5():
+    model, y0 = _model(MODEL_CASES[0])
+    return model, y0, (0.0, 1000.0), dict(n_steps=100_000, method="euler")
+
+
+GROWTH_CASES = {"euler-case1-1e5-steps": _case1_euler_1e5, "rk4-case1-omega-h-3": _case1_rk4_beyond_limit}
+
+
+@pytest.mark.parametrize("scale", ["initial", "given"])
+@pytest.mark.parametrize("name", sorted(GROWTH_CASES))
+def test_growth_stop_bit_identical_to_generic(name, scale):
+    model, y0, t_span, kw = GROWTH_CASES[name]()
+    if scale == "given":  # per-group scales: positions 5 mm, velocities 0.1 m/s
+        kw["y_scale"] = [0.005, 0.005, 0.1, 0.1]
+    gen = rk4core.solve(model.rhs, t_span, y0, **kw)
+    res = fast.solve_model(model, t_span, y0, **kw)
+    assert gen.reason == res.reason == "growth" and gen.status == res.status == -1
+    assert f"its {scale} scale" in res.message
+    assert res.n_steps < kw["n_steps"] and res.t_fail == gen.t_fail and res.message == gen.message
+    np.testing.assert_array_equal(res.t, gen.t)
+    np.testing.assert_array_equal(res.y, gen.y)
+    assert (res.nfev, res.n_steps) == (gen.nfev, gen.n_steps)
 
 
 def test_symplectic_euler_stable_below_its_limit():
@@ -248,10 +290,52 @@ def test_generated_loop_is_bit_identical_to_generic_loop(case, method):
     n, step = 150, 0.01
     idx, theta, _ = _output_points(0.0, step, n, np.array([0.0, 0.013, 0.5, 0.7071, 1.5]), 1)
     ys_gen, ys_fast = np.empty((idx.size, y0.size)), np.empty((idx.size, y0.size))
-    ret_gen = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys_gen)
-    ret_fast = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys_fast)
-    assert tuple(ret_fast) == tuple(ret_gen)
+    bound = np.full(y0.size, np.finfo(float).max)
+    fail_gen, fail_fast = np.zeros(y0.size), np.zeros(y0.size)
+    ret_gen = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys_gen,
+                                 bound.copy(), 0.0, fail_gen)
+    ret_fast = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys_fast,
+                                            bound.copy(), 0.0, fail_fast)
+    assert tuple(ret_fast) == tuple(ret_gen) and ret_gen[2] == 0
     np.testing.assert_array_equal(ys_fast, ys_gen)
+
+
+# Kernel-level stops: a tight bound (growth), and a bound still to be set
+# from the first state (``pending``: as for an all-zero y0), then tight.
+KERNEL_STOPS = [("tight-bound", 1e4, 0.0), ("pending-scale", np.finfo(float).max, 3.0)]
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("stop, bound0, pending", KERNEL_STOPS, ids=[k[0] for k in KERNEL_STOPS])
+def test_generated_loop_stops_where_generic_loop_stops(stop, bound0, pending, method):
+    from rk4core.fast import _kernels, codegen, pack
+    from rk4core.fast.solve import _output_points, _tableau_arrays
+    from rk4core.methods import get_method
+
+    model, y0 = _model(MODEL_CASES[0])  # chain case 1, at omega_max h = 3: unstable for every method here
+    kind, ip, fp, mass = pack.pack(model)
+    tab = get_method(method)
+    n, step = 400, 3.0 / float(model.modes()[0][-1])
+    bound = np.full(y0.size, bound0 * (np.max(np.abs(y0)) if stop == "tight-bound" else 1.0))
+    idx, theta, _ = _output_points(0.0, step, n, None, 1)
+    out = {}
+    for which in ("generic", "generated"):
+        ys, b, y_fail = np.full((idx.size, y0.size), np.nan), bound.copy(), np.zeros(y0.size)
+        if which == "generic":
+            ret = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys,
+                                     b, pending, y_fail)
+        else:
+            ret = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys, b, pending,
+                                               y_fail)
+        out[which] = (tuple(ret), ys, b, y_fail)
+    (ret_g, ys_g, b_g, f_g), (ret_f, ys_f, b_f, f_f) = out["generic"], out["generated"]
+    assert ret_g == ret_f and ret_g[2] == -1 and 0 < ret_g[0] < n
+    np.testing.assert_array_equal(ys_f, ys_g)
+    np.testing.assert_array_equal(b_f, b_g)
+    np.testing.assert_array_equal(f_f, f_g)
+    assert np.all(np.isfinite(f_g)) and np.any(np.abs(f_g) > b_g)
+    if stop == "pending-scale":  # set from the first state: 3 max|y_1|
+        assert b_g[0] == 3.0 * np.max(np.abs(ys_g[1])) and np.all(b_g == b_g[0])
 
 
 def test_finite_state_whose_sum_overflows_is_not_a_blow_up():

@@ -318,13 +318,22 @@ def test_a_name_too_long_is_exit_3(tmp_path, scene, capsys, length):
 
 
 def test_sigint_in_the_first_milliseconds_is_one_line(tmp_path, scene):
-    for delay in (0.0, 0.02, 0.05, 0.1):
+    """From the script's first line on -- imports, loading, the run -- SIGINT is
+    one line and exit 130. A signal inside the interpreter's own start-up (before
+    a line of ours runs; 50-170 ms on a loaded machine) is Python's business: it
+    dies by the signal (-2) or prints "init_import_site"; such draws are not
+    counted, and most draws must land in our code."""
+    landed = 0
+    for delay in (0.05, 0.1, 0.15, 0.2, 0.3, 0.45, 0.6):
         p = subprocess.Popen([sys.executable, "validation/run_all.py", *map(str, _run_args(scene, tmp_path / "o"))],
                              cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(delay)
         p.send_signal(signal.SIGINT)
         _, err = p.communicate(timeout=60)
-        # -2: the signal came before the interpreter ran a line of ours (its
-        # default action, which a shell reports as 130): nothing printed
-        assert p.returncode in (130, -signal.SIGINT), (delay, p.returncode, err)
-        assert "Traceback" not in err and len(err.strip().splitlines()) == (p.returncode == 130), (delay, err)
+        if p.returncode == -signal.SIGINT and not err or "init_import_site" in err:
+            continue  # the interpreter's start-up
+        landed += 1
+        assert p.returncode == 130, (delay, p.returncode, err)
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1, (delay, err)
+        assert "interrupted (SIGINT)" in err
+    assert landed >= 4

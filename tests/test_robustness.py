@@ -139,23 +139,46 @@ def test_scene_raising_is_a_failure_line_and_other_scenes_run(tmp_path, monkeypa
     assert "model constructor fault" in _failures_section(index)
 
 
-def test_rk4_blow_up_is_an_unstable_row_at_the_predicted_step(tmp_path, capsys):
-    # theta = omega h = 2 * 10 = 20, far beyond RK4's boundary 2.83. Per step the
-    # state (q, v / omega) turns and grows by |R(i theta)|, R(z) = 1 + z + z^2/2 +
-    # z^3/6 + z^4/24, from 0.01: it leaves the double range (1.8e308) after
-    # log(1.8e308 / 0.01) / log|R| steps (81.2 -> step 82); stages hold up to
-    # theta^4/24 times the state, so overflow may come one or two steps earlier.
-    p = _scene(tmp_path, t_end=1000.0, h="[10.0, 0.1]", solvers='["rk4"]', outputs='["state"]')
+@pytest.mark.parametrize("h, theta", [(10.0, 20.0), (1.45, 2.9)], ids=["theta-20", "theta-2.9"])
+def test_rk4_blow_up_is_an_unstable_row_at_the_predicted_step(tmp_path, capsys, h, theta):
+    # theta = omega h beyond RK4's boundary 2.83. Per step the scaled state
+    # (q / s_q, v / s_v), s_q = 0.01 m, s_v = omega s_q, turns and grows by |R(i theta)|,
+    # R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24: it passes MAX_GROWTH (1e6) after
+    # log(1e6) / log|R| steps; a component lags its amplitude by its phase, so
+    # the crossing may come up to two steps later (theta = 20: |R| = 6.6e3;
+    # theta = 2.9: |R| = 1.04, ~350 steps).
+    from references.solvers.fixed import MAX_GROWTH
+
+    t_end = round(h * 2000, 6)
+    p = _scene(tmp_path, t_end=t_end, h=f"[{h}, {h / 10:g}]", solvers='["rk4"]', outputs='["state"]',
+               extra=f"output_dt = {h}")
     out = tmp_path / "out"
     rc = _main(["--scene", str(p), "--out", str(out), "--repeats", "1", "--no-figures"])
     assert rc == 0  # a blow-up is a measured result, not a failed expectation
     acc = pd.read_csv(out / "accuracy.csv").set_index("setting")
-    assert acc.loc[10.0, "status"] == "unstable" and acc.loc[0.1, "status"] == "ok"
-    R = abs(1 + 20j + (20j) ** 2 / 2 + (20j) ** 3 / 6 + (20j) ** 4 / 24)
-    predicted = math.ceil((math.log(1.7976931348623157e308) - math.log(0.01)) / math.log(R))
-    step = int(re.search(r"step (\d+) of", acc.loc[10.0, "message"]).group(1))
-    assert predicted - 2 <= step <= predicted, acc.loc[10.0, "message"]
-    assert "tiny: rk4 at 10 became unstable" in (out / "index.md").read_text()
+    assert acc.loc[h, "status"] == "unstable" and acc.loc[float(f"{h / 10:g}"), "status"] == "ok"
+    z = 1j * theta
+    R = abs(1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24)
+    predicted = math.ceil(math.log(MAX_GROWTH) / math.log(R))
+    message = acc.loc[h, "message"]
+    step = int(re.search(r"step (\d+) of", message).group(1))
+    assert "grew past" in message and predicted <= step <= predicted + 2, (predicted, message)
+    assert f"tiny: rk4 at {h:g} became unstable" in (out / "index.md").read_text()
+
+
+def test_explicit_euler_growth_is_unstable_not_ok(tmp_path):
+    """Explicit Euler grows by sqrt(1 + theta^2) per step on an oscillator: a run
+    that grew 1e6-fold (here theta = 0.2: after ~700 steps) is `unstable`."""
+    p = _scene(tmp_path, t_end=1000.0, h="[0.1]", solvers='["euler", "symplectic-euler"]',
+               outputs='["state", "energy"]', extra="output_dt = 1.0")
+    out = tmp_path / "out"
+    assert _main(["--scene", str(p), "--out", str(out), "--repeats", "1", "--no-figures"]) == 0
+    acc = pd.read_csv(out / "accuracy.csv").set_index("solver")
+    assert acc.loc["euler", "status"] == "unstable" and "grew past" in acc.loc["euler", "message"]
+    step = int(re.search(r"step (\d+) of", acc.loc["euler", "message"]).group(1))
+    predicted = math.log(1e6) / math.log(math.sqrt(1 + 0.2 ** 2))
+    assert predicted <= step <= predicted + 20
+    assert acc.loc["symplectic-euler", "status"] == "ok"  # bounded: |R| = 1 inside its region
 
 
 # -- runaway work -----------------------------------------------------------------------

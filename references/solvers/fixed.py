@@ -9,8 +9,20 @@ out of ``wall_s``; ``extra["path"]`` says which path ran.
 ``(t_eval[-1] - t_eval[0]) / ceil(...)`` (``extra["h_used"]``). Output times on
 the step grid are returned exactly, others by cubic Hermite interpolation
 (``extra["dense"]`` says which). ``nfev`` is stages x steps (4, 1 and 2 per
-step), plus one end-slope evaluation per step that holds off-grid outputs. A non-finite state is status UNSTABLE with ``t_fail``; ``y`` is NaN
-from the first output time not reached.
+step), plus one end-slope evaluation per step that holds off-grid outputs.
+
+A run is UNSTABLE (with ``t_fail``; ``y`` NaN from the first output time not
+reached) at the first step where a component is non-finite or exceeds
+:data:`MAX_GROWTH` times its group scale (``s_q`` for positions, ``s_v`` for
+velocities: :func:`references.solvers.tolerances.state_scale`, the amplitude of
+a state with the initial energy). Why that bound: on a linear conservative
+model a step inside the method's stability region (``|R(i omega_j h)| <= 1`` on
+every mode) never increases the energy, so every component stays below
+``sqrt(n_dof m_max / m_min)`` times its scale (energy bound); on the shipped
+models that is at most a few thousand. Exceeding 1e6 therefore means the
+amplification ``|R|^n`` of some mode passed 1e6: the method left its
+stability region (explicit Euler, whose ``|R| = sqrt(1 + theta^2) > 1`` at
+every step, included). A run at 1e145 is never labelled ``ok``.
 """
 from __future__ import annotations
 
@@ -22,8 +34,13 @@ import rk4core
 import rk4core.fast as fast
 
 from .base import SolverRun, Status
+from .tolerances import state_scale
 
-__all__ = ["run_fixed"]
+__all__ = ["run_fixed", "MAX_GROWTH"]
+
+#: A fixed-step run stops as UNSTABLE when a component exceeds this many times
+#: its group scale (see the module docstring).
+MAX_GROWTH = 1e6
 
 
 def run_fixed(name: str, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> SolverRun:
@@ -32,12 +49,14 @@ def run_fixed(name: str, model, y0: np.ndarray, t_eval: np.ndarray, h: float) ->
     y = np.full((y0.shape[0], m), np.nan)
     use_fast = fast.supports(model)
     compile_s = fast.warm_up(model, name) if use_fast else 0.0
+    bound = {"max_growth": MAX_GROWTH, "y_scale": state_scale(model, y0)}
     start = time.perf_counter()
     try:
         if use_fast:
-            res = fast.solve_model(model, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name)
+            res = fast.solve_model(model, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name, **bound)
         else:
-            res = rk4core.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name)
+            res = rk4core.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name,
+                                **bound)
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         return SolverRun(name, h, t_eval, y, 0, 0, time.perf_counter() - start, compile_s, status=Status.FAILED,
                          message=f"{name}: {type(exc).__name__}: {exc}", t_fail=float(t_eval[0]))
@@ -47,4 +66,5 @@ def run_fixed(name: str, model, y0: np.ndarray, t_eval: np.ndarray, h: float) ->
     status = Status.OK if res.success else Status.UNSTABLE
     return SolverRun(name, h, t_eval, y, int(res.nfev), int(res.n_steps), wall, compile_s, status=status,
                      message=res.message, t_fail=res.t_fail,
-                     extra={"h_used": res.h, "dense": res.dense, "path": "numba" if use_fast else "python"})
+                     extra={"h_used": res.h, "dense": res.dense, "path": "numba" if use_fast else "python",
+                            "reason": res.reason})

@@ -5,6 +5,9 @@
 (grid points exact, cubic Hermite in between), same blow-up status and message
 -- and returns the same :class:`~rk4core.solver.FixedStepResult`, with the
 numbers equal to round-off (bit for bit where the elementary functions agree).
+The instability rule (``max_growth``, ``y_scale``) is applied at the same
+step with the same bounds, so ``t_fail``, ``reason`` and the message are the
+same too.
 """
 from __future__ import annotations
 
@@ -13,8 +16,9 @@ import time
 import numpy as np
 
 from ..methods import Tableau, get_method
-from ..solver import FixedStepResult, step_count
-from ..validate import check_model_y0, check_step_args, check_t_eval, check_t_span
+from ..solver import FixedStepResult, grid_time, grid_times, growth_bound, step_count, unstable_message
+from ..validate import (check_max_growth, check_model_y0, check_output_size, check_step_args, check_t_eval,
+                        check_t_span, check_y_scale)
 from . import _kernels as K
 from .codegen import MAX_UNROLLED_DIM, kernel, kinds_for
 from .pack import pack
@@ -55,8 +59,15 @@ def _record_every(value, t_eval) -> int:
     return int(value)
 
 
+def _output_rows(n, t_eval, record_every) -> int:
+    """Rows of the output array (as :func:`_output_points` will make them)."""
+    if t_eval is not None:
+        return t_eval.shape[0]
+    return n // record_every + 1 + (n % record_every != 0)
+
+
 def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
-                record_every=1) -> FixedStepResult:
+                record_every=1, max_growth=1e8, y_scale=None) -> FixedStepResult:
     """Integrate a built-in model's equations of motion with compiled kernels.
 
     Parameters
@@ -64,8 +75,11 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     model : rk4core.models.Model
         A built-in model (see :func:`rk4core.fast.supports`); its right-hand
         side is ``model.rhs`` (``y = [q, v]``, SI units of the model).
-    t_span, y0, h, n_steps, t_eval, method
-        As :func:`rk4core.solve`. ``y0`` has length ``2 * model.n_dof``.
+    t_span, y0, h, n_steps, t_eval, method, max_growth, y_scale
+        As :func:`rk4core.solve` (same caps on the step count and the output
+        size, same instability rule). ``y0`` is real (a complex ``y0`` is
+        refused), of length ``2 * model.n_dof``; ``y_scale`` has the same
+        length (m for positions, m/s for velocities, or the model's units).
     record_every : int, optional
         Without ``t_eval``: keep every ``record_every``-th step (and always
         the last one reached), to integrate long runs or large chains without
@@ -86,43 +100,56 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     array loop ``_kernels.integrate``. Both give the same numbers bit for bit.
     The first call in a process for a method and state size compiles the loop,
     or loads it from numba's on-disk cache; call :func:`warm_up` (with the
-    model and method) first to keep that time out of a timed run.
+    model and method) first to keep that time out of a timed run. The
+    kernels divide as numpy does (``error_model="numpy"``): a zero spring
+    length gives a non-finite state (status -1), not an exception.
     """
     tab = get_method(method)
     kind, ip, fp, mass = pack(model)
     t0, t1 = check_t_span(t_span)
     y = check_model_y0(model, y0)
+    max_growth = check_max_growth(max_growth)
+    y_scale = check_y_scale(y_scale, y.shape[0])
     n = check_step_args(t0, t1, h, n_steps, step_count)
     step = (t1 - t0) / n
     t_eval = check_t_eval(t_eval, t0, t1)
     every = _record_every(record_every, t_eval)
+    rows = _output_rows(n, t_eval, every)
+    if t_eval is not None:
+        check_output_size("t_eval", f"<{t_eval.shape[0]} times>", rows, y.shape[0])
+    elif every > 1:
+        check_output_size("record_every", every, rows, y.shape[0])
+    else:
+        check_output_size("h" if h is not None else "n_steps", h if h is not None else n_steps, rows, y.shape[0])
     idx, theta, dense = _output_points(t0, step, n, t_eval, every)
     ys = np.empty((idx.shape[0], y.shape[0]))
+    bound, pending = growth_bound(y, max_growth, y_scale)
+    y_fail = np.empty(y.shape[0])
     if y.shape[0] <= MAX_UNROLLED_DIM and kind in kinds_for(y.shape[0]):
         loop = kernel(tab, y.shape[0])
-        n_done, n_out, status, n_extra = loop(kind, ip, fp, mass, y, t0, step, n, idx, theta, ys)
+        n_done, n_out, status, n_extra = loop(kind, ip, fp, mass, y, t0, step, n, idx, theta, ys,
+                                              bound, pending, y_fail)
     else:
         A, b, c, A_v, b_v = _tableau_arrays(tab)
         n_done, n_out, status, n_extra = K.integrate(kind, ip, fp, mass, y, t0, step, n, A, b, c, A_v, b_v,
-                                                     idx, theta, ys)
+                                                     idx, theta, ys, bound, pending, y_fail)
+    n_done, n_out, status = int(n_done), int(n_out), int(status)
     message = "The solver successfully reached the end of the integration interval."
-    t_fail = None
+    t_fail, reason = None, "ok"
     if status != K.STATUS_OK:
-        t_fail = t0 + n_done * step + step  # as rk4core.solve: t_i + h
-        message = (f"state became non-finite at t = {t_fail:.6g} (step {n_done + 1} of {n}, "
-                   f"h = {step:.6g}); integration stopped")
-    # As rk4core.solve, the stages of the step that blew up are counted.
-    nfev = tab.n_stages * (int(n_done) + (status != K.STATUS_OK)) + int(n_extra)
+        t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4core.solve
+        reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step,
+                                           "given" if y_scale is not None else "initial")
+    # As rk4core.solve, the stages of the step that failed are counted.
+    nfev = tab.n_stages * (n_done + (status != K.STATUS_OK)) + int(n_extra)
     if t_eval is None:
-        t_out = t0 + step * idx[:n_out]
-        if status == K.STATUS_OK:
-            t_out[-1] = t1
+        t_out = grid_times(t0, t1, step, idx[:n_out], n)
     else:
         t_out = t_eval[:n_out]
     return FixedStepResult(
-        t=t_out, y=ys[:n_out].T, nfev=nfev, h=step, n_steps=int(n_done),
-        success=status == K.STATUS_OK, status=int(status), message=message, t_fail=t_fail,
-        dense=dense, method=tab.name,
+        t=t_out, y=ys[:n_out].T, nfev=nfev, h=step, n_steps=n_done,
+        success=status == K.STATUS_OK, status=status, message=message, t_fail=t_fail,
+        dense=dense, method=tab.name, reason=reason,
     )
 
 
