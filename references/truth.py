@@ -22,41 +22,89 @@ float64 for the modal solution (where it is the evaluation's round-off).
 
 Caching
 -------
-A truth is computed once per scene: results are kept in memory and on disk
-(``.npz`` under ``$RK4H_CACHE``, default ``.cache/truth/`` in the repository
-root), keyed by a SHA-256 of the model's name and parameters, ``y0`` and
-``t_eval`` (exact binary values), the kind and the tolerance. Files are
-written atomically, so concurrent runs at worst compute the same truth twice.
+A truth is computed once per scene: results are kept in memory and on disk,
+in ``rk4core.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
+``$XDG_CACHE_HOME/rk4h/truth``, else ``~/.cache/rk4h/truth``: created 0700,
+verified to be a real directory owned by the user and closed to others). An
+explicit ``path`` is used as given, created 0700 when missing, and must pass
+the same check. When the directory is not trusted the truth is computed
+without the disk cache and one line (a :class:`TruthCacheWarning`) names the
+directory and the reason; the run goes on.
 
-A run that fails (non-finite state, heyoka's error outcomes) is reported in
-``status``/``message``, with NaN from the first output time not reached.
+The key is a SHA-256 of: the cache format :data:`_FORMAT`; the model's name,
+parameters and *definition* (:func:`definition_hash`: the source code of every
+class in the model's MRO and of their modules, and of the code that builds
+heyoka's equations), so an edited force never reuses a stale truth; the heyoka,
+numpy and scipy versions; ``y0`` and ``t_eval`` (exact binary values), the kind,
+the tolerance and the step cap.
+
+Each entry (``<key>.npz``, written without pickles) holds ``t``, ``y``,
+``y_lo``, a JSON ``meta`` record and ``sums``: SHA-256 checksums of the arrays
+(dtype, shape and bytes of ``t``, ``y``, ``y_lo``) and of ``meta``. Reading
+never trusts it: a file that is a symbolic link, not a regular file, not owned
+by the user or writable by group/others, unreadable, truncated (BadZipFile,
+EOFError, ...), with a wrong checksum, key, format, shape or times is a MISS:
+the truth is recomputed, the entry overwritten, and one line says so
+(``truth cache: <file> was corrupt (<reason>); recomputed``). Files are
+written to a temporary file in the same directory, fsync'ed, renamed over
+the entry (``os.replace``) and the directory fsync'ed, so concurrent runs at
+worst compute the same truth twice and a crash leaves the old entry or the new
+one, never half of one.
+
+A run that fails (non-finite state, heyoka's error outcomes, the step cap
+:data:`MAX_STEPS`) is reported in ``status``/``message``, with NaN from the
+first output time not reached (heyoka's shortened output is padded to the
+full grid), never an exception.
 """
 from __future__ import annotations
 
 import hashlib
+import inspect
+import io
 import json
 import os
+import stat
+import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from rk4core import cachedir
+from rk4core.cachedir import UntrustedCacheError
 from rk4core.validate import check_model_y0, check_output_times
 
 from .exact import modal_solution
+from .solvers import check_model
 from .solvers.base import Status
-from .solvers.taylor import get_integrator, model_key, propagate
+from .solvers.taylor import _pars, get_integrator, model_key, outcome_status, propagate, scaled_system, stop_time
 from .solvers.tolerances import group_scales
 
-__all__ = ["Truth", "reference_solution", "cache_dir", "clear_memory_cache", "TOL_REAL128", "KINDS"]
+__all__ = ["Truth", "reference_solution", "cache_dir", "clear_memory_cache", "definition_hash",
+           "TruthCacheWarning", "TOL_REAL128", "KINDS", "MAX_STEPS"]
 
 #: heyoka's tolerance for the quadruple-precision truth.
 TOL_REAL128 = 1e-32
 KINDS = ("exact-modal", "heyoka-real128")
-_FORMAT = 1  # bump when the cached content or its meaning changes
+#: Cap on Taylor steps of one real128 run (status FAILED beyond).
+MAX_STEPS = 1_000_000
+_FORMAT = 2  # bump when the cached content or its meaning changes (2: checksums, definition in the key)
+_ARRAYS = ("t", "y", "y_lo")
 _MEMORY: dict[str, "Truth"] = {}
 _ENERGY_CFUNC: dict[str, object] = {}
+_DEFINITION: dict[type, str | None] = {}
+_WARNED: set = set()
+
+
+class TruthCacheWarning(UserWarning):
+    """One line about the disk cache of the truth: a directory not used, or an
+    entry that was corrupt and has been recomputed."""
+
+
+def _say(message: str) -> None:
+    warnings.warn(" ".join(message.split()), TruthCacheWarning, stacklevel=3)
 
 
 @dataclass
@@ -116,21 +164,96 @@ class Truth:
 
 
 def cache_dir(path=None) -> Path:
-    """``path``, else ``$RK4H_CACHE``, else ``<repo>/.cache/truth``."""
-    if path is not None:
-        return Path(path)
-    env = os.environ.get("RK4H_CACHE")
-    return Path(env) if env else Path(__file__).resolve().parents[1] / ".cache" / "truth"
+    """The verified truth cache directory.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        Used as given; created with mode 0700 when missing. Default:
+        ``rk4core.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
+        ``$XDG_CACHE_HOME/rk4h/truth``, else ``~/.cache/rk4h/truth``).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    rk4core.cachedir.UntrustedCacheError
+        The directory (or, by default, the cache root) is a symbolic link, not
+        owned by the user, open to group or others, or cannot be created.
+    """
+    if path is None:
+        return cachedir.private_dir("truth")
+    p = Path(path)
+    if not os.path.lexists(p):
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            os.mkdir(p, 0o700)
+        except FileExistsError:
+            pass
+        except OSError as e:
+            raise UntrustedCacheError(e.errno, f"cache directory {p}: cannot create it ({e.strerror})") from None
+    return cachedir.verify(p)
 
 
 def clear_memory_cache() -> None:
     _MEMORY.clear()
 
 
-def _key(model, y0, t_eval, kind, tol) -> str:
+def _source(obj) -> str:
+    return inspect.getsource(obj)
+
+
+def definition_hash(model) -> str | None:
+    """SHA-256 (hex) of the code that defines ``model``'s equations: the source
+    of every class in ``type(model).__mro__`` (``object`` excepted) and of the
+    module each is defined in, and of the code turning ``_force`` into heyoka's
+    equations (:func:`references.solvers.taylor.scaled_system`, ``_pars``).
+
+    Returns None when a source cannot be read (a class defined interactively):
+    such a model's truth is then not cached on disk.
+    """
+    cls = type(model)
+    if cls in _DEFINITION:
+        return _DEFINITION[cls]
     h = hashlib.sha256()
-    h.update(json.dumps({"format": _FORMAT, "model": model_key(model), "kind": kind,
+    try:
+        for c in cls.__mro__:
+            if c is object:
+                continue
+            mod = sys.modules.get(c.__module__)
+            h.update(f"{c.__module__}.{c.__qualname__}\n".encode())
+            h.update(_source(c).encode())
+            if mod is not None:
+                h.update(_source(mod).encode())
+        for fn in (scaled_system, _pars):
+            h.update(_source(fn).encode())
+        out = h.hexdigest()
+    except (OSError, TypeError):
+        out = None
+    _DEFINITION[cls] = out
+    return out
+
+
+def _versions() -> dict:
+    from importlib import metadata
+
+    out = {}
+    for dist in ("heyoka", "numpy", "scipy"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+def _key(model, y0, t_eval, kind, tol, max_steps=MAX_STEPS) -> str:
+    h = hashlib.sha256()
+    h.update(json.dumps({"format": _FORMAT, "model": model_key(model), "definition": definition_hash(model),
+                         "versions": _versions(), "kind": kind,
                          "tol": None if tol is None else float(tol).hex(),
+                         "max_steps": None if tol is None else int(max_steps),
                          "y0": [float(v).hex() for v in y0]}, sort_keys=True).encode())
     h.update(np.ascontiguousarray(t_eval, dtype="<f8").tobytes())
     return h.hexdigest()
@@ -144,6 +267,8 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
     ----------
     model : rk4core.models.Model
     y0 : array_like, shape (2 n_dof,)
+        Initial state ``[q, v]``; must have finite force and energy
+        (:meth:`rk4core.models.Model.check_state`).
     t_eval : array_like, shape (m,)
         Output times (s), strictly increasing; ``y0`` is the state at ``t_eval[0]``.
     kind : {"auto", "exact-modal", "heyoka-real128"}
@@ -160,8 +285,15 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
     Returns
     -------
     Truth
+
+    Raises
+    ------
+    ValueError
+        Naming ``model``, ``y0``, ``t_eval`` or ``kind``. Cache problems never
+        raise (see the module docstring).
     """
-    y0 = check_model_y0(model, y0)
+    check_model(model)
+    y0 = model.check_state(check_model_y0(model, y0), "y0")
     t = check_output_times(t_eval)
     if kind == "auto":
         kind = "exact-modal" if model.linear else "heyoka-real128"
@@ -171,14 +303,18 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
         raise ValueError(f"`kind` 'exact-modal' needs a linear model, got nonlinear {model.name!r}")
     tol_key = tol if kind == "heyoka-real128" else None
     key = _key(model, y0, t, kind, tol_key)
+    file, corrupt = None, None
     if cache:
         hit = _MEMORY.get(key)
         if hit is not None:
             return _relabel(hit, "memory")
-        hit = _load(cache_dir(path) / f"{key}.npz", key)
-        if hit is not None:
-            _MEMORY[key] = hit
-            return _relabel(hit, "disk")
+        directory = _usable_dir(path) if definition_hash(model) is not None else None
+        if directory is not None:
+            file = directory / f"{key}.npz"
+            hit, corrupt = _load(file, key, t, 2 * model.n_dof, kind)
+            if hit is not None:
+                _MEMORY[key] = hit
+                return _relabel(hit, "disk")
     if kind == "exact-modal":
         truth = _exact_modal(model, y0, t)
     else:
@@ -186,8 +322,26 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
     truth.key = key
     if cache:
         _MEMORY[key] = truth
-        _save(cache_dir(path) / f"{key}.npz", truth)
+        if file is not None:
+            written = _save(file, truth)
+            if corrupt is not None:
+                _say(f"truth cache: {file} was corrupt ({corrupt}); recomputed"
+                     + ("" if written else " (could not rewrite it)"))
     return truth
+
+
+def _usable_dir(path) -> Path | None:
+    """:func:`cache_dir`, or None (after one line naming the directory and the
+    reason, once per directory and reason) when it is not trusted."""
+    try:
+        return cache_dir(path)
+    except (UntrustedCacheError, ValueError) as e:
+        where = path if path is not None else cachedir.cache_root() / "truth"
+        reason = " ".join(str(e).split())
+        if (str(where), reason) not in _WARNED:
+            _WARNED.add((str(where), reason))
+            _say(f"truth cache: not using directory {where} ({reason}); computing without the disk cache")
+        return None
 
 
 def _relabel(truth: Truth, source: str) -> Truth:
@@ -228,51 +382,166 @@ def _real128(model, y0, t, tol) -> Truth:
     scales = group_scales(model, y0)
     start = time.perf_counter()
     with np.errstate(over="ignore", invalid="ignore"):
-        outcome, n_steps, y128 = propagate(ta, model, y0, scales, t, dtype=R)
+        outcome, n_steps, y128, rows = propagate(ta, model, y0, scales, t, dtype=R, max_steps=MAX_STEPS)
     wall = time.perf_counter() - start
     status, message = Status.OK, f"heyoka real128, tol {tol:g}, order {ta.order}"
-    y_hi = y128.astype(float)
-    y_lo = (y128 - y_hi.astype(R)).astype(float)
-    if outcome != hy.taylor_outcome.time_limit:
-        t_fail = float(ta.time)
-        status = Status.UNSTABLE if outcome == hy.taylor_outcome.err_nf_state else Status.FAILED
-        message = f"heyoka real128 stopped with {outcome} at t = {t_fail:.6g}"
+    with np.errstate(invalid="ignore"):
+        y_hi = y128.astype(float)
+        y_lo = (y128 - y_hi.astype(R)).astype(float)
+    t_fail = None
+    st, msg = outcome_status(outcome, rows, t.shape[0], MAX_STEPS, stop_time(ta, t, rows), "heyoka real128")
+    if st is not Status.OK:
+        t_fail = stop_time(ta, t, rows)
+        status, message = st, msg
         y_hi[:, t > t_fail] = np.nan
         y_lo[:, t > t_fail] = np.nan
     reached = np.all(np.isfinite(y_hi), axis=0)
-    E = np.asarray(_energy_cfunc(model)(np.ascontiguousarray(y128[:, reached])))[0]
+    E = np.asarray(_energy_cfunc(model)(np.ascontiguousarray(y128[:, reached])))[0] if reached.any() else np.array([])
     drift = _drift(E) if E.size else float("nan")
     return Truth(t, y_hi, y_lo, "heyoka-real128", drift, tol=float(tol), n_steps=n_steps, wall_s=wall,
-                 compile_s=compile_s, status=status, message=message, extra={"order": int(ta.order)})
+                 compile_s=compile_s, status=status, message=message,
+                 extra={"order": int(ta.order), "rows_returned": int(rows),
+                        **({"t_fail": t_fail} if t_fail is not None else {})})
 
 
-def _save(file: Path, truth: Truth) -> None:
+# -- disk entries -----------------------------------------------------------------------------
+def _array_sum(arrays: dict) -> str:
+    h = hashlib.sha256()
+    for name in _ARRAYS:
+        a = arrays.get(name)
+        if a is None:
+            h.update(f"{name}:none;".encode())
+            continue
+        a = np.ascontiguousarray(a)
+        h.update(f"{name}:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _meta_sum(meta_text: str) -> str:
+    return hashlib.sha256(meta_text.encode()).hexdigest()
+
+
+def _save(file: Path, truth: Truth) -> bool:
+    """Write ``truth`` to ``file`` atomically (temporary file in the same
+    directory, fsync, ``os.replace``, fsync of the directory). Returns False
+    (and leaves no temporary file) when the disk refuses; never raises."""
+    meta = {k: getattr(truth, k) for k in ("kind", "energy_drift", "tol", "n_steps", "wall_s",
+                                            "compile_s", "message", "key", "extra")}
+    meta["status"] = truth.status.value
+    meta["format"] = _FORMAT
+    arrays = {"t": np.ascontiguousarray(truth.t, dtype="<f8"), "y": np.ascontiguousarray(truth.y, dtype="<f8")}
+    if truth.y_lo is not None:
+        arrays["y_lo"] = np.ascontiguousarray(truth.y_lo, dtype="<f8")
     try:
-        file.parent.mkdir(parents=True, exist_ok=True)
-        meta = {k: getattr(truth, k) for k in ("kind", "energy_drift", "tol", "n_steps", "wall_s",
-                                                "compile_s", "message", "key", "extra")}
-        meta["status"] = truth.status.value
-        tmp = file.with_name(f".{file.stem}.{os.getpid()}.tmp.npz")
-        arrays = {"t": truth.t, "y": truth.y, "meta": np.array(json.dumps(meta))}
-        if truth.y_lo is not None:
-            arrays["y_lo"] = truth.y_lo
-        np.savez(tmp, **arrays)
+        meta_text = json.dumps(meta, sort_keys=True, allow_nan=True)
+    except (TypeError, ValueError):
+        return False
+    sums = {"arrays": _array_sum(arrays), "meta": _meta_sum(meta_text)}
+    tmp = file.with_name(f".{file.stem}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o600)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, **arrays, meta=np.array(meta_text), sums=np.array(json.dumps(sums, sort_keys=True)))
+                f.flush()
+                os.fsync(f.fileno())
+        except BaseException:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
+            raise
         os.replace(tmp, file)
+        try:
+            dfd = os.open(file.parent, os.O_RDONLY)
+            try:
+                os.fsync(dfd)
+            finally:
+                os.close(dfd)
+        except OSError:  # some file systems cannot fsync a directory; the rename is done
+            pass
+        return True
     except OSError:  # a read-only or full disk costs a recomputation, not the run
-        pass
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        return False
 
 
-def _load(file: Path, key: str) -> Truth | None:
-    if not file.exists():
-        return None
+class _Corrupt(Exception):
+    pass
+
+
+def _read_private(file: Path) -> bytes | None:
+    """The bytes of ``file`` if it is a regular file owned by the user and not
+    writable by group or others (checked on the opened descriptor, without
+    following a symbolic link); None if it does not exist. Raises _Corrupt."""
     try:
-        with np.load(file, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            if meta.get("key") != key:
-                return None
-            return Truth(z["t"], z["y"], z["y_lo"] if "y_lo" in z.files else None, meta["kind"],
-                         meta["energy_drift"], tol=meta["tol"], n_steps=meta["n_steps"],
-                         wall_s=meta["wall_s"], compile_s=meta["compile_s"], status=Status(meta["status"]),
-                         message=meta["message"], key=key, extra=meta.get("extra", {}))
-    except (OSError, ValueError, KeyError):
+        st = os.lstat(file)
+    except FileNotFoundError:
         return None
+    if stat.S_ISLNK(st.st_mode):
+        raise _Corrupt("it is a symbolic link")
+    if not stat.S_ISREG(st.st_mode):
+        raise _Corrupt("it is not a regular file")
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    fd = os.open(file, flags)
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        uid = os.getuid() if hasattr(os, "getuid") else st.st_uid
+        if not stat.S_ISREG(st.st_mode):
+            raise _Corrupt("it is not a regular file")
+        if st.st_uid != uid:
+            raise _Corrupt(f"it is owned by uid {st.st_uid}, not by you (uid {uid})")
+        if st.st_mode & 0o022:
+            raise _Corrupt(f"it has mode {stat.S_IMODE(st.st_mode):04o}: writable by group or others")
+        return f.read()
+
+
+def _load(file: Path, key: str, t: np.ndarray, n_state: int, kind: str):
+    """``(truth, None)`` on a verified hit, ``(None, None)`` when there is no
+    entry, ``(None, reason)`` when the entry is corrupt (see the module
+    docstring). Never raises, never unpickles."""
+    try:
+        data = _read_private(file)
+        if data is None:
+            return None, None
+        with np.load(io.BytesIO(data), allow_pickle=False) as z:
+            names = set(z.files)
+            need = {"t", "y", "meta", "sums"} | ({"y_lo"} if kind == "heyoka-real128" else set())
+            if not need <= names or not names <= need | {"y_lo"}:
+                raise _Corrupt(f"it holds {sorted(names)}, not {sorted(need)}")
+            meta_text, sums_text = str(z["meta"][()]), str(z["sums"][()])
+            arrays = {name: z[name] for name in _ARRAYS if name in names}
+        sums = json.loads(sums_text)
+        if _array_sum(arrays) != sums.get("arrays"):
+            raise _Corrupt("checksum mismatch of its arrays")
+        if _meta_sum(meta_text) != sums.get("meta"):
+            raise _Corrupt("checksum mismatch of its metadata")
+        meta = json.loads(meta_text)
+        if meta.get("format") != _FORMAT:
+            raise _Corrupt(f"format {meta.get('format')!r}, not {_FORMAT}")
+        if meta.get("key") != key:
+            raise _Corrupt("it holds another key")
+        if meta.get("kind") != kind:
+            raise _Corrupt(f"kind {meta.get('kind')!r}, not {kind!r}")
+        m = t.shape[0]
+        for name, a in arrays.items():
+            want = (m,) if name == "t" else (n_state, m)
+            if a.shape != want or a.dtype != np.dtype("<f8"):
+                raise _Corrupt(f"`{name}` has shape {a.shape} and dtype {a.dtype}, not {want} float64")
+        if not np.array_equal(arrays["t"], t):
+            raise _Corrupt("its output times differ from the ones asked for")
+        truth = Truth(arrays["t"], arrays["y"], arrays.get("y_lo"), meta["kind"], float(meta["energy_drift"]),
+                      tol=None if meta["tol"] is None else float(meta["tol"]), n_steps=int(meta["n_steps"]),
+                      wall_s=float(meta["wall_s"]), compile_s=float(meta["compile_s"]),
+                      status=Status(meta["status"]), message=str(meta["message"]), key=key,
+                      extra=dict(meta.get("extra", {})))
+        return truth, None
+    except _Corrupt as e:
+        return None, str(e)
+    except Exception as e:  # noqa: BLE001 - any unreadable entry is a miss (BadZipFile, EOFError, ...)
+        text = " ".join(str(e).split())[:200]
+        return None, f"{type(e).__name__}: {text}" if text else type(e).__name__

@@ -138,10 +138,13 @@ def test_truth_is_cached_in_memory_and_on_disk(tmp_cache):
 
 
 def test_cache_dir_from_environment(monkeypatch, tmp_path):
+    # RK4H_CACHE is the root of every cache; the truth lives in its truth/ (created 0700)
     monkeypatch.setenv("RK4H_CACHE", str(tmp_path / "elsewhere"))
-    assert cache_dir() == tmp_path / "elsewhere"
+    assert cache_dir() == tmp_path / "elsewhere" / "truth"
+    assert (cache_dir().stat().st_mode & 0o777) == 0o700
     monkeypatch.delenv("RK4H_CACHE")
-    assert cache_dir().parts[-2:] == (".cache", "truth")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert cache_dir() == tmp_path / "xdg" / "rk4h" / "truth"
 
 
 @pytest.mark.parametrize("name, kwargs, named", [

@@ -26,16 +26,31 @@ the scaled state ``y / s`` with ``tol = rtol``: the same rule. A caller's
 scales ``atol / rtol`` (smallest per group). ``run.atol`` is the position
 component's atol, ``run.extra["atol_state"]`` the whole vector.
 
+Arguments
+---------
+``model`` must be an :class:`rk4core.models.Model` (a name such as
+``"chain"`` is refused with a ``ValueError`` naming ``model``), and ``y0`` a
+state where the model's force and energy are finite
+(:meth:`rk4core.models.Model.check_state`): planar4 on an anchor or two
+triangle masses on top of each other (a spring of zero length) and states so
+large that the energy overflows raise ``ValueError`` naming ``y0`` before
+anything is integrated.
+
 Outcome
 -------
 A run never raises once its arguments are valid: a solver's error flag, step
 cap, non-finite state or any exception inside becomes ``status`` FAILED or
 UNSTABLE with ``message`` and ``t_fail``; ``y`` is NaN where not reached.
+Every adaptive run is bounded: ``max_steps`` caps DOP853's and CVODE's
+accepted steps (DOP853 also its right-hand-side evaluations) and heyoka's
+Taylor steps; a run that reaches a state where the force is not finite ends
+UNSTABLE at about that time instead of shrinking its step forever.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from rk4core.models.base import Model
 from rk4core.validate import check_model_y0, check_output_times, choice, positive
 
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
@@ -45,7 +60,7 @@ from .fixed import run_fixed
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
-__all__ = ["integrate", "check_setting", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+__all__ = ["integrate", "check_setting", "check_model", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
            "SolverRun", "absolute_tolerance"]
 
 
@@ -63,8 +78,19 @@ def check_setting(solver: str, setting) -> float:
     return rtol
 
 
+def check_model(model):
+    """``model`` if it is an :class:`rk4core.models.Model`; else raise
+    ``ValueError`` naming ``model`` (a model name is not a model: build it
+    with ``rk4core.make_model``)."""
+    if not isinstance(model, Model):
+        hint = " (build it with rk4core.make_model(name, params))" if isinstance(model, str) else ""
+        raise ValueError(f"`model` must be an rk4core.models.Model instance{hint}, got {model!r:.80}")
+    return model
+
+
 def _check_inputs(model, y0, t_eval, atol, max_steps):
-    y0 = check_model_y0(model, y0)
+    check_model(model)
+    y0 = model.check_state(check_model_y0(model, y0), "y0")
     t = check_output_times(t_eval)
     if atol is not None:
         a = np.broadcast_to(np.asarray(atol, dtype=float), y0.shape).copy()
@@ -95,7 +121,10 @@ def integrate(solver: str, model, y0, t_eval, setting: float, *, atol=None,
         Absolute tolerance (adaptive solvers); default: the rule in the module
         docstring.
     max_steps : int, optional
-        Cap on CVODE's total internal steps (ignored by the other solvers).
+        Cap on the total steps of an adaptive run: CVODE's internal steps,
+        DOP853's accepted steps (and ``30 max_steps`` RHS evaluations),
+        heyoka's Taylor steps; ignored by the fixed-step solvers, whose step
+        count is ``ceil((t_eval[-1] - t_eval[0]) / h)``.
 
     Returns
     -------
@@ -109,7 +138,7 @@ def integrate(solver: str, model, y0, t_eval, setting: float, *, atol=None,
     if atol is None:
         atol = absolute_tolerance(model, y0, setting)
     if solver == "dop853":
-        return run_dop853(model, y0, t, setting, atol)
+        return run_dop853(model, y0, t, setting, atol, int(max_steps))
     if solver in ("cvode-adams", "cvode-bdf"):
         return run_cvode(solver, model, y0, t, setting, atol, int(max_steps))
-    return run_heyoka(model, y0, t, setting, atol)
+    return run_heyoka(model, y0, t, setting, atol, int(max_steps))

@@ -28,7 +28,10 @@ Counters
 ``nfev`` counts every call of the right-hand side, including those CVODE spends
 on banded difference-quotient Jacobians (counted by the wrapper that CVODE
 calls; CVODE's own ``CVodeGetNumRhsEvals``, which leaves those out, is
-``extra["nfev_cvode"]``). ``extra["njev"]`` counts Jacobian evaluations. ``n_steps`` counts
+``extra["nfev_cvode"]``). ``extra["njev"]`` counts Jacobian evaluations.
+A non-finite right-hand side at the initial state ends the run before CVODE
+starts (UNSTABLE); a run that met a non-finite right-hand side at a finite
+state and then failed is UNSTABLE too (a singular state reached mid-run). ``n_steps`` counts
 internal steps: the run advances with ``CV_ONE_STEP`` up to ``tstop = t_end``
 and reads the output times that fall in each step from CVODE's interpolant
 (``CV_NORMAL`` towards a time already passed), which is what ``CV_NORMAL``
@@ -54,6 +57,10 @@ __all__ = ["run_cvode", "interleave", "linear_jacobian", "DEFAULT_MAX_STEPS"]
 
 #: Default cap on the total number of CVODE steps in one run.
 DEFAULT_MAX_STEPS = 5_000_000
+
+
+class _NonFiniteStart(Exception):
+    """The right-hand side is not finite at the initial state."""
 
 
 def interleave(n_dof: int) -> np.ndarray:
@@ -133,11 +140,15 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
     ybuf = np.empty(n2)
 
     calls = [0]
+    bad = []  # time of the first non-finite right-hand side at a finite state
 
     def rhsfn(t, z, zp):
         calls[0] += 1
         ybuf[perm] = z
-        zp[:] = model.rhs(t, ybuf)[perm]
+        f = model.rhs(t, ybuf)
+        if not bad and not np.all(np.isfinite(f)) and np.all(np.isfinite(z)):
+            bad.append(float(t))
+        zp[:] = f[perm]
 
     t1, tn = float(t_eval[-1]), float(t_eval[0])
     n_steps, k, nfev, njev = 0, 1, 0, 0
@@ -145,6 +156,11 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
     extra = {"atol_state": atol, "max_steps": max_steps}
     start = time.perf_counter()
     try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            f0 = np.asarray(model.rhs(float(t_eval[0]), y0), dtype=float)
+        if not np.all(np.isfinite(f0)):
+            raise _NonFiniteStart(f"{solver_name}: the right-hand side is not finite at the initial state "
+                                  f"(t = {float(t_eval[0]):.6g}); no step taken")
         opts = _options(model, perm, method, rtol, atol, max_steps)
         extra.update({key: opts[key] for key in ("linsolver", "lband", "uband") if key in opts})
         solver = CVODE(rhsfn, **opts)
@@ -160,6 +176,11 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
                 if not res.success:
                     status, t_fail = Status.FAILED, float(res.t)
                     message = f"{solver_name}: CVODE flag {res.status} at t = {t_fail:.6g}: {res.message}"
+                    if bad:
+                        status = Status.UNSTABLE
+                        message = (f"{solver_name}: the right-hand side became non-finite at t = {bad[0]:.6g} "
+                                   f"(a state where the force is undefined?); CVODE flag {res.status} at "
+                                   f"t = {t_fail:.6g}: {res.message}")
                     break
                 if float(res.t) == tn:
                     # After an interpolated output CV_ONE_STEP first returns the
@@ -180,6 +201,8 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
                             raise RuntimeError(f"interpolation at t = {t_eval[k]}: {out.message}")
                         y[perm, k] = out.y
                     k += 1
+    except _NonFiniteStart as exc:
+        status, message, t_fail = Status.UNSTABLE, str(exc), float(t_eval[0])
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         status = Status.FAILED
         message = f"{solver_name}: {type(exc).__name__}: {exc}"

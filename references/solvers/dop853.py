@@ -4,18 +4,42 @@ The stepping loop is the one ``scipy.integrate.solve_ivp(method="DOP853",
 t_eval=...)`` runs, written out so that accepted steps can be counted: one
 ``DOP853.step()`` per accepted step, output times inside a step from the
 method's 7th-order dense output, and the exact step end when it is an output
-time. ``nfev`` is scipy's count (rejected steps included).
+time. ``nfev`` is scipy's count (rejected steps included) plus the one
+evaluation of the first-step selection (below); the guard evaluation of
+``f(t0, y0)`` is not counted (scipy evaluates it again), so ``nfev`` is the
+number scipy's own ``solve_ivp`` reports.
 
 scipy raises ``rtol`` below ``100 * eps`` (2.2e-14) to that value with a
 warning; here the clip is recorded in ``message`` and ``extra["rtol_used"]``.
 
+Bounded work
+------------
+Every run ends, and quickly when the problem is ill-posed:
+
+* ``f(t0, y0)`` is evaluated first; a non-finite value ends the run at once
+  (status UNSTABLE, no step taken).
+* The first step is computed here, by scipy's own rule (Hairer-Norsett-Wanner
+  II.4, :func:`first_step`), and handed to scipy; a step that comes out
+  non-finite or not positive ends the run (FAILED). scipy would otherwise
+  start with ``h = nan``, which its minimum-step test (``h < min_step``) never
+  catches: the step would be rejected forever.
+* The right-hand side is called through a wrapper that counts the calls and
+  raises a private exception, caught into status FAILED ("step cap ... reached"),
+  past ``max_steps`` accepted steps or ``EVALS_PER_STEP * max_steps``
+  evaluations (rejections included), and at once when scipy asks for it at a
+  non-finite time (a NaN step).
+* A run in which the right-hand side returned a non-finite value at a finite
+  state (e.g. a spring of zero length reached mid-run) and which then fails
+  is reported UNSTABLE, with the time it had reached.
+
 References
 ----------
 E. Hairer, S. P. Norsett, G. Wanner, *Solving Ordinary Differential Equations I*,
-2nd ed., Springer 1993, sec. II.10.
+2nd ed., Springer 1993, sec. II.4 and II.10.
 """
 from __future__ import annotations
 
+import math
 import time
 import warnings
 
@@ -24,32 +48,132 @@ from scipy.integrate import DOP853
 
 from .base import SolverRun, Status
 
-__all__ = ["run_dop853", "RTOL_MIN"]
+__all__ = ["run_dop853", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
 
 #: scipy's floor on rtol (``scipy.integrate._ivp.rk``: ``100 * EPS``).
 RTOL_MIN = 100 * np.finfo(float).eps
+#: Right-hand-side evaluations allowed per allowed step (12 stages, 3 more for
+#: dense output, and room for rejected steps).
+EVALS_PER_STEP = 30
+#: Default cap on accepted DOP853 steps in one run (as CVODE's).
+DEFAULT_MAX_STEPS = 5_000_000
+#: DOP853's error estimator order (scipy: ``DOP853.error_estimator_order``).
+_ORDER = 7
 
 
-def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray) -> SolverRun:
-    """Integrate ``model`` with DOP853 at ``rtol``/``atol``; never raises."""
+class _Stop(Exception):
+    """Raised by the right-hand-side wrapper to end a run; ``status`` and
+    ``message`` say why."""
+
+    def __init__(self, status: Status, message: str):
+        super().__init__(message)
+        self.status, self.message = status, message
+
+
+def _rms(x) -> float:
+    return float(np.linalg.norm(x) / math.sqrt(x.size))
+
+
+def first_step(fun, t0: float, y0: np.ndarray, t1: float, f0: np.ndarray, rtol: float,
+               atol: np.ndarray, order: int = _ORDER) -> float:
+    """The initial step (s) scipy would choose (``scipy.integrate._ivp.common.
+    select_initial_step``, Hairer-Norsett-Wanner sec. II.4), computed here so
+    that its value can be checked before the solver starts.
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(t, y)``; called once (at ``t0 + h0``).
+    t0, t1 : float
+        Start and end of the interval (s), ``t1 > t0``.
+    y0, f0 : ndarray
+        Initial state and ``fun(t0, y0)``.
+    rtol : float
+        Relative tolerance as scipy uses it (already clipped to ``RTOL_MIN``).
+    atol : ndarray
+        Absolute tolerance per component.
+    order : int
+        Error estimator order (7 for DOP853).
+
+    Returns
+    -------
+    float
+        The step; may be NaN, inf or 0 when ``f0`` or ``fun(t0 + h0, ...)`` is
+        not finite (the caller checks).
+    """
+    interval = abs(t1 - t0)
+    scale = atol + np.abs(y0) * rtol
+    d0, d1 = _rms(y0 / scale), _rms(f0 / scale)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    f1 = fun(t0 + h0, y0 + h0 * 1.0 * f0)
+    d2 = _rms((f1 - f0) / scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1 / (order + 1))
+    return min(100 * h0, h1, interval)
+
+
+def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray,
+               max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
+    """Integrate ``model`` with DOP853 at ``rtol``/``atol``; never raises, and
+    ends after at most ``max_steps`` accepted steps (see the module docstring)."""
     m = t_eval.shape[0]
     y = np.full((y0.shape[0], m), np.nan)
     y[:, 0] = y0
     rtol_used = max(rtol, RTOL_MIN)
-    extra = {"rtol_used": rtol_used}
+    extra = {"rtol_used": rtol_used, "max_steps": int(max_steps)}
     note = f" (rtol {rtol:.3g} clipped to scipy's floor {RTOL_MIN:.3g})" if rtol < RTOL_MIN else ""
-    n_steps, k = 0, 1
+    max_evals = EVALS_PER_STEP * int(max_steps) + 100
+    calls = [0]
+    bad = []  # (t, which) of the first non-finite right-hand side at a finite state
+
+    def fun(t, yy):
+        calls[0] += 1
+        if calls[0] > max_evals:
+            raise _Stop(Status.FAILED, f"dop853: step cap reached ({max_evals} right-hand-side evaluations, "
+                                       f"max_steps = {max_steps})")
+        if not math.isfinite(t):
+            raise _Stop(Status.FAILED, f"dop853: the step size became non-finite (right-hand side asked "
+                                       f"for at t = {t!r})")
+        f = model.rhs(t, yy)
+        if not bad and np.all(np.isfinite(yy)) and not np.all(np.isfinite(f)):
+            bad.append(float(t))
+        return f
+
+    n_steps, k, extra_evals = 0, 1, 0
     status, message, t_fail = Status.OK, "", None
     solver = None
     start = time.perf_counter()
+    t0, t1 = float(t_eval[0]), float(t_eval[-1])
     try:
         with warnings.catch_warnings(), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             warnings.simplefilter("ignore")
-            solver = DOP853(model.rhs, t_eval[0], y0, t_eval[-1], rtol=rtol, atol=atol)
+            f0 = np.asarray(model.rhs(t0, y0), dtype=float)
+            if not np.all(np.isfinite(f0)):
+                raise _Stop(Status.UNSTABLE, f"dop853: the right-hand side is not finite at the initial "
+                                             f"state (t = {t0:.6g}); no step taken")
+            h = first_step(fun, t0, y0, t1, f0, rtol_used, atol)
+            extra_evals = calls[0]
+            if not (math.isfinite(h) and h > 0.0):
+                raise _Stop(Status.UNSTABLE if bad else Status.FAILED,
+                            f"dop853: no usable first step (computed h = {h!r} s at t = {t0:.6g})")
+            extra["first_step"] = h
+            solver = DOP853(fun, t0, y0, t1, rtol=rtol, atol=atol, first_step=h)
             while solver.status == "running":
+                if n_steps >= max_steps:
+                    raise _Stop(Status.FAILED, f"dop853: step cap max_steps = {max_steps} reached at "
+                                               f"t = {float(solver.t):.6g}")
                 msg = solver.step()
                 if solver.status == "failed":
-                    status, message, t_fail = Status.FAILED, f"dop853: {msg}", float(solver.t)
+                    if bad:
+                        status = Status.UNSTABLE
+                        message = (f"dop853: the right-hand side became non-finite at t = {bad[0]:.6g} "
+                                   f"(a state where the force is undefined?); scipy: {msg}")
+                    else:
+                        status, message = Status.FAILED, f"dop853: {msg}"
+                    t_fail = float(solver.t)
                     break
                 n_steps += 1
                 if not np.all(np.isfinite(solver.y)):
@@ -63,15 +187,23 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
                     if t_eval[j - 1] == solver.t:
                         y[:, j - 1] = solver.y
                     k = j
+    except _Stop as stop:
+        status, message = stop.status, stop.message
+        t_fail = float(solver.t) if solver is not None else t0
+        if status is Status.FAILED and bad and "step cap" not in message:
+            status = Status.UNSTABLE
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         status, message = Status.FAILED, f"dop853: {type(exc).__name__}: {exc}"
-        t_fail = float(solver.t) if solver is not None else float(t_eval[0])
+        t_fail = float(solver.t) if solver is not None else t0
     wall = time.perf_counter() - start
     if status is Status.OK:
         message = "dop853: reached the end of the interval" + note
     else:
+        if t_fail is not None and f"{t_fail:.6g}" not in message:
+            message += f" (last step ended at t = {t_fail:.6g})"
         message += note
         y[:, k:] = np.nan
-    nfev = int(solver.nfev) if solver is not None else 0
+    nfev = (int(solver.nfev) + extra_evals) if solver is not None else calls[0]
+    extra["nfev_calls"] = calls[0]
     return SolverRun("dop853", rtol, t_eval, y, nfev, n_steps, wall, status=status, message=message,
                      atol=float(atol[0]), t_fail=t_fail, extra={**extra, "atol_state": atol})

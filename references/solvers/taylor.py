@@ -17,7 +17,12 @@ integrator is cached and reused across initial states and runs (time, state
 and the scale parameters are reset each run; a Taylor step depends only on
 the current state, so a reused integrator gives the same result as a fresh
 one). ``compile_s`` is the JIT time, 0 when the cache was hit. Output times
-come from ``propagate_grid`` (Taylor dense output). heyoka evaluates no
+come from ``propagate_grid`` (Taylor dense output), with heyoka's own
+``max_steps`` cap (outcome ``step_limit``, status FAILED). When heyoka stops
+early (a non-finite state, e.g. a spring of zero length reached mid-run; the
+step cap) it returns fewer rows than the grid: :func:`propagate` pads them
+with NaN to the full grid, and the run is UNSTABLE (``err_nf_state``) or
+FAILED with ``t_fail``, never an exception. heyoka evaluates no
 right-hand side: ``nfev = 0``, ``n_steps`` = Taylor steps, ``taylor_order`` =
 the order heyoka chose for the tolerance.
 
@@ -29,13 +34,18 @@ celestial mechanics", MNRAS 504 (2021) 2614-2628.
 from __future__ import annotations
 
 import json
+import math
 import time
 
 import numpy as np
 
 from .base import SolverRun, Status
 
-__all__ = ["scaled_system", "get_integrator", "propagate", "run_heyoka", "model_key", "clear_cache"]
+__all__ = ["scaled_system", "get_integrator", "propagate", "outcome_status", "stop_time", "run_heyoka", "model_key",
+           "clear_cache", "DEFAULT_MAX_STEPS"]
+
+#: Default cap on Taylor steps in one run (as CVODE's and DOP853's).
+DEFAULT_MAX_STEPS = 5_000_000
 
 #: (model key, tol, fp_type) -> taylor_adaptive
 _CACHE: dict = {}
@@ -108,30 +118,95 @@ def get_integrator(model, tol: float, fp_type: str = "double"):
     return ta, compile_s
 
 
-def propagate(ta, model, y0, scales, t_eval, dtype=float):
+def _propagate_grid(ta, grid, max_steps: int):
+    """``ta.propagate_grid(grid, max_steps=max_steps)`` (one place, so that
+    tests can stand in for heyoka's result)."""
+    return ta.propagate_grid(grid, max_steps=int(max_steps))
+
+
+def propagate(ta, model, y0, scales, t_eval, dtype=float, max_steps: int = DEFAULT_MAX_STEPS):
     """Reset ``ta`` to ``y0`` at ``t_eval[0]`` and propagate over ``t_eval``.
 
-    Returns ``(outcome, n_steps, y)`` with ``y`` of shape (2n, m) in
-    ``dtype`` (unscaled), NaN where heyoka did not get.
+    Parameters
+    ----------
+    ta : heyoka.taylor_adaptive
+    model : rk4core.models.Model
+    y0 : ndarray, shape (2n,)
+    scales : (float, float)
+        ``(s_q, s_v)`` of the tolerance rule.
+    t_eval : ndarray, shape (m,)
+        Output times (s).
+    dtype : type
+        ``float`` or ``heyoka.real128``.
+    max_steps : int
+        heyoka's cap on Taylor steps (outcome ``step_limit`` when reached).
+
+    Returns
+    -------
+    outcome : heyoka.taylor_outcome
+    n_steps : int
+        Taylor steps taken.
+    y : ndarray, shape (2n, m)
+        Unscaled states in ``dtype``; NaN where heyoka did not get (heyoka
+        returns only the rows it reached when it stops early; they are padded
+        here to the full grid).
+    n_rows : int
+        Output times heyoka returned.
     """
     n2 = y0.shape[0]
     n = n2 // 2
+    m = np.asarray(t_eval).shape[0]
     s = np.concatenate([np.full(n, scales[0]), np.full(n, scales[1])]).astype(dtype)
     ta.time = dtype(t_eval[0]) if dtype is not float else float(t_eval[0])
     ta.state[:] = np.asarray(y0).astype(dtype) / s
     ta.pars[:] = _pars(model, scales, dtype)
     grid = np.asarray(t_eval).astype(dtype)
-    res = ta.propagate_grid(grid)
-    outcome, n_steps, zs = res[0], int(res[3]), res[5]
-    y = (np.asarray(zs) * s).T
-    return outcome, n_steps, y
+    res = _propagate_grid(ta, grid, max_steps)
+    outcome, n_steps = res[0], int(res[3])
+    zs = np.asarray(res[5])
+    y = np.full((n2, m), np.nan, dtype=dtype)
+    rows = 0
+    if zs.ndim == 2 and zs.shape[1] == n2:
+        rows = min(int(zs.shape[0]), m)
+        if rows:
+            y[:, :rows] = (zs[:rows] * s).T
+    return outcome, n_steps, y, rows
 
 
-def run_heyoka(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray) -> SolverRun:
-    """Integrate ``model`` with double-precision heyoka at ``tol = rtol``; the
-    scales are ``atol / rtol`` (per group: the smallest). Never raises."""
+def stop_time(ta, t_eval, n_rows: int) -> float:
+    """Where a run that stopped early got to (s): heyoka's time when it is
+    finite (after a non-finite state it can be NaN), else the last output time
+    reached (``t_eval[0]`` if none)."""
+    t = float(ta.time)
+    if math.isfinite(t):
+        return t
+    return float(t_eval[n_rows - 1]) if n_rows > 0 else float(t_eval[0])
+
+
+def outcome_status(outcome, n_rows: int, m: int, max_steps: int, t_fail: float, who: str):
+    """``(status, message)`` of a heyoka ``propagate_grid`` outcome.
+
+    ``time_limit`` with every row is OK; ``err_nf_state`` (a non-finite
+    state) is UNSTABLE; ``step_limit`` (the ``max_steps`` cap) and anything
+    else, or fewer rows than the grid, are FAILED. ``t_fail`` (s) is heyoka's
+    time when it stopped."""
     import heyoka as hy
 
+    if outcome == hy.taylor_outcome.time_limit and n_rows == m:
+        return Status.OK, ""
+    got = f"; {n_rows} of {m} output times reached"
+    if outcome == hy.taylor_outcome.err_nf_state:
+        return Status.UNSTABLE, f"{who}: the state became non-finite at t = {t_fail:.6g}{got}"
+    if outcome == hy.taylor_outcome.step_limit:
+        return Status.FAILED, f"{who}: step cap max_steps = {max_steps} reached at t = {t_fail:.6g}{got}"
+    return Status.FAILED, f"{who}: propagate_grid stopped with {outcome} at t = {t_fail:.6g}{got}"
+
+
+def run_heyoka(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray,
+               max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
+    """Integrate ``model`` with double-precision heyoka at ``tol = rtol``; the
+    scales are ``atol / rtol`` (per group: the smallest); at most ``max_steps``
+    Taylor steps. Never raises."""
     n = model.n_dof
     scales = (float(np.min(atol[:n])) / rtol, float(np.min(atol[n:])) / rtol)
     m = t_eval.shape[0]
@@ -144,14 +219,15 @@ def run_heyoka(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         order = int(ta.order)
         start = time.perf_counter()
         with np.errstate(over="ignore", invalid="ignore"):
-            outcome, n_steps, y = propagate(ta, model, y0, scales, t_eval)
+            outcome, n_steps, y, rows = propagate(ta, model, y0, scales, t_eval, max_steps=max_steps)
         wall = time.perf_counter() - start
-        if outcome == hy.taylor_outcome.time_limit:
-            status, message = Status.OK, "heyoka: reached the end of the interval"
+        extra["rows_returned"] = rows
+        t_stop = stop_time(ta, t_eval, rows)
+        status, message = outcome_status(outcome, rows, m, max_steps, t_stop, "heyoka")
+        if status is Status.OK:
+            message = "heyoka: reached the end of the interval"
         else:
-            t_fail = float(ta.time)
-            status = Status.UNSTABLE if outcome == hy.taylor_outcome.err_nf_state else Status.FAILED
-            message = f"heyoka: propagate_grid stopped with {outcome} at t = {t_fail:.6g}"
+            t_fail = t_stop
             y[:, t_eval > t_fail] = np.nan
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         wall = 0.0

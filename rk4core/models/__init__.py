@@ -1,25 +1,80 @@
-"""The seed's mass-spring models, one class each, and a registry by scene key."""
+"""The seed's mass-spring models, one class each, a spring network
+(``network``), a model whose potential is typed in the scene
+(``potential``), and a registry by scene key.
+
+A model of your own is one Python file: subclass :class:`Model`, give it a
+unique ``name``, and either call :func:`register_model` on the class or name
+it in a scene as ``model = "package.module:ClassName"`` (the module must be
+importable, e.g. on ``PYTHONPATH``; it is imported, so it must be your own
+code). Its constructor's keyword arguments are the scene's ``[params]``.
+"""
 from __future__ import annotations
 
+import importlib
 import inspect
+import re
 from collections.abc import Mapping
 
 from .base import HEYOKA, NUMPY, Model
 from .chain import Chain
 from .oscillator2d import Oscillator2D
 from .pendulums import Pendulums
+from .network import Network
 from .planar4 import Planar4
+from .potential import PotentialModel
 from .triangle import Triangle
 
-MODELS: dict[str, type[Model]] = {c.name: c for c in (Chain, Planar4, Oscillator2D, Pendulums, Triangle)}
+MODELS: dict[str, type[Model]] = {c.name: c for c in (Chain, Planar4, Oscillator2D, Pendulums, Triangle,
+                                                      Network, PotentialModel)}
 
-__all__ = ["Model", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle",
-           "MODELS", "make_model", "model_parameters", "NUMPY", "HEYOKA"]
+__all__ = ["Model", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
+           "MODELS", "make_model", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
+
+_NAME = re.compile(r"[a-z][a-z0-9_-]*")
+_IMPORT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
+
+
+def register_model(cls: type[Model], *, replace: bool = False) -> type[Model]:
+    """Add the :class:`Model` subclass ``cls`` to :data:`MODELS` under
+    ``cls.name`` (lowercase letters, digits, ``-``, ``_``); returns ``cls``,
+    so it can decorate the class. A name already taken by another class is
+    refused unless ``replace``. Raises ``ValueError`` naming the problem."""
+    if not (isinstance(cls, type) and issubclass(cls, Model)) or cls is Model:
+        raise ValueError(f"`cls` must be a subclass of rk4core.models.Model, got {cls!r}")
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not _NAME.fullmatch(name) or name == Model.name:
+        raise ValueError(f"`{getattr(cls, '__name__', cls)}.name` must be a lowercase name of its own "
+                         f"([a-z][a-z0-9_-]*), got {name!r}")
+    if MODELS.get(name, cls) is not cls and not replace:
+        raise ValueError(f"model name {name!r} is taken by {MODELS[name].__module__}.{MODELS[name].__qualname__}")
+    MODELS[name] = cls
+    return cls
+
+
+def resolve_model(name: str) -> str:
+    """The registry key of ``name``: a key of :data:`MODELS` as it is, or
+    ``"package.module:ClassName"``, imported and registered (see the module
+    docstring). Raises ``ValueError`` naming ``model``."""
+    if not isinstance(name, str):
+        raise ValueError(f"`model` must be a model name or 'package.module:ClassName', got {name!r}")
+    if name in MODELS:
+        return name
+    if not _IMPORT.fullmatch(name):
+        raise ValueError(f"`model` must be one of {sorted(MODELS)} or 'package.module:ClassName', got {name!r}")
+    module_name, cls_name = name.split(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as e:
+        raise ValueError(f"`model` {name!r}: cannot import {module_name!r} ({e})") from None
+    cls = getattr(module, cls_name, None)
+    if cls is None:
+        raise ValueError(f"`model` {name!r}: module {module_name!r} has no {cls_name!r}")
+    return register_model(cls).name
 
 
 def model_parameters(name: str) -> tuple[list[str], list[str]]:
     """(required, optional) parameter names of model ``name``."""
-    sig = inspect.signature(MODELS[name].__init__)
+    sig = inspect.signature(MODELS[resolve_model(name)].__init__)
     ps = [p for p in sig.parameters.values() if p.name != "self"]
     return ([p.name for p in ps if p.default is inspect.Parameter.empty],
             [p.name for p in ps if p.default is not inspect.Parameter.empty])
@@ -28,8 +83,7 @@ def model_parameters(name: str) -> tuple[list[str], list[str]]:
 def make_model(name: str, params: dict) -> Model:
     """Build model ``name`` from a parameter dict; unknown or missing keys and
     bad values raise ``ValueError`` naming the parameter."""
-    if not isinstance(name, str) or name not in MODELS:
-        raise ValueError(f"`model` must be one of {sorted(MODELS)}, got {name!r}")
+    name = resolve_model(name)
     if not isinstance(params, Mapping):
         raise ValueError(f"`params` must be a mapping of parameter names to values, got {params!r}")
     required, optional = model_parameters(name)

@@ -20,11 +20,77 @@ is minus the gradient of the potential and that both evaluations agree.
 """
 from __future__ import annotations
 
+import math
 from typing import ClassVar
 
 import numpy as np
 
-__all__ = ["Model", "NUMPY", "HEYOKA", "Ops"]
+__all__ = ["Model", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses", "check_normal_positive"]
+
+#: Smallest mass (kg, or kg m^2) a model accepts. Anything smaller is not a
+#: physical mass but an underflow: at 5e-324 (the smallest subnormal) the
+#: acceleration ``F/m`` and the fastest frequency ``sqrt(k/m)`` overflow to
+#: inf, and an adaptive solver's first step comes out NaN (DOP853 then never
+#: terminates). 1e-300 keeps every such quotient of the models' normal
+#: parameters finite.
+MASS_MIN = 1e-300
+
+
+def check_normal_positive(name: str, value: float, minimum: float = MASS_MIN) -> float:
+    """``value`` if it is a finite float ``>= minimum``.
+
+    Parameters
+    ----------
+    name : str
+        Field named in the error.
+    value : float
+        A mass (kg), stiffness (N/m) or length (m), in the model's units.
+    minimum : float
+        Smallest accepted value (default :data:`MASS_MIN`, 1e-300).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        One line naming ``name`` and the value.
+    """
+    v = float(value)
+    if not (math.isfinite(v) and v >= minimum):
+        raise ValueError(f"`{name}` must be a finite number >= {minimum:g} (a normal positive float), "
+                         f"got {v!r}")
+    return v
+
+
+def check_masses(name: str, masses) -> np.ndarray:
+    """Every entry of ``masses`` a finite float ``>= MASS_MIN`` and the ratio
+    of the largest to the smallest finite.
+
+    Parameters
+    ----------
+    name : str
+        Field named in the error (``name[i]`` for one entry).
+    masses : array_like
+        Masses (kg, or kg m^2 for angles).
+
+    Returns
+    -------
+    ndarray of float
+
+    Raises
+    ------
+    ValueError
+        One line naming the field and the value.
+    """
+    m = np.asarray(masses, dtype=float)
+    for i, v in enumerate(m.ravel()):
+        check_normal_positive(f"{name}[{i}]" if m.size > 1 else name, v)
+    if m.size and not math.isfinite(float(m.max()) / float(m.min())):
+        raise ValueError(f"`{name}` must have a finite ratio largest/smallest, got "
+                         f"{float(m.max())!r} / {float(m.min())!r}")
+    return m
 
 
 class Ops:
@@ -89,6 +155,100 @@ class Model:
     def params(self) -> dict:
         """The parameters the model was built with (plain Python values)."""
         raise NotImplementedError
+
+    # -- validation ---------------------------------------------------------
+    def _check_scales(self, name: str) -> None:
+        """Refuse parameters whose fastest linearised frequency is not finite
+        and > 0 (Gershgorin bound ``sqrt(max_i sum_j |K_ij| / m_i)``, rad/s).
+
+        Called at the end of each model's constructor; ``name`` is the
+        stiffness parameter to blame (with the masses). Raises ``ValueError``
+        (one line)."""
+        with np.errstate(all="ignore"):
+            try:
+                try:
+                    K = self.stiffness_matrix(sparse=True)
+                except TypeError:
+                    K = self.stiffness_matrix()
+            except NotImplementedError:  # no linearization: nothing to check
+                return
+            row = np.asarray(abs(K).sum(axis=1), dtype=float).ravel()
+            w2 = float(np.max(row / self.mass))
+        if not (math.isfinite(w2) and w2 > 0.0 and math.isfinite(math.sqrt(w2))):
+            raise ValueError(f"`{name}` must give, with the masses, a finite positive fastest frequency "
+                             f"(Gershgorin bound sqrt(max_i sum_j |K_ij| / m_i)), got omega^2 = {w2!r} rad^2/s^2")
+
+    def state_problem(self, y) -> str | None:
+        """Why ``y`` is not a state the equations can be integrated from, or
+        None when it is.
+
+        A state is refused when its total energy (J) or its generalized force
+        (N, or N m) is not finite: a spring of zero length (planar4 on an
+        anchor, two triangle masses on top of each other: the force divides
+        by zero) or a displacement so large that ``k x^2`` overflows. Nothing
+        is integrated; this costs one evaluation of the force and the energy.
+
+        Parameters
+        ----------
+        y : array_like, shape (2 n_dof,)
+            State ``[q, v]`` in the model's units (m, m/s; rad, rad/s).
+
+        Returns
+        -------
+        str or None
+            One clause ("the force is not finite there (...)"), or None.
+        """
+        y = np.asarray(y, dtype=float)
+        n = self.n_dof
+        if y.shape != (2 * n,):
+            return f"it has shape {y.shape}, not ({2 * n},)"
+        if not np.all(np.isfinite(y)):
+            return "it is not finite"
+        with np.errstate(all="ignore"):
+            try:
+                f = self.force(y[:n])
+                e = float(self.energy(y))
+            except Exception as exc:  # noqa: BLE001 - any failure at y0 is a refusal naming y0
+                text = " ".join(str(exc).split())[:200]
+                return f"evaluating the force and energy raised {type(exc).__name__}: {text}"
+        bad = np.flatnonzero(~np.isfinite(f))
+        if bad.size:
+            return (f"the force is not finite there (component {self.coord_names[bad[0]]} = {float(f[bad[0]])!r}; "
+                    f"a spring of zero length, or an overflow)")
+        if not math.isfinite(e):
+            return f"its energy is not finite ({e!r} J; an overflow)"
+        return None
+
+    def check_state(self, y, name: str = "y0") -> np.ndarray:
+        """``y`` as a float array if :meth:`state_problem` finds nothing wrong.
+
+        Used by ``references.solvers.integrate`` and
+        ``references.truth.reference_solution`` on the initial state.
+
+        Parameters
+        ----------
+        y : array_like, shape (2 n_dof,)
+            State ``[q, v]`` (m, m/s; rad, rad/s).
+        name : str
+            Field named in the error.
+
+        Returns
+        -------
+        ndarray, shape (2 n_dof,)
+
+        Raises
+        ------
+        ValueError
+            One line, e.g. "`y0` must be a state of planar4 with finite force
+            and energy: the force is not finite there (...), got [...]".
+        """
+        problem = self.state_problem(y)
+        if problem is not None:
+            shown = np.array2string(np.asarray(y, dtype=float), precision=6, max_line_width=10**6,
+                                    threshold=12, separator=", ")
+            raise ValueError(f"`{name}` must be a state of {self.name} with finite force and energy: "
+                             f"{problem}, got {shown}")
+        return np.asarray(y, dtype=float)
 
     # -- numpy evaluation ---------------------------------------------------
     @property

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import choice, float_list
-from .base import Model
+from .base import Model, check_masses, check_normal_positive
 
 WALLS = ("both", "left", "right", "none")
 
@@ -25,8 +25,10 @@ class Chain(Model):
     Parameters
     ----------
     masses : list of float, length N >= 1
+        Each a finite float >= ``MASS_MIN`` (1e-300 kg), largest/smallest finite.
     springs : list of float
-        N+1, N, N or N-1 entries for walls "both", "left", "right", "none".
+        N+1, N, N or N-1 entries for walls "both", "left", "right", "none";
+        each >= 1e-300 N/m, and ``sqrt(k/m)`` must stay finite.
     walls : {"both", "left", "right", "none"}
     """
 
@@ -35,16 +37,19 @@ class Chain(Model):
 
     def __init__(self, masses, springs, walls="both"):
         self.walls = choice("walls", walls, WALLS)
-        self.mass = float_list("masses", masses, positive_items=True)
+        self.mass = check_masses("masses", float_list("masses", masses, positive_items=True))
         N = self.mass.shape[0]
         n_springs = N + {"both": 1, "left": 0, "right": 0, "none": -1}[walls]
         if n_springs < 1:
             raise ValueError(f"`masses` must have at least 2 entries when walls = 'none', got {N}")
         self.k = float_list("springs", springs, length=n_springs, positive_items=True)
+        for i, k in enumerate(self.k):
+            check_normal_positive(f"springs[{i}]", k)
         self.n_dof = N
         self.coord_names = [f"x{i + 1}" for i in range(N)]
         self._left = walls in ("both", "left")
         self._right = walls in ("both", "right")
+        self._check_scales("springs")
 
     def params(self):
         return {"masses": self.mass.tolist(), "springs": self.k.tolist(), "walls": self.walls}

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import positive
-from .base import Model
+from .base import Model, check_normal_positive
 
 
 class Oscillator2D(Model):
@@ -19,12 +19,13 @@ class Oscillator2D(Model):
     linear = True
 
     def __init__(self, m, kx, ky):
-        self.m = positive("m", m)
-        self.kx = positive("kx", kx)
-        self.ky = positive("ky", ky)
+        self.m = check_normal_positive("m", positive("m", m))
+        self.kx = check_normal_positive("kx", positive("kx", kx))
+        self.ky = check_normal_positive("ky", positive("ky", ky))
         self.n_dof = 2
         self.mass = np.array([self.m, self.m])
         self.coord_names = ["x", "y"]
+        self._check_scales("kx")
 
     def params(self):
         return {"m": self.m, "kx": self.kx, "ky": self.ky}

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import boolean, positive
-from .base import Model
+from .base import MASS_MIN, Model, check_normal_positive
 
 
 class Pendulums(Model):
@@ -26,16 +26,21 @@ class Pendulums(Model):
     name = "pendulums"
 
     def __init__(self, m, length, g, k, linear=False, separation=None):
-        self.m = positive("m", m)
-        self.length = positive("length", length)
-        self.g = positive("g", g)
-        self.k = positive("k", k)
+        self.m = check_normal_positive("m", positive("m", m))
+        self.length = check_normal_positive("length", positive("length", length))
+        self.g = check_normal_positive("g", positive("g", g))
+        self.k = check_normal_positive("k", positive("k", k))
         self.linear = boolean("linear", linear)
-        self.separation = self.length if separation is None else positive("separation", separation)
+        self.separation = (self.length if separation is None
+                           else check_normal_positive("separation", positive("separation", separation)))
         self.n_dof = 2
         ml2 = self.m * self.length ** 2
+        if not ml2 >= MASS_MIN:
+            raise ValueError(f"`length` must make the generalized mass m length^2 >= {MASS_MIN:g} kg m^2, "
+                             f"got m = {self.m!r}, length = {self.length!r}")
         self.mass = np.array([ml2, ml2])
         self.coord_names = ["theta1", "theta2"]
+        self._check_scales("k")
 
     def params(self):
         return {"m": self.m, "length": self.length, "g": self.g, "k": self.k,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import boolean, positive
-from .base import Model
+from .base import Model, check_normal_positive
 
 
 class Planar4(Model):
@@ -25,15 +25,16 @@ class Planar4(Model):
     name = "planar4"
 
     def __init__(self, m, k, l, linear=False):  # noqa: E741 - the thesis' symbol
-        self.m = positive("m", m)
-        self.k = positive("k", k)
-        self.l = positive("l", l)
+        self.m = check_normal_positive("m", positive("m", m))
+        self.k = check_normal_positive("k", positive("k", k))
+        self.l = check_normal_positive("l", positive("l", l))
         self.linear = boolean("linear", linear)
         self.n_dof = 2
         self.mass = np.array([self.m, self.m])
         self.coord_names = ["x", "y"]
         l_ = self.l
         self.anchors = ((-l_, 0.0), (l_, 0.0), (0.0, -l_), (0.0, l_))
+        self._check_scales("k")
 
     def params(self):
         return {"m": self.m, "k": self.k, "l": self.l, "linear": self.linear}

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ..validate import positive
-from .base import Model
+from .base import Model, check_normal_positive
 
 _PAIRS = ((0, 1), (1, 2), (0, 2))
 
@@ -27,14 +27,15 @@ class Triangle(Model):
     linear = False
 
     def __init__(self, m, k, side):
-        self.m = positive("m", m)
-        self.k = positive("k", k)
-        self.side = positive("side", side)
+        self.m = check_normal_positive("m", positive("m", m))
+        self.k = check_normal_positive("k", positive("k", k))
+        self.side = check_normal_positive("side", positive("side", side))
         a = self.side
         self.rest = ((0.0, 0.0), (a, 0.0), (0.5 * a, 0.5 * math.sqrt(3.0) * a))
         self.n_dof = 6
         self.mass = np.full(6, self.m)
         self.coord_names = ["x1", "y1", "x2", "y2", "x3", "y3"]
+        self._check_scales("k")
 
     def params(self):
         return {"m": self.m, "k": self.k, "side": self.side}

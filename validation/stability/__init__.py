@@ -8,8 +8,11 @@ status, note), figures ``(Path, sentence)`` and one-line findings. Computation
 lives in :mod:`.boundary`, :mod:`.long_horizon`, :mod:`.stiffness`,
 :mod:`.mass_ratio`, :mod:`.large_n`, :mod:`.geometry`; drawing in :mod:`.plots`.
 
-A study that fails (a bug, a missing solver) becomes a row with status
-``failed`` and the error in its note; it never raises into the runner.
+A study that fails (a bug, a missing solver, a run beyond the work cap
+``_common.MAX_STEP_WORK``) becomes a row with status ``failed`` and the error
+in its note; it never raises into the runner. :func:`estimate_steps` says
+beforehand how many integration steps a scene's study will take, without
+integrating (:mod:`.estimate`); :data:`PARAMS` holds every key's bounds.
 """
 from __future__ import annotations
 
@@ -19,9 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from ._common import StudyResult, row
-from .params import DEFAULTS, STUDIES, validate_params
+from .estimate import estimate_steps
+from .params import DEFAULTS, PARAMS, STUDIES, params_table_markdown, validate_params
 
-__all__ = ["run", "validate_params", "StudyResult", "STUDIES", "DEFAULTS"]
+__all__ = ["run", "validate_params", "estimate_steps", "StudyResult", "STUDIES", "DEFAULTS", "PARAMS",
+           "params_table_markdown"]
 
 
 def run(scene, out_dir, quick: bool, progress=None) -> StudyResult:
@@ -29,7 +34,7 @@ def run(scene, out_dir, quick: bool, progress=None) -> StudyResult:
     whose ``stability`` dict names them) and return a :class:`StudyResult`."""
     from .studies import STUDY_FUNCTIONS, Context
 
-    params = validate_params(scene.stability or {}, f"{getattr(scene, 'path', scene.name)}: stability")
+    params = validate_params(scene.stability or {})
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     ctx = Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick),

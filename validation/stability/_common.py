@@ -9,7 +9,18 @@ import numpy as np
 
 import rk4core
 
-__all__ = ["StudyResult", "row", "integrate_fixed", "loglog_slope", "mode_amplitudes"]
+__all__ = ["StudyResult", "row", "integrate_fixed", "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK",
+           "StudyCapError"]
+
+#: Cap on one fixed-step run of a study: steps x degrees of freedom (about
+#: 2.5e9 steps of a 2-DOF chain, a minute or two on the compiled path). A run
+#: beyond it is refused before it starts (:class:`StudyCapError`), so no
+#: parameter combination starts a run of days.
+MAX_STEP_WORK = 5e9
+
+
+class StudyCapError(ValueError):
+    """A study run would exceed :data:`MAX_STEP_WORK`; the message says how big."""
 
 
 @dataclass
@@ -45,6 +56,19 @@ def row(scene, solver, quantity, measured, theory=math.nan, passed=None, status=
             "passed": None if passed is None else bool(passed), "status": status, "note": note}
 
 
+def _no_growth_stop(fn) -> dict:
+    """``{"max_growth": None}`` when ``fn`` has rk4core's growth stop (a run is
+    ended as unstable once the state grows ``max_growth`` times): the study
+    measures growth factors up to 1e100 and blow-up times to overflow against
+    ``log(DBL_MAX) / log g``, so it keeps only the non-finite test."""
+    import inspect
+
+    try:
+        return {"max_growth": None} if "max_growth" in inspect.signature(fn).parameters else {}
+    except (TypeError, ValueError):
+        return {}
+
+
 def _fast_solver():
     try:
         from rk4core import fast  # written in parallel; optional
@@ -62,18 +86,27 @@ def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, met
     Returns the solver result (``.t``, ``.y``, ``.status``, ``.t_fail``, ...)
     and the name of the path used (``"fast"`` or ``"solve"``). Floating-point
     warnings are silenced here because a blow-up is reported by the result's
-    status, not by a warning.
+    status, not by a warning. A run of more than :data:`MAX_STEP_WORK` steps x
+    DOF raises :class:`StudyCapError` before it starts. rk4core's growth stop
+    (``max_growth``) is switched off: a blow-up here ends on a non-finite
+    state, as the study's theory (``log(DBL_MAX) / log g`` steps) assumes.
     """
     kw = {"h": h} if n_steps is None else {"n_steps": int(n_steps)}
+    steps = float(n_steps) if n_steps is not None else (
+        math.ceil((t_span[1] - t_span[0]) / h) if h and math.isfinite(h) and h > 0 else math.inf)
+    if steps * model.n_dof > MAX_STEP_WORK:
+        raise StudyCapError(f"a {method} run of {steps:.3g} steps on {model.n_dof} degrees of freedom exceeds the "
+                            f"study cap of {MAX_STEP_WORK:.3g} step x DOF (validation.stability._common.MAX_STEP_WORK)")
     solver = _fast_solver() if fast else None
     with np.errstate(all="ignore"):
         if solver is not None:
             try:
                 return solver(model, t_span, y0, t_eval=t_eval, method=method,
-                              record_every=record_every, **kw), "fast"
+                              record_every=record_every, **kw, **_no_growth_stop(solver)), "fast"
             except Exception:  # noqa: BLE001 - compiled path unavailable: use the generic loop
                 pass
-        res = rk4core.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, **kw)
+        res = rk4core.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, **kw,
+                            **_no_growth_stop(rk4core.solve))
         if record_every > 1 and t_eval is None:
             keep = np.unique(np.r_[np.arange(0, res.t.shape[0], record_every), res.t.shape[0] - 1])
             res.t, res.y = res.t[keep], res.y[:, keep]

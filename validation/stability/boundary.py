@@ -40,11 +40,14 @@ from rk4core import get_method, rk_step
 
 from ._common import integrate_fixed, mode_amplitudes
 
-__all__ = ["STABLE_TOL", "one_step_matrix", "spectral_radius", "largest_stable_step",
-           "theory_growth", "theory_boundary", "measured_growth", "blowup_run"]
+__all__ = ["STABLE_TOL", "MAX_BISECTIONS", "one_step_matrix", "spectral_radius", "largest_stable_step",
+           "theory_growth", "theory_boundary", "growth_steps", "measured_growth", "blowup_run"]
 
 STABLE_TOL = 1e-12
 THETA_MIN = 1e-5  # smallest omega h probed when looking for a stable step
+#: Cap on bisection steps of :func:`largest_stable_step` (on top of ``rtol``):
+#: 100 halvings of the bracket reach any double-precision width.
+MAX_BISECTIONS = 100
 
 
 def theory_growth(method: str, theta):
@@ -106,11 +109,17 @@ def spectral_radius(model, h: float, method: str, modes=None) -> float:
 
 
 def largest_stable_step(model, method: str, rtol: float = 1e-4, omega_max: float | None = None):
-    """Largest stable ``h`` by bisection to relative precision ``rtol``.
+    """Largest stable ``h`` (s) by bisection to relative precision ``rtol``.
 
     The bracket is found without theory: start at ``h = 1/omega_max``, double
-    until unstable (or halve until stable). Returns ``(h_star, n_probes)``;
-    ``h_star = 0.0`` when no step down to ``omega h = 1e-5`` is stable.
+    until unstable (or halve until stable). The bisection stops at relative
+    width ``rtol``, after :data:`MAX_BISECTIONS` halvings, or when the midpoint
+    is no longer between the ends (the bracket is one ulp wide), whichever
+    comes first, so it ends for every ``rtol`` (even 1e-300).
+
+    Returns ``(h_star, n_probes)``; ``h_star = 0.0`` when no step down to
+    ``omega h = 1e-5`` is stable, ``inf`` when every step up to ``omega h =
+    1e3`` is.
     """
     modes = model.modes()
     if omega_max is None:
@@ -134,14 +143,31 @@ def largest_stable_step(model, method: str, rtol: float = 1e-4, omega_max: float
             hi, lo = lo, lo / 2
             if lo * omega_max < THETA_MIN:
                 return 0.0, probes
-    while (hi - lo) > rtol * lo:
+    for _ in range(MAX_BISECTIONS):
+        if not (hi - lo) > rtol * lo:
+            break
         mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
         probes += 1
         if stable(mid):
             lo = mid
         else:
             hi = mid
     return lo, probes
+
+
+def growth_steps(method: str, theta: float, n_steps: int = 1000) -> int:
+    """Steps :func:`measured_growth` integrates at ``theta``: ``n_steps``, cut
+    to ``230 / log g`` where the theory growth ``g > 1`` (far from overflow)
+    and to ``25 / -log g`` where ``g < 1`` (before the mode sinks into
+    round-off), never below 8."""
+    g_th = float(theory_growth(method, theta))
+    if g_th > 1.0:  # stay far from overflow
+        return max(8, min(n_steps, int(230.0 / math.log(g_th))))
+    if g_th < 1.0:  # a decaying mode sinks into the round-off of the others
+        return max(8, min(n_steps, int(25.0 / -math.log(g_th))))
+    return n_steps
 
 
 def measured_growth(model, method: str, theta: float, n_steps: int = 1000, modes=None):
@@ -159,11 +185,7 @@ def measured_growth(model, method: str, theta: float, n_steps: int = 1000, modes
     """
     omega, phi = modes if modes is not None else model.modes()
     w = float(omega[-1])
-    g_th = float(theory_growth(method, theta))
-    if g_th > 1.0:  # stay far from overflow
-        n_steps = max(8, min(n_steps, int(230.0 / math.log(g_th))))
-    elif g_th < 1.0:  # a decaying mode sinks into the round-off of the others
-        n_steps = max(8, min(n_steps, int(25.0 / -math.log(g_th))))
+    n_steps = growth_steps(method, theta, n_steps)
     y0 = model.state(phi[:, -1] / np.max(np.abs(phi[:, -1])))
     h = theta / w
     res, _ = integrate_fixed(model, (0.0, n_steps * h), y0, n_steps=n_steps, method=method)

@@ -1,0 +1,249 @@
+"""A model given by its potential: coordinates, masses and V(q) as text.
+
+Scene key ``potential`` (``[params]``):
+
+* ``coordinates`` -- list of distinct names (at most :data:`MAX_COORDINATES`),
+  the generalized coordinates ``q`` in this order (the state is ``[q, v]``);
+* ``masses`` -- one positive number per coordinate, or one number for all
+  (kg for lengths, kg m^2 for angles);
+* ``potential`` -- the text of ``V(q)`` (J) in the grammar of
+  :mod:`rk4core.expr` (numbers, names, ``+ - * / ** ^``, parentheses, ``sin
+  cos tan sinh cosh tanh exp log sqrt``), parsed by the harness's own parser,
+  never by ``eval``;
+* ``constants`` -- optional table of named numbers used in the text
+  (substituted as their double values).
+
+Everything else is derived from the one parsed expression, never written by
+hand: the force ``F = -grad V`` by symbolic differentiation
+(:func:`rk4core.expr.diff`); the numpy right-hand side from the
+:func:`rk4core.expr.lambdify`-compiled force (vectorised over states); heyoka's
+equations from :func:`rk4core.expr.to_heyoka` of the same force expressions;
+the stiffness matrix from the symbolic Hessian.
+
+Reference state: ``q = 0``. :meth:`PotentialModel.stiffness_matrix` is the
+Hessian of V there (so V must be twice differentiable and finite at q = 0;
+write coordinates as displacements from the configuration you linearise
+about). ``linear`` is true when V is a quadratic form -- every second
+derivative is a constant, the force vanishes at q = 0 and the Hessian is
+positive semidefinite -- so ``F = -K q`` exactly and the exact modal
+reference applies. A quadratic V with linear terms or an indefinite Hessian
+(an inverted oscillator) is integrated as nonlinear: the modal reference
+assumes oscillating or uniformly moving modes.
+
+Example (Henon-Heiles)::
+
+    PotentialModel(coordinates=["x", "y"], masses=1.0,
+                   potential="(x^2 + y^2)/2 + lam*(x^2*y - y^3/3)",
+                   constants={"lam": 1.0})
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from .. import expr as ex
+from ..validate import float_list, positive
+from .base import Model, check_masses
+
+__all__ = ["PotentialModel", "MAX_COORDINATES"]
+
+#: Most coordinates a potential model may have (its Hessian is n^2 symbolic
+#: second derivatives; larger systems belong to per-element models).
+MAX_COORDINATES = 100
+
+
+def _short(value, limit=60) -> str:
+    text = repr(value).replace("\n", " ")
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class PotentialModel(Model):
+    """A model defined by the text of its potential (see the module docstring).
+
+    Parameters
+    ----------
+    coordinates : list of str
+        Distinct names of the generalized coordinates.
+    masses : float or list of float
+        Generalized masses, each >= ``MASS_MIN`` (1e-300) with a finite
+        largest/smallest ratio; one number is used for every coordinate.
+    potential : str
+        ``V(q)`` in the coordinates and ``constants`` (J).
+    constants : mapping of str to float, optional
+        Named finite numbers (not coordinate names).
+
+    Attributes
+    ----------
+    V : rk4core.expr.Expr
+        The parsed potential.
+    force_exprs : list of rk4core.expr.Expr
+        ``-dV/dq_i``, derived symbolically.
+    hessian_exprs : list of list of rk4core.expr.Expr
+        ``d2V/dq_i dq_j``.
+    digest : str
+        SHA-256 of the canonical text of V (a cache key for derived code).
+    """
+
+    name = "potential"
+
+    def __init__(self, coordinates, masses, potential, constants=None):
+        self.coordinates = self._check_coordinates(coordinates)
+        n = len(self.coordinates)
+        if isinstance(masses, (str, bytes)) or not hasattr(masses, "__len__"):
+            self.mass = check_masses("masses", np.full(n, positive("masses", masses)))
+        else:
+            self.mass = check_masses("masses", float_list("masses", masses, length=n, positive_items=True))
+        self.constants = self._check_constants(constants, self.coordinates)
+        if not isinstance(potential, str):
+            raise ValueError(f"`potential` must be a string (the expression of V), got {_short(potential)}")
+        self.potential_text = potential
+        try:
+            self.V = ex.parse(potential, self.coordinates, self.constants)
+        except ex.ExprError as e:
+            raise ValueError(f"`potential`: {e}") from None
+        self.n_dof = n
+        self.coord_names = list(self.coordinates)
+        self.digest = ex.digest(self.V)
+
+        names = self.coordinates
+        try:
+            self.force_exprs = [ex.neg(g) for g in ex.gradient(self.V, names)]
+            self.hessian_exprs = ex.hessian(self.V, names)
+            # Broadcasting versions (any shapes) and unchecked ones for one
+            # state (q of shape (n,), whose entries are numpy scalars).
+            self._V_fn = ex.lambdify(self.V, names)
+            self._F_fn = ex.lambdify(self.force_exprs, names)
+            self._V_one = ex.lambdify(self.V, names, broadcast=False)
+            self._F_one = ex.lambdify(self.force_exprs, names, broadcast=False)
+            self._H_fn = ex.lambdify([h for row in self.hessian_exprs for h in row], names)
+        except ex.ExprError as e:  # e.g. a derivative nested past the tree cap
+            raise ValueError(f"`potential`: {e}") from None
+
+        zero = [0.0] * n
+        with np.errstate(all="ignore"):
+            K = np.array(self._H_fn(*zero), dtype=float).reshape(n, n)
+            F0 = np.array(self._F_fn(*zero), dtype=float).reshape(n)
+        if not np.all(np.isfinite(K)):
+            i, j = np.argwhere(~np.isfinite(K))[0]
+            raise ValueError(f"`potential`: its Hessian at the reference state q = 0 is not finite "
+                             f"(d2V/d{names[i]} d{names[j]} = {K[i, j]}); write the coordinates as "
+                             f"displacements from a regular point")
+        self._K = K
+        with np.errstate(all="ignore"):  # the tolerance rule's frequency bound must stay finite
+            w2 = float(np.max(np.abs(K).sum(axis=1) / self.mass))
+        if not (math.isfinite(w2) and math.isfinite(math.sqrt(w2))):
+            raise ValueError(f"`potential` must give, with the masses, a finite fastest frequency at q = 0 "
+                             f"(Gershgorin bound sqrt(max_i sum_j |K_ij| / m_i)), got omega^2 = {w2!r}")
+        constant_hessian = all(not ex.free_symbols(h) for row in self.hessian_exprs for h in row)
+        self.linear = bool(constant_hessian and np.all(F0 == 0.0) and self._semidefinite(K))
+
+    # -- validation -----------------------------------------------------------
+    @staticmethod
+    def _check_coordinates(coordinates) -> list:
+        if isinstance(coordinates, (str, bytes)) or not isinstance(coordinates, (list, tuple)):
+            raise ValueError(f"`coordinates` must be a list of names, got {_short(coordinates)}")
+        if not 1 <= len(coordinates) <= MAX_COORDINATES:
+            raise ValueError(f"`coordinates` must have 1 to {MAX_COORDINATES} names, got {len(coordinates)}")
+        seen = set()
+        for i, c in enumerate(coordinates):
+            problem = ex.check_name(c)
+            if problem:
+                raise ValueError(f"`coordinates[{i}]` must be a name: {problem}")
+            if c in seen:
+                raise ValueError(f"`coordinates` must be distinct names, got {c!r} twice")
+            seen.add(c)
+        return list(coordinates)
+
+    @staticmethod
+    def _check_constants(constants, coordinates) -> dict:
+        if constants is None:
+            return {}
+        if not isinstance(constants, Mapping):
+            raise ValueError(f"`constants` must be a table of names to numbers, got {_short(constants)}")
+        out = {}
+        for k, v in constants.items():
+            problem = ex.check_name(k)
+            if problem:
+                raise ValueError(f"`constants` must have names as keys: {problem}")
+            if k in coordinates:
+                raise ValueError(f"`constants.{k}`: `{k}` is both a coordinate and a constant")
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(float(v)):
+                raise ValueError(f"`constants.{k}` must be a finite number, got {_short(v)}")
+            out[k] = float(v)
+        return out
+
+    @staticmethod
+    def _semidefinite(K) -> bool:
+        if K.size == 0 or not np.any(K):
+            return True
+        lam = np.linalg.eigvalsh(0.5 * (K + K.T))
+        return bool(lam.min() >= -1e-12 * np.abs(lam).max())
+
+    # -- the Model interface ----------------------------------------------------
+    def params(self):
+        return {"coordinates": list(self.coordinates), "masses": self.mass.tolist(),
+                "potential": self.potential_text, "constants": dict(self.constants)}
+
+    def _symbols(self, q):
+        return {c: q[i] for i, c in enumerate(self.coordinates)}
+
+    def _potential(self, q, ops):
+        if q.dtype == object:  # heyoka expressions
+            return ex.to_heyoka(self.V, self._symbols(q))
+        if q.ndim == 1:
+            return np.float64(self._V_one(*q))
+        return self._V_fn(*q)
+
+    def _force(self, q, ops):
+        if q.dtype == object:
+            return np.array(ex.to_heyoka(self.force_exprs, self._symbols(q)), dtype=object)
+        if q.ndim == 1:
+            return np.array(self._F_one(*q), dtype=float)
+        return np.stack(self._F_fn(*q))
+
+    def stiffness_matrix(self) -> np.ndarray:
+        """Hessian of V at the reference state ``q = 0`` (N/m, or N m/rad),
+        from the symbolic second derivatives (checked finite when built)."""
+        return self._K.copy()
+
+    def state_problem(self, y) -> str | None:
+        """Why ``y`` -- a state ``[q, v]`` or coordinates ``q`` alone -- cannot
+        be integrated from (V, the force or the energy not finite there), or
+        None."""
+        y = np.asarray(y, dtype=float)
+        n = self.n_dof
+        if y.ndim != 1 or y.shape[0] not in (n, 2 * n):
+            return f"it has shape {y.shape}, not ({2 * n},) (y = [q, v]) or ({n},) (q)"
+        if not np.all(np.isfinite(y)):
+            return "it is not finite"
+        q = y[:n]
+        at = ", ".join(f"{c} = {v:.6g}" for c, v in zip(self.coordinates[:6], q))
+        at += ", ..." if n > 6 else ""
+        with np.errstate(all="ignore"):
+            V = float(self._V_fn(*q))
+            F = np.asarray(self._F_fn(*q), dtype=float)
+            T = 0.5 * float(np.sum(self.mass * y[n:] ** 2)) if y.shape[0] == 2 * n else 0.0
+        if not math.isfinite(V):
+            return f"the potential is not finite there (V = {V!r} at {at})"
+        bad = np.flatnonzero(~np.isfinite(F))
+        if bad.size:
+            i = int(bad[0])
+            return f"the force is not finite there (-dV/d{self.coordinates[i]} = {float(F[i])!r} at {at})"
+        if not math.isfinite(T + V):
+            return f"its energy is not finite ({T + V!r} J; an overflow)"
+        return None
+
+    def check_state(self, y, name: str = "y0") -> np.ndarray:
+        """``y`` as a float array when V, the force and the energy are finite
+        there (:meth:`state_problem`); else ``ValueError`` naming ``name`` (one
+        line). ``y`` is a state ``[q, v]`` or the coordinates ``q`` alone."""
+        problem = self.state_problem(y)
+        if problem is not None:
+            shown = np.array2string(np.asarray(y, dtype=float).ravel(), precision=6, max_line_width=10**6,
+                                    threshold=12, separator=", ")
+            raise ValueError(f"`{name}` must be a state of {self.name} with finite force and energy: "
+                             f"{problem}, got {shown}")
+        return np.asarray(y, dtype=float)
