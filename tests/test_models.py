@@ -25,6 +25,11 @@ MODEL_CASES = [
     ("pendulums-linear", "pendulums", {"m": 0.2, "length": 0.5, "g": 9.81, "k": 1.0, "linear": True}, 0.4),
     ("pendulums-separated", "pendulums", {"m": 0.2, "length": 0.5, "g": 9.81, "k": 1.0, "separation": 0.3}, 0.4),
     ("triangle", "triangle", {"m": 1.0, "k": 5.0, "side": 1.0}, 0.15),
+    ("network", "network", {"dim": 2, "masses": [0.5, 0.8], "positions": [-0.2, 0.0, 0.2, 0.0],
+                            "anchors": [-0.6, 0.0, 0.0, 0.5, 0.6, 0.0, 0.0, -0.5],
+                            "springs": [[0, 2, 30.0], [0, 3, 20.0], [1, 4, 30.0], [1, 5, 20.0], [0, 1, 50.0]]}, 0.02),
+    ("potential", "potential", {"coordinates": ["x", "y"], "masses": 1.0,
+                                "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3"}, 0.1),
 ]
 CASE_IDS = [c[0] for c in MODEL_CASES]
 

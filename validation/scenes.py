@@ -4,7 +4,7 @@ A scene is a TOML file::
 
     name = "thesis-2dof-case1"          # [a-z0-9_-], unique; figure names start with it
     description = "Table 4.1: ..."
-    model = "chain"                     # a key of rk4core.models.MODELS
+    model = "chain"                     # a key of rk4core.models.MODELS, or "package.module:Class"
     quick = true                        # optional: part of the --quick subset
     [params]                            # the model's parameters (rk4core.make_model)
     [initial]
@@ -314,8 +314,13 @@ def scene_from_dict(doc: dict, path="<scene>") -> Scene:
     if not isinstance(quick, bool):
         raise SceneError(path, "quick", "must be true or false", quick)
     model_name = doc["model"]
-    if not isinstance(model_name, str) or model_name not in MODELS:
-        raise SceneError(path, "model", f"must be one of {', '.join(sorted(MODELS))}", model_name)
+    from rk4core.models import resolve_model
+
+    try:
+        resolve_model(model_name)
+    except ValueError:
+        raise SceneError(path, "model", f"must be one of {', '.join(sorted(MODELS))} or "
+                         f"'package.module:ClassName'", model_name) from None
     params = _table(path, "params", doc["params"], _model_keys(model_name))
     try:
         model = make_model(model_name, dict(params))
@@ -430,8 +435,12 @@ def _stability(path, params) -> dict:
         from validation.stability import validate_params
     except ImportError as e:
         raise SceneError(path, "stability", f"the stability study is not available ({e})") from None
+    from validation.stability.params import StabilityParamError
+
     try:
-        return validate_params(dict(params), str(path))
+        return validate_params(dict(params), "stability")
+    except StabilityParamError as e:  # names its own field: `stability.<key>`
+        raise SceneError(path, e.field, e.problem, _Raw(repr(e.value)) if e.value is not None else None) from None
     except ValueError as e:
         text = str(e).splitlines()[0]
         if text.startswith(str(path)):
