@@ -147,6 +147,12 @@ def estimate(scene: Scene, model=None) -> Estimate:
             n0 = max(1, math.ceil(T * w / top))
             steps += sum(n0 * max(1, round(top / th)) for th in thetas)
         truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
+    if "modal_energy" in want:  # one run per solver at its finest setting
+        for s in scene.solvers:
+            if s in FIXED_STEP:
+                steps += _steps(scene.t_end, min(scene.h))
+            elif s in ADAPTIVE:
+                steps += ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end)
     if "stability" in want:
         from .stability import estimate_steps
 

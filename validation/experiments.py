@@ -107,7 +107,7 @@ def planned_units(scene: Scene, figures: bool = True) -> int:
     n = 0
     if {"state", "energy", "work_precision"} & set(scene.outputs):
         n += sum(len(_settings(scene, s)) for s in scene.solvers)
-    n += sum(o in scene.outputs for o in ("convergence", "dispersion", "stability", "modes"))
+    n += sum(o in scene.outputs for o in ("convergence", "dispersion", "stability", "modes", "modal_energy"))
     n += bool(figures and "figures" in scene.outputs)
     if "stability" in scene.outputs:
         n += len((scene.stability or {}).get("studies") or ())
@@ -165,6 +165,7 @@ def run_scene(scene: Scene, out_dir, *, quick=False, repeats=3, figures=True,
         ("dispersion", "dispersion" in want, lambda: _dispersion(scene, model, res, draw, out_dir)),
         ("figures", draw, lambda: _state_figures(scene, model, y0, res, out_dir)),
         ("stability", "stability" in want, lambda: _stability(scene, res, out_dir, quick, progress)),
+        ("modal_energy", "modal_energy" in want, lambda: _modal_energy(scene, model, y0, res, draw, out_dir)),
     ]
     for what, wanted, part in parts:
         if not wanted:
@@ -448,6 +449,66 @@ def _dispersion(scene, model, res, draw, out_dir):
     if draw:
         _figure(res, "dispersion", lambda f: f.dispersion(out_dir, m, k, d, N, finite, packets,
                                                           scene_name=scene.name))
+
+
+# -- modal energy (FPUT recurrence) ----------------------------------------------------
+MODAL_MODES = 4  # the lowest linear modes followed
+
+
+def modal_energies(model, y, omega, phi):
+    """Energy (J) in each linear mode, shape (modes, m), of states ``y`` (2n, m):
+    ``E_k = (adot_k^2 + omega_k^2 a_k^2) / 2`` with modal coordinates
+    ``a = phi^T M q`` (``phi`` mass-normalised)."""
+    n = model.n_dof
+    Mphi = phi * model.mass[:, None]
+    a, adot = Mphi.T @ y[:n], Mphi.T @ y[n:]
+    return 0.5 * (adot * adot + (omega[:, None] * a) ** 2)
+
+
+def _modal_energy(scene, model, y0, res, draw, out_dir):
+    """Energy in the lowest modes over time, per solver at its finest setting:
+    the Fermi-Pasta-Ulam-Tsingou recurrence (energy put in mode 1 spreads to
+    modes 2, 3, ... and comes back). No reference trajectory is needed: the
+    solvers are compared with each other, the tightest adaptive one first."""
+    omega, phi = model.modes()
+    k = min(MODAL_MODES, model.n_dof)
+    order = np.argsort(omega)[:k]
+    omega, phi = omega[order], phi[:, order]
+    t = scene.t_eval()
+    E0 = float(np.asarray(model.energy(y0)))
+    series = {}
+    for solver in scene.solvers:
+        setting = min(_settings(scene, solver))
+        timed, err = _timed(solver, model, y0, t, setting, 1)
+        if timed is None:
+            res.failures.append(f"{scene.name}: {solver} at {setting:g} raised {err}")
+            continue
+        run = timed[0]
+        status = _status(run)
+        frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E0
+        label = f"{solver} {'h' if solver in EXPECTED_ORDER else 'rtol'}={setting:g}"
+        series[label] = frac
+        for j in range(k):
+            f = frac[j]
+            i_min = int(np.nanargmin(f)) if np.isfinite(f).any() else 0
+            row = {"scene": scene.name, "solver": solver, "setting": float(setting), "mode": j + 1,
+                   "omega_rad_s": float(omega[j]), "fraction_start": float(f[0]),
+                   "fraction_min": float(f[i_min]), "t_min": float(t[i_min]), "status": status}
+            if j > 0 and np.isfinite(f).any():  # a mode that starts empty: its largest share
+                i_pk = int(np.nanargmax(f))
+                row.update(fraction_peak=float(f[i_pk]), t_peak=float(t[i_pk]))
+            elif i_min < f.size - 1 and np.isfinite(f[i_min:]).any():
+                i_ret = i_min + int(np.nanargmax(f[i_min:]))
+                row.update(fraction_peak=float(f[i_ret]), t_peak=float(t[i_ret]))
+                res.findings.append(
+                    f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
+                    f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
+                    f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
+            else:
+                row.update(fraction_peak=math.nan, t_peak=math.nan)
+            res.add("modal_energy", row)
+    if draw and series:
+        _figure(res, "modal_energy", lambda fg: fg.modal_energy(out_dir, scene.name, t, series, omega))
 
 
 # -- figures, stability --------------------------------------------------------------

@@ -57,7 +57,7 @@ __all__ = ["Scene", "SceneError", "load_scene", "load_scenes", "resolve_scene", 
            "output_stride", "OUTPUTS", "SCENE_DIR", "MAX_SCENE_BYTES"]
 
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
-           "stability", "dispersion")
+           "stability", "dispersion", "modal_energy")
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
 _TOP = {"name", "description", "model", "quick", "params", "initial", "run", "convergence",

@@ -55,7 +55,10 @@ _PACKERS = {Chain: _chain, Planar4: _planar4, Oscillator2D: _oscillator2d,
 
 def supports(model) -> bool:
     """True when ``model`` is one of the built-in model classes (not a subclass,
-    which could redefine the force) and so has a compiled right-hand side."""
+    which could redefine the force) and so has a compiled right-hand side.
+    An anharmonic (FPUT) chain has none yet: it runs on the generic path."""
+    if type(model) is Chain and not model.linear:
+        return False
     return type(model) in _PACKERS
 
 

@@ -8,13 +8,27 @@ right. Springs are listed left to right: with ``walls="both"`` there are N+1
 (wall-m1, m1-m2, ..., mN-wall); ``"left"`` and ``"right"`` have N; ``"none"``
 has N-1. Equation of motion (thesis eq. 2.42, sign corrected, erratum 6):
 ``m_n x_n'' = k_n (x_{n-1} - x_n) + k_{n+1} (x_{n+1} - x_n)``.
+
+Fermi-Pasta-Ulam-Tsingou chains: with ``alpha`` (N/m^2) or ``beta`` (N/m^3)
+non-zero every spring's energy is ``k r^2/2 + alpha r^3/3 + beta r^4/4`` in its
+extension ``r`` -- the one spring-energy expression of
+:mod:`rk4core.models.network`, whose derivative gives the tension -- and the
+chain is nonlinear. With ``alpha = beta = 0`` it is the linear chain, bit for
+bit. Long uniform chains need no spelled-out lists: ``masses = 0.815``,
+``springs = 41.5``, ``n = 100``.
+
+References
+----------
+E. Fermi, J. Pasta, S. Ulam, M. Tsingou, "Studies of nonlinear problems",
+Los Alamos report LA-1940 (1955).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..validate import choice, float_list
+from ..validate import choice, finite, float_list
 from .base import Model, check_masses, check_normal_positive
+from .network import spring_energy, spring_energy_heyoka, spring_tension, spring_tension_heyoka
 
 WALLS = ("both", "left", "right", "none")
 
@@ -24,25 +38,41 @@ class Chain(Model):
 
     Parameters
     ----------
-    masses : list of float, length N >= 1
+    masses : list of float, length N >= 1, or one number with ``n``
         Each a finite float >= ``MASS_MIN`` (1e-300 kg), largest/smallest finite.
-    springs : list of float
+    springs : list of float, or one number
         N+1, N, N or N-1 entries for walls "both", "left", "right", "none";
         each >= 1e-300 N/m, and ``sqrt(k/m)`` must stay finite.
     walls : {"both", "left", "right", "none"}
+    alpha, beta : float, optional
+        Cubic (N/m^2) and quartic (N/m^3) spring coefficients (FPUT); default 0.
+    n : int, optional
+        Number of masses when ``masses`` is one number (then required).
     """
 
     name = "chain"
     linear = True
 
-    def __init__(self, masses, springs, walls="both"):
+    def __init__(self, masses, springs, walls="both", alpha=0.0, beta=0.0, n=None):
         self.walls = choice("walls", walls, WALLS)
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 10**7):
+            raise ValueError(f"`n` must be an integer from 1 to 10^7, got {n!r}")
+        if not hasattr(masses, "__len__") and not isinstance(masses, bool):
+            if n is None:
+                raise ValueError(f"`n` must be given when `masses` is one number, got masses = {masses!r}")
+            masses = [masses] * n
+        elif n is not None and hasattr(masses, "__len__") and len(masses) != n:
+            raise ValueError(f"`n` = {n} disagrees with the {len(masses)} entries of `masses`")
         self.mass = check_masses("masses", float_list("masses", masses, positive_items=True))
         N = self.mass.shape[0]
         n_springs = N + {"both": 1, "left": 0, "right": 0, "none": -1}[walls]
         if n_springs < 1:
             raise ValueError(f"`masses` must have at least 2 entries when walls = 'none', got {N}")
+        if not hasattr(springs, "__len__") and not isinstance(springs, bool):
+            springs = [springs] * n_springs
         self.k = float_list("springs", springs, length=n_springs, positive_items=True)
+        self.alpha, self.beta = finite("alpha", alpha), finite("beta", beta)
+        self.linear = self.alpha == 0.0 and self.beta == 0.0
         for i, k in enumerate(self.k):
             check_normal_positive(f"springs[{i}]", k)
         self.n_dof = N
@@ -52,7 +82,10 @@ class Chain(Model):
         self._check_scales("springs")
 
     def params(self):
-        return {"masses": self.mass.tolist(), "springs": self.k.tolist(), "walls": self.walls}
+        p = {"masses": self.mass.tolist(), "springs": self.k.tolist(), "walls": self.walls}
+        if not self.linear:
+            p.update(alpha=self.alpha, beta=self.beta)
+        return p
 
     def _padded(self, x):
         """Displacements with the walls (fixed at 0) attached at the ends."""
@@ -65,10 +98,17 @@ class Chain(Model):
         return np.concatenate(parts, axis=0)
 
     def _tension(self, x):
-        """Spring tensions k_j * extension_j (N), left to right."""
+        """Spring tensions ``E'(r_j)`` (N) of the extensions ``r_j``, left to
+        right: ``k_j r_j`` for the linear chain."""
         u = self._padded(x)
         k = self.k if x.ndim == 1 else self.k[:, None]
-        return k * np.diff(u, axis=0)
+        d = np.diff(u, axis=0)
+        if self.linear:
+            return k * d
+        if x.dtype == object:
+            return np.array([spring_tension_heyoka(d[j], self.k[j], self.alpha, self.beta)
+                             for j in range(d.shape[0])], dtype=object)
+        return spring_tension(d, k, self.alpha, self.beta)
 
     def _force(self, x, ops):
         T = self._tension(x)
@@ -83,7 +123,11 @@ class Chain(Model):
         u = self._padded(x)
         k = self.k if x.ndim == 1 else self.k[:, None]
         d = np.diff(u, axis=0)
-        return 0.5 * np.sum(k * d * d, axis=0)
+        if self.linear:
+            return 0.5 * np.sum(k * d * d, axis=0)
+        if x.dtype == object:
+            return sum(spring_energy_heyoka(d[j], self.k[j], self.alpha, self.beta) for j in range(d.shape[0]))
+        return np.sum(spring_energy(d, k, self.alpha, self.beta), axis=0)
 
     def stiffness_matrix(self, sparse: bool = False):
         """Tridiagonal K (N/m); ``sparse=True`` gives a scipy.sparse matrix (O(N) memory)."""

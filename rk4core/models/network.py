@@ -34,7 +34,8 @@ import numpy as np
 from .. import expr as ex
 from .base import NUMPY, Model, check_masses
 
-__all__ = ["Network", "spring_energy"]
+__all__ = ["Network", "SPRING_ENERGY", "spring_energy", "spring_tension", "spring_energy_heyoka",
+           "spring_tension_heyoka"]
 
 _R, _K, _ALPHA, _BETA = ex.symbols("r", "k", "alpha", "beta")
 #: The energy of one spring (J) in its extension ``r`` (m): the one definition.
@@ -49,6 +50,25 @@ def spring_energy(r, k, alpha=0.0, beta=0.0):
     """``E(r)`` (J) of springs with extension ``r`` (m), stiffness ``k`` (N/m)
     and the anharmonic coefficients ``alpha`` (N/m^2), ``beta`` (N/m^3)."""
     return _np_energy(r, k, alpha, beta)
+
+
+def spring_tension(r, k, alpha=0.0, beta=0.0):
+    """``E'(r)`` (N): the tension of springs with extension ``r`` (m)."""
+    return _np_tension(r, k, alpha, beta)
+
+
+def _substituted(e, k, alpha, beta):
+    return ex.substitute(e, {"k": ex.Num(float(k)), "alpha": ex.Num(float(alpha)), "beta": ex.Num(float(beta))})
+
+
+def spring_energy_heyoka(r, k, alpha=0.0, beta=0.0):
+    """``E(r)`` as a heyoka expression of the heyoka expression ``r``."""
+    return ex.to_heyoka(_substituted(SPRING_ENERGY, k, alpha, beta), {"r": r})
+
+
+def spring_tension_heyoka(r, k, alpha=0.0, beta=0.0):
+    """``E'(r)`` as a heyoka expression of the heyoka expression ``r``."""
+    return ex.to_heyoka(_substituted(_TENSION, k, alpha, beta), {"r": r})
 
 
 def _flat(name, value, multiple) -> np.ndarray:
@@ -183,9 +203,7 @@ class Network(Model):
         return np.sum(_np_energy(L - rest, k, alpha, beta), axis=0)
 
     def _heyoka(self, e, i, r):
-        values = {"k": ex.Num(float(self.k[i])), "alpha": ex.Num(float(self.alpha[i])),
-                  "beta": ex.Num(float(self.beta[i]))}
-        return ex.to_heyoka(ex.substitute(e, values), {"r": r})
+        return ex.to_heyoka(_substituted(e, self.k[i], self.alpha[i], self.beta[i]), {"r": r})
 
     def _force(self, q, ops):
         d, L = self._bonds(q, ops)
