@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from . import metrics
+from . import interrupt
 from .atomic import is_environment_error
 from .scenes import Scene
 
@@ -173,7 +174,7 @@ def run_scene(scene: Scene, out_dir, *, quick=False, repeats=3, figures=True,
         try:
             part()
         except Exception as e:  # noqa: BLE001 - one part's fault is a failure line, the rest still runs
-            if is_environment_error(e):
+            if is_environment_error(e) or interrupt.pending():
                 raise
             res.failures.append(f"{scene.name}: the {what} part raised {type(e).__name__}: "
                                 f"{str(e).splitlines()[0] if str(e) else ''}")
@@ -519,7 +520,7 @@ def _figure(res, what, draw, many=False):
     try:
         out = draw(figures)
     except Exception as e:  # noqa: BLE001
-        if is_environment_error(e):
+        if is_environment_error(e) or interrupt.pending():
             raise
         res.failures.append(f"{res.scene}: the {what} figure failed: {type(e).__name__}: "
                             f"{str(e).splitlines()[0] if str(e) else ''}")

@@ -196,7 +196,7 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     scenes finished so far are kept in ``run.completed``.
     """
     scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
-    from validation import atomic, experiments, report
+    from validation import atomic, experiments, interrupt, report
 
     t0 = time.perf_counter()
     run.completed = []
@@ -208,6 +208,8 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         except KeyboardInterrupt:
             raise
         except Exception as e:  # noqa: BLE001 - one scene's fault does not stop the run
+            if interrupt.pending():
+                raise Interrupted(interrupt.pending()) from e
             if atomic.is_environment_error(e):
                 raise  # a full disk is not the scene's fault: the run stops (exit 3)
             r = experiments.SceneResult(scene.name)
@@ -259,6 +261,9 @@ class _Signals:
         self.held, self.pending, self.saved, self.restore = False, None, {}, restore
 
     def _handler(self, signum, frame):
+        from validation import interrupt
+
+        interrupt.record(signum)
         if self.held:
             self.pending = self.pending or signum
             return
@@ -296,11 +301,19 @@ def main(argv=None, *, restore_signals=True) -> int:
 
     SIGINT and SIGTERM handlers are installed for the call and restored after
     it (``restore_signals=False``: ignored after it, for the process's exit)."""
+    from validation import interrupt
+
+    interrupt.reset()
     with _Signals(restore_signals) as sig:
         try:
             return _main(argv, sig)
-        except KeyboardInterrupt as e:  # before any output directory was made
-            signum = getattr(e, "signum", signal.SIGINT)
+        except BaseException as e:  # noqa: BLE001 - before any output directory was made
+            # A signal inside a C extension's initialization can surface as another exception.
+            signum = getattr(e, "signum", None) or interrupt.pending()
+            if signum is None and isinstance(e, KeyboardInterrupt):
+                signum = signal.SIGINT
+            if signum is None:
+                raise
             sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}) before any scene ran\n")
             return 128 + signum
 
