@@ -49,17 +49,19 @@ def two_runs(tmp_path_factory):
     for name, text in SCENES.items():
         paths.append(d / f"{name}.toml")
         paths[-1].write_text(text)
-    outs = []
-    for seed in ("1", "2"):
+    outs, procs = [], []
+    for seed in ("1", "2"):  # the two runs at once, one per core
         out = d / f"run{seed}"
         args = [a for p in paths for a in ("--scene", str(p))]
-        r = subprocess.run([sys.executable, "validation/run_all.py", *args, "--out", str(out), "--repeats", "1",
-                            "--no-figures"], cwd=REPO, capture_output=True, text=True, timeout=300,
-                           # each run computes its own reference (no shared truth cache)
-                           env={**os.environ, "PYTHONHASHSEED": seed, "MPLBACKEND": "Agg",
-                                "RK4H_CACHE": str(d / f"cache{seed}")})
-        assert r.returncode == 0, r.stdout + r.stderr
+        procs.append(subprocess.Popen(
+            [sys.executable, "validation/run_all.py", *args, "--out", str(out), "--repeats", "1", "--no-figures"],
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            # each run computes its own reference (no shared truth cache)
+            env={**os.environ, "PYTHONHASHSEED": seed, "MPLBACKEND": "Agg", "RK4H_CACHE": str(d / f"cache{seed}")}))
         outs.append(out)
+    for p in procs:
+        stdout, stderr = p.communicate(timeout=300)
+        assert p.returncode == 0, stdout + stderr
     return outs
 
 

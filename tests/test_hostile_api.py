@@ -262,29 +262,44 @@ _SIZE_CHILD = """
 import json, resource, sys, time
 resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
 import numpy as np, rk4core, rk4core.fast as fast
-path, t_span, kw = json.loads(sys.argv[1])
 model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 2.0, 3.0]})
 y0 = [0.01, 0.0, 0.0, 0.0]
-start = time.perf_counter()
-try:
-    if path == "generic":
-        rk4core.solve(model.rhs, tuple(t_span), y0, **kw)
-    else:
-        fast.solve_model(model, tuple(t_span), y0, **kw)
-    out = {"type": None, "message": ""}
-except BaseException as e:
-    out = {"type": type(e).__name__, "message": str(e)}
-out["elapsed"] = time.perf_counter() - start
-print(json.dumps(out))
+for case, path, t_span, kw in json.loads(sys.argv[1]):
+    start = time.perf_counter()
+    try:
+        if path == "generic":
+            rk4core.solve(model.rhs, tuple(t_span), y0, **kw)
+        else:
+            fast.solve_model(model, tuple(t_span), y0, **kw)
+        out = {"type": None, "message": ""}
+    except BaseException as e:
+        out = {"type": type(e).__name__, "message": str(e)}
+    out["elapsed"] = time.perf_counter() - start
+    print(json.dumps({"case": case, **out}), flush=True)
 """
 
 
-@pytest.mark.parametrize("path, t_span, kw, name, text", [c[1:] for c in SIZE_CASES], ids=[c[0] for c in SIZE_CASES])
-def test_step_count_and_output_size_caps(path, t_span, kw, name, text):
-    proc = subprocess.run([sys.executable, "-c", _SIZE_CHILD, json.dumps([path, t_span, kw])],
-                          capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = json.loads(proc.stdout.strip().splitlines()[-1])
+@pytest.fixture(scope="module")
+def size_results():
+    """Every SIZE_CASES call in one child process (one interpreter start-up, not
+    fifteen); a case that hangs or eats memory still fails the suite (timeout,
+    4 GiB address-space limit)."""
+    cases = [[c[0], c[1], c[2], c[3]] for c in SIZE_CASES]
+    proc = subprocess.run([sys.executable, "-c", _SIZE_CHILD, json.dumps(cases)],
+                          capture_output=True, text=True, timeout=120)
+    results = {}
+    for line in proc.stdout.splitlines():
+        if line.startswith("{"):
+            r = json.loads(line)
+            results[r.pop("case")] = r
+    return proc, results
+
+
+@pytest.mark.parametrize("case, path, t_span, kw, name, text", SIZE_CASES, ids=[c[0] for c in SIZE_CASES])
+def test_step_count_and_output_size_caps(size_results, case, path, t_span, kw, name, text):
+    proc, results = size_results
+    assert case in results, f"the child died before this case: rc {proc.returncode}, {proc.stderr[-2000:]}"
+    out = results[case]
     assert out["type"] == "ValueError", out
     assert f"`{name}`" in out["message"] and text in out["message"] and "\n" not in out["message"]
     assert out["elapsed"] < 5.0

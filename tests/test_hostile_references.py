@@ -673,7 +673,10 @@ def step_counter(monkeypatch):
     return tally
 
 
-@pytest.mark.parametrize("name", STABILITY_SCENES)
+# the two scenes with the longest quick studies (~9 s together) run with -m slow
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow)
+                                  if n in ("stability_2dof", "stability_large_n") else n
+                                  for n in STABILITY_SCENES])
 def test_estimate_steps_matches_the_steps_taken(name, step_counter, tmp_path):
     # Factor 2 on the total: fixed-step counts are the studies' own step rules on exact
     # frequencies (measured 0-5 % apart), adaptive counts a per-period model calibrated

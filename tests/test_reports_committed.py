@@ -24,13 +24,28 @@ COMPARED.update({name: set() for name in report.COLUMNS if name not in report.TI
 RTOL = 1e-9
 
 
-@pytest.fixture(scope="module")
-def regenerated(tmp_path_factory):
+#: The default suite regenerates one quick scene (the thesis' 2-DOF case 1, ~20 s);
+#: ``-m slow`` regenerates every quick scene (~60 s).
+DEFAULT_SCENES = ("thesis-2dof-case1",)
+
+
+def _regenerate(tmp_path_factory, only=None):
     out = tmp_path_factory.mktemp("quick")
     # the stability study's own scenes make only stability.csv, which holds timings: not compared
-    scenes = [s for s in load_scenes(quick=True) if "stability" not in s.outputs]
+    scenes = [s for s in load_scenes(quick=True) if "stability" not in s.outputs and (only is None or s.name in only)]
+    assert scenes, "no quick scene to regenerate"
     results, failures = run(scenes, out, quick=True, repeats=1, figures=False)
     return out, {s.name for s in scenes}, failures
+
+
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory):
+    return _regenerate(tmp_path_factory, DEFAULT_SCENES)
+
+
+@pytest.fixture(scope="module")
+def regenerated_all(tmp_path_factory):
+    return _regenerate(tmp_path_factory)
 
 
 def _read(path):
@@ -46,6 +61,16 @@ def _same(a: pd.Series, b: pd.Series) -> np.ndarray:
 
 @pytest.mark.parametrize("table", sorted(COMPARED))
 def test_committed_tables_match_regenerated_quick_run(regenerated, table):
+    _compare(regenerated, table)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("table", sorted(COMPARED))
+def test_committed_tables_match_every_regenerated_quick_scene(regenerated_all, table):
+    _compare(regenerated_all, table)
+
+
+def _compare(regenerated, table):
     out, names, _ = regenerated
     new_path = out / f"{table}.csv"
     if not new_path.exists():
