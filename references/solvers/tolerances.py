@@ -33,13 +33,9 @@ __all__ = ["omega_bound", "group_scales", "state_scale", "absolute_tolerance"]
 
 def omega_bound(model) -> float:
     """Gershgorin upper bound (rad/s) on the model's largest linearised natural
-    angular frequency: ``sqrt(max_i sum_j |K_ij| / m_i)``. O(nnz(K)) for a chain."""
-    try:
-        K = model.stiffness_matrix(sparse=True)
-    except TypeError:
-        K = model.stiffness_matrix()
-    row = np.asarray(abs(K).sum(axis=1)).ravel()
-    return float(np.sqrt(np.max(row / model.mass)))
+    angular frequency: ``sqrt(max_i sum_j |K_ij| / m_i)``. O(nnz(K)) for a chain
+    (:meth:`rk4core.models.Model.omega_bound`)."""
+    return model.omega_bound()
 
 
 def group_scales(model, y0) -> tuple[float, float]:

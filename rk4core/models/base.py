@@ -157,23 +157,35 @@ class Model:
         raise NotImplementedError
 
     # -- validation ---------------------------------------------------------
+    def _gershgorin_w2(self) -> float:
+        """``max_i sum_j |K_ij| / m_i`` (rad^2/s^2): the square of
+        :meth:`omega_bound`. Raises ``NotImplementedError`` without a
+        stiffness matrix."""
+        try:
+            K = self.stiffness_matrix(sparse=True)
+        except TypeError:
+            K = self.stiffness_matrix()
+        row = np.asarray(abs(K).sum(axis=1), dtype=float).ravel()
+        return float(np.max(row / self.mass))
+
+    def omega_bound(self) -> float:
+        """Gershgorin upper bound (rad/s) on the largest linearised natural
+        angular frequency, ``sqrt(max_i sum_j |K_ij| / m_i)``; O(nnz(K)), no
+        eigensolve. Raises ``NotImplementedError`` without a stiffness matrix."""
+        return float(np.sqrt(self._gershgorin_w2()))
+
     def _check_scales(self, name: str) -> None:
         """Refuse parameters whose fastest linearised frequency is not finite
-        and > 0 (Gershgorin bound ``sqrt(max_i sum_j |K_ij| / m_i)``, rad/s).
+        and > 0 (Gershgorin bound :meth:`omega_bound`, rad/s).
 
         Called at the end of each model's constructor; ``name`` is the
         stiffness parameter to blame (with the masses). Raises ``ValueError``
         (one line)."""
         with np.errstate(all="ignore"):
             try:
-                try:
-                    K = self.stiffness_matrix(sparse=True)
-                except TypeError:
-                    K = self.stiffness_matrix()
+                w2 = self._gershgorin_w2()
             except NotImplementedError:  # no linearization: nothing to check
                 return
-            row = np.asarray(abs(K).sum(axis=1), dtype=float).ravel()
-            w2 = float(np.max(row / self.mass))
         if not (math.isfinite(w2) and w2 > 0.0 and math.isfinite(math.sqrt(w2))):
             raise ValueError(f"`{name}` must give, with the masses, a finite positive fastest frequency "
                              f"(Gershgorin bound sqrt(max_i sum_j |K_ij| / m_i)), got omega^2 = {w2!r} rad^2/s^2")

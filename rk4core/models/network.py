@@ -251,7 +251,4 @@ class Network(Model):
         K = ((K + K.T) * 0.5).tocsr()  # the sums of duplicates round alike: exactly symmetric
         return K if sparse else K.toarray()
 
-    def draw_info(self):
-        """How the network is drawn: node positions and spring pairs (masses first)."""
-        return {"dim": self.dim, "positions": self.X, "anchors": self.A, "springs": np.stack([self.a, self.b], 1)}
 

@@ -27,6 +27,8 @@ import numpy as np
 
 from references.exact import modal_solution
 
+from ..metrics import rk4_energy_loss
+
 from ._common import integrate_fixed, mode_amplitudes
 
 __all__ = ["rk4_energy_loss_per_step", "rk4_phase_lag_per_step", "rk4_phase_arg", "measure_drift_and_phase",
@@ -63,10 +65,7 @@ def rk4_energy_loss_per_step(theta, leading=False):
         Return the leading term ``theta^6/72`` instead.
     """
     th = np.asarray(theta, dtype=float)
-    if leading:
-        return th**6 / 72
-    t2 = th * th
-    return t2 * t2 * t2 * (8.0 - t2) / 576.0
+    return th**6 / 72 if leading else rk4_energy_loss(th)
 
 
 def rk4_phase_arg(theta):
