@@ -208,8 +208,11 @@ def _source(obj) -> str:
 def definition_hash(model) -> str | None:
     """SHA-256 (hex) of the code that defines ``model``'s equations: the source
     of every class in ``type(model).__mro__`` (``object`` excepted) and of the
-    module each is defined in, and of the code turning ``_force`` into heyoka's
-    equations (:func:`references.solvers.taylor.scaled_system`, ``_pars``).
+    module each is defined in, of the definitions they are built on
+    (:mod:`rk4core.models.network`, :mod:`rk4core.models.potential`, the
+    expression code :mod:`rk4core.expr`), and of the code turning ``_force``
+    into heyoka's equations (:func:`references.solvers.taylor.scaled_system`,
+    ``_pars``).
 
     Returns None when a source cannot be read (a class defined interactively):
     such a model's truth is then not cached on disk.
@@ -229,6 +232,11 @@ def definition_hash(model) -> str | None:
                 h.update(_source(mod).encode())
         for fn in (scaled_system, _pars):
             h.update(_source(fn).encode())
+        # The definitions the shipped models are built on (a Defined model's
+        # Network or PotentialModel, the spring-energy template) and the
+        # expression code that turns them into heyoka's equations.
+        for name in ("rk4core.expr", "rk4core.models.network", "rk4core.models.potential"):
+            h.update(_source(sys.modules[name]).encode())
         out = h.hexdigest()
     except (OSError, TypeError):
         out = None

@@ -834,9 +834,9 @@ class _Printer:
     ``source``: numbers as Python float literals; ``literal``: number ->
     text (overrides ``source``; the numpy backend names its float64
     constants); ``temps``: when true, shared nodes, deeply nested pieces and
-    long chunks of sums become assignments ``_tN = ...`` appended to
-    ``lines`` (keeps every line far inside Python's parser and compiler
-    limits).
+    long chunks of sums become assignments ``_tN = ...`` (``temp_prefix``
+    then ``N``) appended to ``lines`` (keeps every line far inside Python's
+    parser and compiler limits).
     """
 
     #: A piece whose syntax tree is deeper than this becomes a temporary.
@@ -845,8 +845,9 @@ class _Printer:
     CHUNK = 40
 
     def __init__(self, names: Mapping[str, str] | None, func: Callable[[str], str], *, source: bool,
-                 temps: bool = False, literal: Callable[[float], str] | None = None):
+                 temps: bool = False, literal: Callable[[float], str] | None = None, temp_prefix: str = "_t"):
         self.names, self.func, self.source = names, func, source
+        self.temp_prefix = temp_prefix
         self.literal = literal
         self.use_temps = temps
         self.lines: list[str] = []
@@ -856,7 +857,7 @@ class _Printer:
 
     # A printed piece: (text, precedence, syntax depth)
     def _temp(self, text: str):
-        name = f"_t{self.n_temps}"
+        name = f"{self.temp_prefix}{self.n_temps}"
         self.n_temps += 1
         self.lines.append(f"{name} = {text}")
         return name

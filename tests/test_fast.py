@@ -227,7 +227,7 @@ def test_bad_arguments_raise_value_error_naming_them(kwargs, name):
 
 
 def test_warm_up_reports_compile_time_apart_and_signatures_stay_few():
-    from rk4core.fast import _kernels, codegen
+    from rk4core.fast import codegen
 
     assert fast.warm_up() >= 0.0
     assert fast.compile_time() is not None and fast.compile_time() >= 0.0
@@ -236,27 +236,36 @@ def test_warm_up_reports_compile_time_apart_and_signatures_stay_few():
         for method in METHODS:
             assert fast.warm_up(model, method) >= 0.0
             fast.solve_model(model, (0.0, 0.1), y0, h=0.01, method=method, t_eval=[0.0, 0.055, 0.1])
-    # The generic loop (long chains) has one signature for every model and
-    # method; each generated loop serves one (method, state size) and has one.
-    assert len(_kernels.integrate.signatures) == 1
-    for loop in codegen._KERNELS.values():
-        assert len(loop.signatures) == 1
+    # Each generated loop serves one (method, force structure) and each
+    # model module's generic loop every method: one signature each.
+    for entry in codegen._KERNELS.values():
+        fn = getattr(entry, "integrate", entry)
+        assert len(fn.signatures) <= 1
 
 
-def test_one_generated_loop_per_method_for_every_small_model():
+@pytest.mark.parametrize("same, other", [
+    (("chain", {"masses": [2.0, 0.3], "springs": [1.0, 7.0, 3.0]}), MODEL_CASES[4]),
+    (("pendulums", {"m": 0.2, "length": 1.0, "g": 1.6, "k": 2.0}), MODEL_CASES[9]),
+], ids=["chain", "pendulums"])
+def test_one_generated_loop_per_method_and_structure(same, other):
+    # The loop's text depends on the definition's structure, not its numbers (except
+    # that a factor 1 or a term 0 simplifies away, as length = 1 and k/2 = 1 here):
+    # a model of the same structure with other parameters reuses it.
     from rk4core.fast import codegen
 
     heun = Tableau("heun", np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2)
-    model, y0 = _model(MODEL_CASES[6])  # pendulums, exact geometry
+    first = {"chain": MODEL_CASES[0], "pendulums": MODEL_CASES[6]}[same[0]]
+    model, y0 = _model(first)
     fast.solve_model(model, (0.0, 0.1), y0, n_steps=3, method=heun)
     before = codegen.compiled_kernels()
-    for case in (MODEL_CASES[0], MODEL_CASES[4], MODEL_CASES[9]):  # other kinds, same size
-        other, y0o = _model(case)
-        fast.solve_model(other, (0.0, 0.1), y0o, n_steps=3, method=heun)
+    twin = rk4core.make_model(*same)
+    assert fast.force_kernel(twin).key() == fast.force_kernel(model).key()
+    res = fast.solve_model(twin, (0.0, 0.1), y0, n_steps=3, method=heun)
     assert codegen.compiled_kernels() == before
-    chain3, y03 = _model(MODEL_CASES[1])  # larger: the generic loop
-    fast.solve_model(chain3, (0.0, 0.1), y03, n_steps=3, method=heun)
-    assert codegen.compiled_kernels() == before
+    np.testing.assert_array_equal(res.y, rk4core.solve(twin.rhs, (0.0, 0.1), y0, n_steps=3, method=heun).y)
+    other_model, y0o = _model(other)
+    fast.solve_model(other_model, (0.0, 0.1), y0o, n_steps=3, method=heun)
+    assert codegen.compiled_kernels() == before + 1
 
 
 def test_generated_source_skips_zero_coefficients():
@@ -265,11 +274,26 @@ def test_generated_source_skips_zero_coefficients():
     from rk4core.fast import _kernels, codegen
     from rk4core.methods import RK4
 
-    text = codegen.source(RK4, 4)
+    model, _ = _model(MODEL_CASES[0])
+    text = codegen.source(RK4, fast.force_kernel(model))
     n_products = sum(1 for line in text.splitlines() if line.strip().startswith(("hq", "hv")) and "= step *" in line)
     assert n_products == 2 * (np.count_nonzero(RK4.A) + np.count_nonzero(RK4.b))
     assert "* 0.0" not in text
-    assert text.count("K.rhs_chain(") == RK4.n_stages + 1  # the stages and the Hermite end slope
+    # The force is inline straight-line code: the stages and the Hermite end slope each divide by m1.
+    assert text.count("/ m0") == RK4.n_stages + 1
+
+
+def _kernel_args(model):
+    kern = fast.force_kernel(model)
+    return kern, (np.ascontiguousarray(kern.fp), np.ascontiguousarray(kern.ip), np.ascontiguousarray(model.mass))
+
+
+def _generic(kern, fp, ip, mass, y0, step, n, tab, *rest):
+    from rk4core.fast import codegen
+    from rk4core.fast.solve import _tableau_arrays
+
+    return codegen.model_module(kern).integrate(fp, ip, mass, np.zeros(kern.work_size), y0, 0.0, step, n,
+                                                *_tableau_arrays(tab), *rest)
 
 
 UNROLLED_CASES = [c for c in MODEL_CASES if len(c[3]) == 2]  # 2 degrees of freedom: a generated loop
@@ -280,22 +304,21 @@ UNROLLED_CASES = [c for c in MODEL_CASES if len(c[3]) == 2]  # 2 degrees of free
 def test_generated_loop_is_bit_identical_to_generic_loop(case, method):
     # Both compiled loops call the same right-hand side (same elementary functions),
     # so the straight-line loop must reproduce the array loop exactly.
-    from rk4core.fast import _kernels, codegen, pack
-    from rk4core.fast.solve import _output_points, _tableau_arrays
+    from rk4core.fast import codegen
+    from rk4core.fast.solve import _output_points
     from rk4core.methods import get_method
 
     model, y0 = _model(case)
-    kind, ip, fp, mass = pack.pack(model)
+    kern, (fp, ip, mass) = _kernel_args(model)
     tab = get_method(method)
     n, step = 150, 0.01
     idx, theta, _ = _output_points(0.0, step, n, np.array([0.0, 0.013, 0.5, 0.7071, 1.5]), 1)
     ys_gen, ys_fast = np.empty((idx.size, y0.size)), np.empty((idx.size, y0.size))
     bound = np.full(y0.size, np.finfo(float).max)
     fail_gen, fail_fast = np.zeros(y0.size), np.zeros(y0.size)
-    ret_gen = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys_gen,
-                                 bound.copy(), 0.0, fail_gen)
-    ret_fast = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys_fast,
-                                            bound.copy(), 0.0, fail_fast)
+    ret_gen = _generic(kern, fp, ip, mass, y0, step, n, tab, idx, theta, ys_gen, bound.copy(), 0.0, fail_gen)
+    ret_fast = codegen.kernel(tab, kern)(fp, ip, mass, y0, 0.0, step, n, idx, theta, ys_fast,
+                                         bound.copy(), 0.0, fail_fast)
     assert tuple(ret_fast) == tuple(ret_gen) and ret_gen[2] == 0
     np.testing.assert_array_equal(ys_fast, ys_gen)
 
@@ -308,12 +331,12 @@ KERNEL_STOPS = [("tight-bound", 1e4, 0.0), ("pending-scale", np.finfo(float).max
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("stop, bound0, pending", KERNEL_STOPS, ids=[k[0] for k in KERNEL_STOPS])
 def test_generated_loop_stops_where_generic_loop_stops(stop, bound0, pending, method):
-    from rk4core.fast import _kernels, codegen, pack
-    from rk4core.fast.solve import _output_points, _tableau_arrays
+    from rk4core.fast import codegen
+    from rk4core.fast.solve import _output_points
     from rk4core.methods import get_method
 
     model, y0 = _model(MODEL_CASES[0])  # chain case 1, at omega_max h = 3: unstable for every method here
-    kind, ip, fp, mass = pack.pack(model)
+    kern, (fp, ip, mass) = _kernel_args(model)
     tab = get_method(method)
     n, step = 400, 3.0 / float(model.modes()[0][-1])
     bound = np.full(y0.size, bound0 * (np.max(np.abs(y0)) if stop == "tight-bound" else 1.0))
@@ -322,11 +345,9 @@ def test_generated_loop_stops_where_generic_loop_stops(stop, bound0, pending, me
     for which in ("generic", "generated"):
         ys, b, y_fail = np.full((idx.size, y0.size), np.nan), bound.copy(), np.zeros(y0.size)
         if which == "generic":
-            ret = _kernels.integrate(kind, ip, fp, mass, y0, 0.0, step, n, *_tableau_arrays(tab), idx, theta, ys,
-                                     b, pending, y_fail)
+            ret = _generic(kern, fp, ip, mass, y0, step, n, tab, idx, theta, ys, b, pending, y_fail)
         else:
-            ret = codegen.kernel(tab, y0.size)(kind, ip, fp, mass, y0, 0.0, step, n, idx, theta, ys, b, pending,
-                                               y_fail)
+            ret = codegen.kernel(tab, kern)(fp, ip, mass, y0, 0.0, step, n, idx, theta, ys, b, pending, y_fail)
         out[which] = (tuple(ret), ys, b, y_fail)
     (ret_g, ys_g, b_g, f_g), (ret_f, ys_f, b_f, f_f) = out["generic"], out["generated"]
     assert ret_g == ret_f and ret_g[2] == -1 and 0 < ret_g[0] < n
@@ -366,3 +387,19 @@ def test_second_process_loads_the_loops_from_the_disk_cache():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     misses, hits = map(int, out.stdout.split())
     assert (misses, hits) == (0, 1)
+
+
+def test_same_array_text_other_edge_list_gets_its_own_loop():
+    # Two one-mass networks: the same array source (dim 2, harmonic springs)
+    # but different edge lists, so different straight-line loops; each must
+    # equal its own generic-path run (a shared loop would be wrong for one).
+    a = rk4core.make_model("planar4", {"m": 0.5, "k": 20.0, "l": 1.0})
+    b = rk4core.make_model("network", {"dim": 2, "masses": [0.5], "positions": [0.0, 0.0],
+                                       "anchors": [-1.0, 0.0, 0.0, 2.0, 1.5, -1.0],
+                                       "springs": [[0, 1, 20.0], [0, 2, 7.0], [0, 3, 3.0]]})
+    assert fast.force_kernel(a).key() == fast.force_kernel(b).key()
+    assert fast.force_kernel(a).scalar_key() != fast.force_kernel(b).scalar_key()
+    for model in (a, b):
+        y0 = model.state([0.1, -0.05], [0.0, 0.2])
+        np.testing.assert_array_equal(fast.solve_model(model, (0.0, 1.0), y0, h=0.01).y,
+                                      rk4core.solve(model.rhs, (0.0, 1.0), y0, h=0.01).y)

@@ -63,19 +63,30 @@ CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "bo
 
 
 # -- scene figures -------------------------------------------------------------------
+WEB = {"dim": 2, "masses": [0.5, 0.8], "positions": [-0.2, 0.0, 0.2, 0.0],
+       "anchors": [-0.6, 0.0, 0.0, 0.5, 0.6, 0.0, 0.0, -0.5],
+       "springs": [[0, 2, 30.0], [0, 3, 20.0], [1, 4, 30.0], [1, 5, 20.0], [0, 1, 50.0]]}
+LINE = {"dim": 1, "masses": [1.0, 2.0], "positions": [0.0, 1.0], "anchors": [-1.0, 2.0],
+        "springs": [[2, 0, 10.0], [0, 1, 10.0], [1, 3, 10.0]]}
 SCENES = {
-    # kind: (model, params, x0, v0, expected file suffixes, lines per time-series panel)
+    # kind: (model, params, x0, v0, expected file suffixes, lines per time-series panel
+    #        or, for "_paths", panels)
     "chain": ("chain", CASE1, [0.005, 0.0], None, {"displacement", "velocity"}, 2),
     "planar4": ("planar4", {"m": 0.815, "k": 41.5, "l": 0.01}, [0.005, 0.03], None,
                 {"displacement", "velocity", "springs", "trajectory"}, 2),
     "oscillator2d": ("oscillator2d", {"m": 0.815, "kx": 4 * 41.5, "ky": 41.5}, [0.0, 1.0], [7.0, 0.0],
-                     {"trajectory", "displacement"}, 2),
+                     {"displacement", "velocity", "trajectory"}, 2),
     "pendulums": ("pendulums", {"m": 0.5, "length": 1.0, "g": 9.81, "k": 0.2}, [0.1, 0.0], None,
                   {"angles"}, 2),
     "triangle": ("triangle", {"m": 1.0, "k": 10.0, "side": 1.0}, [0.01, 0, -0.01, 0.005, 0, -0.004], None,
-                 {"paths"}, None),
+                 {"paths"}, 3),
     "long chain": ("chain", {"masses": [0.815] * 12, "springs": [41.5] * 13}, [0.005] + [0.0] * 11, None,
                    {"displacement", "velocity"}, None),
+    # no model-specific code in the figures: these come from the drawings alone
+    "web": ("network", WEB, [0.02, 0.0, -0.01, 0.015], None, {"paths"}, 2),
+    "line": ("network", LINE, [0.01, 0.0], None, {"displacement", "velocity"}, 2),
+    "potential": ("potential", {"coordinates": ["x", "y"], "masses": 1.0, "potential": "(x^2 + y^2)/2 + x^2*y",
+                                "constants": {}}, [0.1, 0.0], None, {"coordinates"}, 2),
 }
 
 
@@ -95,14 +106,86 @@ def test_scene_figures_writes_the_set_of_its_model_kind(kind, tmp_path, captured
             (ax,) = [a for a in fig.axes if a.images]  # one image (plus its colour bar)
             assert ax.images[0].get_array().shape == (model.n_dof, t.size)
             assert labelled_lines(ax) == []
-        elif kind == "triangle":
+        elif path.name.endswith("_paths.png"):
             panels = [a for a in fig.axes if a.get_lines()]
-            assert len(panels) == 3
+            assert len(panels) == n_lines
         elif path.name.endswith("_trajectory.png"):
             assert len([ln for ln in fig.axes[0].get_lines() if len(ln.get_xdata()) == t.size]) == 1
         else:
             n_expect = 4 if path.name.endswith("_springs.png") else n_lines
             assert len(labelled_lines(fig.axes[0])) == n_expect
+
+
+def _renamed(model, name):
+    """``model`` under another name: the figures must not notice."""
+    model.name = name
+    return model
+
+
+def test_figures_come_from_the_drawing_not_the_name(tmp_path, captured):
+    # A network of one mass off the origin on three springs (one of them pre-stretched):
+    # drawn as a point in the plane with springs, whatever the model is called.
+    X0, anchors = (0.1, 0.2), [(-0.4, 0.2), (0.6, 0.2), (0.1, -0.3)]
+    params = {"dim": 2, "masses": [0.5], "positions": list(X0), "anchors": [c for a in anchors for c in a],
+              "springs": [[0, 1, 10.0], [0, 2, 20.0, 0.4], [0, 3, 30.0]]}
+    model, t, y = rk4_run("network", params, [0.01, -0.02], t_end=1.0)
+    out = figures.scene_figures(tmp_path, "w", _renamed(model, "chain"), t, y, title="web")
+    assert {p.name for p, _ in out} == {"w_displacement.png", "w_velocity.png", "w_springs.png",
+                                        "w_trajectory.png"}
+    fig = dict((p.name, f) for f, p in captured)["w_springs.png"]
+    ax = fig.axes[0]
+    assert "(mm)" in ax.get_ylabel()
+    # elongation = |P_b - P_a| - rest, P = reference + displacement; rest 0.5, 0.4, 0.5 m
+    px, py = X0[0] + 0.01, X0[1] - 0.02
+    expect = {f"0-{j + 1} spring": math.hypot(ax_ - px, ay_ - py) - rest
+              for j, ((ax_, ay_), rest) in enumerate(zip(anchors, (0.5, 0.4, 0.5)))}
+    first = {ln.get_label(): ln.get_ydata()[0] for ln in labelled_lines(ax)}
+    assert first == pytest.approx({k: 1e3 * v for k, v in expect.items()}, rel=1e-12)
+    sentences = dict((p.name, s) for p, s in out)
+    assert "from its rest position" in sentences["w_displacement.png"]  # coordinates are displacements
+    assert "(3 of them anchored)" in sentences["w_springs.png"]
+
+
+def test_several_points_give_one_path_panel_each_titled_by_its_reference(tmp_path, captured):
+    model, t, y = rk4_run("network", WEB, [0.02, 0.0, -0.01, 0.015], t_end=1.0)
+    figures.scene_figures(tmp_path, "web", _renamed(model, "triangle"), t, y, title="web")
+    (fig, path), = captured
+    assert path.name == "web_paths.png"
+    panels = [a for a in fig.axes if a.get_lines()]
+    assert [a.get_title() for a in panels] == ["mass 1, rest at (-0.2, 0) m", "mass 2, rest at (0.2, 0) m"]
+    np.testing.assert_allclose(panels[1].get_lines()[0].get_xdata(), 1e3 * y[2])  # x2 in mm
+
+
+def test_sentences_quote_the_drawing(tmp_path, monkeypatch):
+    import dataclasses
+
+    model, t, y = rk4_run("planar4", {"m": 0.815, "k": 41.5, "l": 0.01}, [0.005, 0.03], t_end=1.0)
+    d = dataclasses.replace(model.drawing(), caption="a custom reading hint",
+                            extra={"thesis": "Fig 9.99", "rest_note": "a custom rest note"})
+    monkeypatch.setattr(model, "drawing", lambda: d)
+    sentences = {p.name: s for p, s in figures.scene_figures(tmp_path, "q", model, t, y, title="q")}
+    assert all("(Fig 9.99)" in s for s in sentences.values())
+    assert "a custom reading hint" in sentences["q_trajectory.png"]
+    assert "a custom rest note" in sentences["q_springs.png"]
+    shipped = {p.name: s for p, s in figures.scene_figures(tmp_path, "p", rk4core.make_model(
+        "planar4", {"m": 0.815, "k": 41.5, "l": 0.01}), t, y, title="p")}
+    assert "(thesis Figs 4.9-4.14)" in shipped["p_trajectory.png"]
+    assert "erratum 3: not length - l^2" in shipped["p_springs.png"]
+
+
+@pytest.mark.parametrize("change, field", [({"layout": "polar"}, "layout"), ({"points": ((0, 2),)}, "points"),
+                                           ({"reference": ()}, "reference"),
+                                           ({"springs": ((0, 9, "x"),), "rest": (1.0,)}, "springs"),
+                                           ({"rest": (1.0,)}, "rest")])
+def test_a_drawing_that_does_not_fit_the_model_is_refused(change, field, tmp_path, monkeypatch):
+    import dataclasses
+
+    model, t, y = rk4_run("planar4", {"m": 0.815, "k": 41.5, "l": 0.01}, [0.005, 0.03], t_end=0.1)
+    d = dataclasses.replace(model.drawing(), **change)
+    monkeypatch.setattr(model, "drawing", lambda: d)
+    with pytest.raises(ValueError, match=f"`drawing\\(\\).{field}`"):
+        figures.scene_figures(tmp_path, "bad", model, t, y, title="bad")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_chain_time_series_panels_show_whole_run_then_first_periods(tmp_path, captured):

@@ -260,3 +260,116 @@ def test_run_contract_on_a_small_scene(tmp_path):
     assert statuses["blowup_time_s(start_on_anchor)"] == "unstable"
     assert all(r["passed"] for r in result.rows)
     assert result.findings
+
+
+# -- no model names: frequencies and the four-spring test come from the model ------------------
+def _four_spring_network(m=0.815, k=41.5, l=0.01, anchors=((-1, 0), (1, 0), (0, -1), (0, 1)), ref=(0.3, -0.2)):
+    """planar4's mechanics as a `network` (another class, another name); springs of natural length l."""
+    flat = [c for ax, ay in anchors for c in (ref[0] + ax * l, ref[1] + ay * l)]
+    return rk4core.make_model("network", {"dim": 2, "masses": [m], "positions": list(ref), "anchors": flat,
+                                          "springs": [[0, j + 1, k, l] for j in range(len(anchors))]})
+
+
+@pytest.mark.parametrize("key", sorted(LINEAR_SCENES) + ["pendulums", "triangle", "long chain"])
+def test_frequency_range_is_the_models_own(key):
+    from validation.stability.estimate import frequency_range
+
+    extra = {"pendulums": ("pendulums", {"m": 0.5, "length": 1.0, "g": 9.81, "k": 0.2}),
+             "triangle": ("triangle", {"m": 1.0, "k": 10.0, "side": 1.0}),
+             "long chain": ("chain", {"masses": [1.0, 2.0] * 30, "springs": [3.0] * 61})}
+    model = rk4core.make_model(*(extra.get(key) or LINEAR_SCENES[key]))
+    lo, hi = frequency_range(model)
+    assert (lo, hi) == model.frequency_range()
+    w = model.modes()[0]
+    w = w[w > 1e-9 * w[-1]]
+    assert (lo, hi) == pytest.approx((w[0], w[-1]), rel=1e-10)
+
+
+def test_frequency_range_of_a_long_chain_needs_no_dense_eigensolve(monkeypatch):
+    from validation.stability.estimate import frequency_range
+
+    model = rk4core.make_model("chain", {"masses": [1.0] * 100_000, "springs": [1.0] * 100_001})
+    monkeypatch.setattr(type(model), "modes", lambda self: pytest.fail("dense eigensolve"))
+    lo, hi = frequency_range(model)
+    N = 100_000  # fixed ends: omega_n = 2 sin(n pi / (2 (N + 1)))
+    assert (lo, hi) == pytest.approx((2 * math.sin(math.pi / (2 * (N + 1))), 2 * math.sin(N * math.pi / (2 * (N + 1)))),
+                                     rel=1e-9)
+
+
+@pytest.mark.parametrize("linear", [False, True])
+def test_four_spring_params_read_from_the_drawing(linear):
+    assert G.four_spring_params(rk4core.make_model("planar4", {**PLANAR, "linear": linear})) == \
+        pytest.approx(PLANAR, rel=1e-12)
+    net = _four_spring_network()
+    net.name = "chain"  # the name plays no part
+    assert G.four_spring_params(net) == pytest.approx(PLANAR, rel=1e-12)
+
+
+@pytest.mark.parametrize("model", [
+    ("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5}),  # one point, no anchors
+    ("triangle", {"m": 1.0, "k": 10.0, "side": 1.0}),  # three points
+    TWO_DOF,  # a line
+    ("pendulums", {"m": 0.5, "length": 1.0, "g": 9.81, "k": 0.2}),  # angles
+    "three anchors", "anchors at 2 l",  # a network like planar4 but for one thing
+])
+def test_four_spring_params_refuse_other_geometries(model):
+    if model == "three anchors":
+        m = _four_spring_network(anchors=((-1, 0), (1, 0), (0, -1)))
+    elif model == "anchors at 2 l":
+        m = _four_spring_network(anchors=((-2, 0), (2, 0), (0, -2), (0, 2)))  # pre-stretched springs
+    else:
+        m = rk4core.make_model(*model)
+    assert G.four_spring_params(m) is None
+
+
+def test_closest_approach_uses_the_drawings_anchors_about_its_reference():
+    net = _four_spring_network(ref=(0.3, -0.2))
+    t = np.array([0.0, 1.0])
+    q = np.array([[0.02, 0.0], [0.0, 0.0]])  # displacement: from 2 l to 0 along x through the anchor (l, 0)
+    d, j, tm = G.closest_approach(net, t, q)
+    assert (d, j) == (pytest.approx(0.0, abs=1e-15), 1) and tm == pytest.approx(0.5)
+
+
+def _study_ctx(model, tmp_path):
+    from validation.stability.studies import Context
+
+    return Context("s", model, model.state(np.zeros(model.n_dof)),
+                   validate_params({"studies": ["amplitude", "singular"], "singular_offset": 1e-9}), True,
+                   tmp_path)
+
+
+@pytest.mark.parametrize("study", ["amplitude", "singular"])
+def test_planar_studies_skip_a_model_not_drawn_as_the_four_spring_mass(study, tmp_path):
+    from validation.stability.studies import STUDY_FUNCTIONS
+
+    model = rk4core.make_model("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5})
+    model.name = "planar4"  # the name plays no part
+    res = STUDY_FUNCTIONS[study](_study_ctx(model, tmp_path))
+    (r,) = res.rows
+    assert r["status"] == "skipped" and "four-spring geometry" in r["note"]
+
+
+def test_singular_study_runs_on_the_four_spring_network(tmp_path):
+    from validation.stability.studies import STUDY_FUNCTIONS
+
+    res = STUDY_FUNCTIONS["singular"](_study_ctx(_four_spring_network(), tmp_path))
+    statuses = {r["quantity"]: r["status"] for r in res.rows}
+    assert statuses["blowup_time_s(start_on_anchor)"] == "unstable"
+    assert all(r["passed"] for r in res.rows)
+
+
+def test_estimate_counts_planar_studies_only_for_the_four_spring_mass():
+    from validation.scenes import scene_from_dict
+
+    def scene(model, params, x):
+        return scene_from_dict({"name": "e", "model": model, "params": params, "initial": {"x": x},
+                                "run": {"t_end": 1.0, "h": [0.01], "solvers": ["rk4"], "outputs": ["stability"]},
+                                "stability": {"studies": ["amplitude", "singular"]}})
+
+    from validation.stability import estimate_steps
+
+    planar = estimate_steps(scene("planar4", {**PLANAR, "linear": False}, [0.005, 0.03]), quick=True, detail=True)
+    assert planar["amplitude"]["rk4"] > 0 and planar["singular"]["rk4"] > 0
+    osc = estimate_steps(scene("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5}, [0.005, 0.03]), quick=True,
+                         detail=True)
+    assert osc == {"amplitude": {}, "singular": {}}

@@ -44,6 +44,25 @@ class Duffing(Model):
         return np.array([[self.k]])
 '''
 
+DEFINED_FILE = '''
+"""The same Duffing oscillator, defined by its potential: force, Hessian,
+compiled kernels and heyoka's equations are derived from the one text."""
+from rk4core import Defined, PotentialModel
+
+
+class DuffingV(Defined):
+    name = "duffing-defined-test"
+
+    def __init__(self, m, k, eps=0.0):
+        self.m, self.k, self.eps = float(m), float(k), float(eps)
+        self._adopt(lambda: PotentialModel(["x"], [self.m], "k*x^2/2 + eps*x^4/4", {"k": self.k, "eps": self.eps}),
+                    "k")
+        self.coord_names = ["x"]
+
+    def params(self):
+        return {"m": self.m, "k": self.k, "eps": self.eps}
+'''
+
 SCENE = '''
 name = "duffing"
 model = "{model}"
@@ -66,11 +85,30 @@ outputs = ["state", "energy"]
 def user_module(tmp_path, monkeypatch):
     pkg = tmp_path / "usermods"
     pkg.mkdir()
-    (pkg / "duffing_model.py").write_text(USER_FILE)
+    (pkg / "duffing_model.py").write_text(USER_FILE + DEFINED_FILE)
     monkeypatch.syspath_prepend(str(pkg))
     yield "duffing_model"
     MODELS.pop("duffing-test", None)
+    MODELS.pop("duffing-defined-test", None)
     sys.modules.pop("duffing_model", None)
+
+
+def test_a_defined_user_model_gets_the_derived_and_compiled_paths(user_module):
+    import importlib
+
+    import rk4core.fast as fast
+
+    mod = importlib.import_module(user_module)
+    hand = mod.Duffing(1.0, 4.0, 0.5)
+    defined = mod.DuffingV(1.0, 4.0, 0.5)
+    assert not fast.supports(hand) and fast.supports(defined)
+    x = np.array([0.3])
+    np.testing.assert_allclose(defined.force(x), hand.force(x), rtol=1e-15)
+    np.testing.assert_array_equal(defined.stiffness_matrix(), [[4.0]])
+    y0 = defined.state([0.3], [0.1])
+    res = fast.solve_model(defined, (0.0, 2.0), y0, h=0.01)
+    gen = rk4core.solve(defined.rhs, (0.0, 2.0), y0, h=0.01)
+    np.testing.assert_array_equal(res.y, gen.y)
 
 
 def test_a_scene_runs_a_model_from_one_user_file(tmp_path, user_module, capsys):

@@ -399,18 +399,41 @@ def _modes(scene, model, res):
                           "freq_hz": float(w) / (2 * math.pi), "linearized": not model.linear})
 
 
-def _uniform_chain(scene, model):
-    if scene.model != "chain" or model.walls != "both":
+def _uniform_chain(model):
+    """``(m, k)`` (kg, N/m) when ``model`` is drawn as masses on a line
+    (``drawing().layout == "line"``) and its linearization is that of equal
+    masses ``m`` on equal springs ``k`` between two walls: stiffness matrix
+    ``k tridiag(-1, 2, -1)`` (to 1e-12). Else None. Read from the drawing and
+    the mechanics, never from the model's name."""
+    import scipy.sparse as sp
+
+    if model.drawing().layout != "line":
         return None
-    m, k = np.unique(model.mass), np.unique(model.k)
-    return (float(m[0]), float(k[0])) if m.size == 1 and k.size == 1 else None
+    mass = np.asarray(model.mass, dtype=float)
+    if mass.size == 0 or np.any(mass != mass[0]):
+        return None
+    try:
+        try:
+            K = model.stiffness_matrix(sparse=True)
+        except TypeError:
+            K = model.stiffness_matrix()
+    except NotImplementedError:
+        return None
+    K = sp.csr_matrix(K, dtype=float)
+    diag, up, low = K.diagonal(), K.diagonal(1), K.diagonal(-1)
+    outside = float(abs(K).sum() - np.abs(diag).sum() - np.abs(up).sum() - np.abs(low).sum())
+    k = float(diag[0]) / 2.0
+    tol = 1e-12 * abs(k)
+    uniform = (k > 0 and bool(np.all(np.abs(diag - 2 * k) <= tol)) and bool(np.all(np.abs(up + k) <= tol))
+               and bool(np.all(np.abs(low + k) <= tol)) and abs(outside) <= tol * mass.size)
+    return (float(mass[0]), k) if uniform else None
 
 
 def _dispersion(scene, model, res, draw, out_dir):
     from references import dispersion
     from validation import wavepacket
 
-    mk = _uniform_chain(scene, model)
+    mk = _uniform_chain(model)
     if mk is None:
         res.failures.append(f"{scene.name}: the dispersion output needs a uniform chain between walls")
         return

@@ -240,92 +240,160 @@ def _space_time(title, what, t, values, unit, label):
     return fig
 
 
-_THESIS_FIGS = {
-    "chain": "thesis Figs 4.1-4.6",
-    "planar4": "thesis Figs 4.9-4.14",
-    "oscillator2d": "thesis Figs 4.15-4.20",
-}
+_LAYOUTS = ("line", "plane", "angles", "coordinates")
+_WORDS = ("no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten")
+MAX_PATH_PANELS = 12     # more points in the plane: one panel with every point
 
 
-def _scene_specs(scene_name, model, t, y, title):
-    """``[(stem_suffix, builder, sentence)]`` for the model's kind; builders are
-    zero-argument callables returning a Figure (built one at a time)."""
+def _count(n, noun):
+    """``"three masses"``: the number in words up to ten, then digits."""
+    return f"{_WORDS[n] if n < len(_WORDS) else n} {noun}{'' if n == 1 else 'es' if noun.endswith('s') else 's'}"
+
+
+def _check_drawing(model, d):
+    """The fields of ``model.drawing()`` the figures use, checked against the
+    model's size; a ValueError names the field."""
+    if d.layout not in _LAYOUTS:
+        raise ValueError(f"`drawing().layout` of {model.name} must be one of {', '.join(_LAYOUTS)}, "
+                         f"got {d.layout!r}")
+    if d.layout != "plane":
+        return
     n = model.n_dof
-    q, v = y[:n], y[n:]
-    kind = model.name
-    zoom = None if (kind == "chain" and n > LONG_CHAIN) else _zoom_end(model, t)
-    ref = _THESIS_FIGS.get(kind)
-    ref = f" ({ref})" if ref else ""
-    zoom_txt = f", whole run above and the first {_fmt(zoom - t[0])} s below" if zoom else ""
+    if not d.points or any(len(p) != 2 or not all(0 <= int(i) < n for i in p) for p in d.points):
+        raise ValueError(f"`drawing().points` of {model.name} must be non-empty (x, y) coordinate index "
+                         f"pairs below {n}, got {d.points!r}")
+    if len(d.reference) != len(d.points):
+        raise ValueError(f"`drawing().reference` of {model.name} must have one position per point "
+                         f"({len(d.points)}), got {len(d.reference)}")
+    nodes = len(d.points) + len(d.anchors)
+    if any(not (0 <= int(a) < nodes and 0 <= int(b) < nodes) for a, b, _ in d.springs):
+        raise ValueError(f"`drawing().springs` of {model.name} must join nodes below {nodes} "
+                         f"(points, then anchors), got {d.springs!r}")
+    if len(d.rest) != len(d.springs):
+        raise ValueError(f"`drawing().rest` of {model.name} must have one length per spring "
+                         f"({len(d.springs)}), got {len(d.rest)}")
 
-    if kind == "chain" and n > LONG_CHAIN:
+
+def _node_positions(d, q):
+    """Positions (m) of the drawing's nodes over time: a list of ``(x, y)``,
+    points (reference + displacement, arrays) first, then anchors (floats)."""
+    pts = [(rx + q[ix], ry + q[iy]) for (ix, iy), (rx, ry) in zip(d.points, d.reference)]
+    return pts + [(float(ax), float(ay)) for ax, ay in d.anchors]
+
+
+def _spring_elongations(d, q):
+    """``[(label, |P_b - P_a| - rest)]`` of every spring of the drawing over time (m)."""
+    nodes = _node_positions(d, q)
+    out = []
+    for (a, b, label), rest in zip(d.springs, d.rest):
+        (xa, ya), (xb, yb) = nodes[int(a)], nodes[int(b)]
+        length = np.hypot(np.asarray(xb - xa, dtype=float), np.asarray(yb - ya, dtype=float))
+        out.append((f"{label} spring", length * np.ones(q.shape[1]) - float(rest)))
+    return out
+
+
+def _sentence(head, tail=""):
+    """``head`` with ``": tail"`` when there is one, ended by a full stop."""
+    return f"{head}: {tail}." if tail else f"{head}."
+
+
+def _line_specs(ctx):
+    title, t, q, v, n, zoom, ref, cap, zoom_txt = (ctx[k] for k in (
+        "title", "t", "q", "v", "n", "zoom", "ref", "caption", "zoom_txt"))
+    if n > LONG_CHAIN:
         return [
-            ("displacement", lambda: _space_time(title, "displacement of each mass", t, q, "m", "displacement"),
-             f"Space-time image of the {n}-mass chain's displacements (mass index vs time, red right, "
-             f"blue left; colours clipped at the 99.5th percentile): a wave or packet shows as a band whose "
-             f"slope is its speed in masses per second."),
-            ("velocity", lambda: _space_time(title, "velocity of each mass", t, v, "m/s", "velocity"),
+            ("displacement", lambda: _space_time(title, "displacement of each mass", t, q, ctx["unit"],
+                                                 "displacement"),
+             _sentence(f"Space-time image of the {n}-mass chain's displacements{ref} (mass index vs time, red "
+                       f"right, blue left; colours clipped at the 99.5th percentile)",
+                       cap or "a wave or packet shows as a band whose slope is its speed in masses per second")),
+            ("velocity", lambda: _space_time(title, "velocity of each mass", t, v, f"{ctx['unit']}/s", "velocity"),
              f"Space-time image of the {n}-mass chain's velocities (mass index vs time); "
              f"read it beside the displacement image."),
         ]
-    if kind == "chain":
-        labels, vlabels = _chain_labels(model.mass)
-        return [
-            ("displacement", lambda: _time_series(title, "displacement of each mass", t,
-                                                  list(zip(labels, q)), "m", zoom, "displacement"),
-             f"Displacement of each of the {n} masses vs time{zoom_txt}{ref}: "
-             f"read the superposition of the {n} normal modes (beats when two are close)."),
-            ("velocity", lambda: _time_series(title, "velocity of each mass", t,
-                                              list(zip(vlabels, v)), "m/s", zoom, "velocity"),
-             f"Velocity of each of the {n} masses vs time{zoom_txt}{ref}."),
-        ]
-    if kind == "planar4":
-        lengths = model.spring_lengths(q)
-        names = ["left", "right", "bottom", "top"]
-        elong = [(f"{nm} spring", L - model.l) for nm, L in zip(names, lengths)]
-        return [
-            ("displacement", lambda: _time_series(title, "position of the mass", t,
-                                                  [("x", q[0]), ("y", q[1])], "m", zoom, "position"),
-             f"Position x, y of the mass vs time{zoom_txt}{ref}."),
-            ("velocity", lambda: _time_series(title, "velocity of the mass", t,
-                                              [("vx", v[0]), ("vy", v[1])], "m/s", zoom, "velocity"),
-             f"Velocity of the mass vs time{zoom_txt}{ref}."),
-            ("springs", lambda: _time_series(title, "spring elongations (length - l)", t, elong,
-                                             "m", zoom, "elongation"),
-             f"Elongation (length - l, l = {_fmt(model.l)} m; erratum 3: not length - l^2) of each of the "
-             f"four springs (anchored left, right, below, above the origin) vs time{zoom_txt}{ref}."),
-            ("trajectory", lambda: _xy_path(title, q[0], q[1]),
-             f"Path of the mass in the x-y plane (equal axes){ref}: the linear model gives an ellipse, "
-             f"the exact geometry a precessing or rosette-like curve."),
-        ]
-    if kind == "oscillator2d":
-        ratio = math.sqrt(model.kx / model.ky)
-        return [
-            ("trajectory", lambda: _xy_path(title, q[0], q[1], what="x-y trajectory (Lissajous figure)"),
-             f"x-y trajectory (equal axes) with omega_x/omega_y = {ratio:.4g}{ref}: an ellipse or line when "
-             f"isotropic, a closed Lissajous figure for a rational ratio, space-filling for sqrt(2)."),
-            ("displacement", lambda: _time_series(title, "x and y vs time", t,
-                                                  [("x", q[0]), ("y", q[1])], "m", zoom, "position"),
-             f"x(t) and y(t){zoom_txt}: the phase difference between the two components sets the figure's shape."),
-        ]
-    if kind == "pendulums":
-        labels = ["theta1 (pendulum 1)", "theta2 (pendulum 2)"]
-        return [
-            ("angles", lambda: _time_series(title, "pendulum angles", t, list(zip(labels, q)),
-                                            "rad", zoom, "angle"),
-             f"Angles of the two coupled pendulums vs time{zoom_txt}: with a weak spring the swing passes "
-             f"back and forth between them (beats at the difference of the two mode frequencies)."),
-        ]
-    if kind == "triangle":
-        return [("paths", lambda: _triangle_paths(title, model, q),
-                 "Displacement path of each of the three masses about its rest position (equal axes, same "
-                 "scale in every panel): the mix of vibration modes and any rigid drift or rotation.")]
-    labels = list(getattr(model, "coord_names", [f"q{i + 1}" for i in range(n)]))
+    labels, vlabels = _chain_labels(ctx["mass"])
     return [
-        ("coordinates", lambda: _time_series(title, "coordinates", t, list(zip(labels, q)), "",
-                                             zoom, "coordinate"),
-         f"Generalized coordinates of {kind} vs time{zoom_txt}."),
+        ("displacement", lambda: _time_series(title, "displacement of each mass", t,
+                                              list(zip(labels, q)), ctx["unit"], zoom, "displacement"),
+         _sentence(f"Displacement of each of the {n} masses vs time{zoom_txt}{ref}",
+                   cap or f"read the superposition of the {n} normal modes (beats when two are close)")),
+        ("velocity", lambda: _time_series(title, "velocity of each mass", t,
+                                          list(zip(vlabels, v)), f"{ctx['unit']}/s", zoom, "velocity"),
+         f"Velocity of each of the {n} masses vs time{zoom_txt}{ref}."),
     ]
+
+
+def _plane_specs(ctx):
+    d, title, t, q, v, zoom, ref, cap, zoom_txt, unit = (ctx[k] for k in (
+        "drawing", "title", "t", "q", "v", "zoom", "ref", "caption", "zoom_txt", "unit"))
+    labels = list(d.point_labels) + [f"point {i + 1}" for i in range(len(d.point_labels), len(d.points))]
+    if len(d.points) > 1:
+        n = len(d.points)
+        return [("paths", lambda: _plane_paths(title, d, q, labels),
+                 _sentence(f"Displacement path of each of the {_count(n, 'mass')} about its rest position (equal "
+                           f"axes, same scale in every panel){ref}" if n <= MAX_PATH_PANELS else
+                           f"Paths of the {n} points in the plane (rest position plus displacement, equal axes; "
+                           f"anchors: black crosses){ref}", cap))]
+    (ix, iy), (rx, ry) = d.points[0], d.reference[0]
+    who = labels[0]
+    at_origin = rx == 0.0 and ry == 0.0
+    pos = "position" if at_origin else "displacement"
+    specs = [
+        ("displacement", lambda: _time_series(title, f"{pos} of the {who}", t, [("x", q[ix]), ("y", q[iy])],
+                                              unit, zoom, pos),
+         f"{pos.capitalize()} x, y of the {who}{'' if at_origin else ' from its rest position'} vs "
+         f"time{zoom_txt}{ref}."),
+        ("velocity", lambda: _time_series(title, f"velocity of the {who}", t, [("vx", v[ix]), ("vy", v[iy])],
+                                          f"{unit}/s", zoom, "velocity"),
+         f"Velocity of the {who} vs time{zoom_txt}{ref}."),
+    ]
+    if d.springs:
+        note = d.extra.get("rest_note")
+        anchored = sum(1 for a, b, _ in d.springs if max(int(a), int(b)) >= len(d.points))
+        specs.append(
+            ("springs", lambda: _time_series(title, "spring elongations (length - natural length)", t,
+                                             _spring_elongations(d, q), unit, zoom, "elongation"),
+             f"Elongation (length - natural length{'; ' + note if note else ''}) of each of the "
+             f"{_count(len(d.springs), 'spring')}{f' ({anchored} of them anchored)' if anchored else ''} vs "
+             f"time{zoom_txt}{ref}."))
+    specs.append(
+        ("trajectory", lambda: _xy_path(title, q[ix], q[iy], unit,
+                                        what=d.extra.get("path_title", "trajectory in the x-y plane")),
+         f"Path of the {who} in the x-y plane (equal axes){ref}" + (f"; {cap}." if cap else ".")))
+    return specs
+
+
+def _series_specs(ctx, stem, what, ylabel):
+    d, n, title, t, q, zoom, ref, cap, zoom_txt = (ctx[k] for k in (
+        "drawing", "n", "title", "t", "q", "zoom", "ref", "caption", "zoom_txt"))
+    names = list(d.point_labels) if len(d.point_labels) == n else list(ctx["coord_names"])
+    head = (f"Angles {', '.join(names)} vs time{zoom_txt}{ref}" if stem == "angles" else
+            f"Generalized coordinates of {ctx['name']} vs time{zoom_txt}{ref}")
+    return [(stem, lambda: _time_series(title, what, t, list(zip(names, q)), d.unit, zoom, ylabel),
+             _sentence(head, cap))]
+
+
+def _scene_specs(scene_name, model, t, y, title):
+    """``[(stem_suffix, builder, sentence)]`` chosen from ``model.drawing()``
+    (never from the model's name); builders are zero-argument callables
+    returning a Figure (built one at a time)."""
+    d = model.drawing()
+    _check_drawing(model, d)
+    n = model.n_dof
+    zoom = None if (d.layout == "line" and n > LONG_CHAIN) else _zoom_end(model, t)
+    thesis = d.extra.get("thesis")
+    ctx = {"drawing": d, "title": title, "t": t, "q": y[:n], "v": y[n:], "n": n, "zoom": zoom,
+           "ref": f" ({thesis})" if thesis else "", "caption": d.caption.strip().rstrip("."),
+           "zoom_txt": f", whole run above and the first {_fmt(zoom - t[0])} s below" if zoom else "",
+           "unit": d.unit, "mass": np.asarray(model.mass, dtype=float), "name": model.name,
+           "coord_names": list(getattr(model, "coord_names", None) or [f"q{i + 1}" for i in range(n)])}
+    if d.layout == "line":
+        return _line_specs(ctx)
+    if d.layout == "plane":
+        return _plane_specs(ctx)
+    if d.layout == "angles":
+        return _series_specs(ctx, "angles", "angles", "angle")
+    return _series_specs(ctx, "coordinates", "coordinates", "coordinate")
 
 
 def _chain_labels(masses):
@@ -341,22 +409,43 @@ def _chain_labels(masses):
     return ([f"x{i + 1}{tail[i]}" for i in range(n)], [f"v{i + 1}{tail[i]}" for i in range(n)])
 
 
-def _triangle_paths(title, model, q):
+def _plane_paths(title, d, q, labels):
+    """Displacement path of each point of the drawing about its reference
+    position: one panel each (same scale), or, with more than
+    :data:`MAX_PATH_PANELS` points, one panel of every point's path in the
+    plane with the anchors."""
+    n = len(d.points)
     fig = _new_figure()
-    _suptitle(fig, f"{title}: displacement paths of the three masses")
-    factor, u = _si(q, "m")
-    lim = 1.05 * factor * float(np.nanmax(np.abs(q))) if np.isfinite(q).any() else 1.0
+    disp = np.concatenate([q[[ix, iy]] for ix, iy in d.points])
+    if n > MAX_PATH_PANELS:
+        _suptitle(fig, f"{title}: paths of the {n} points in the plane")
+        nodes = _node_positions(d, q)
+        factor, u = _si(np.concatenate([np.ravel(c) for xy in nodes for c in xy]), d.unit)
+        ax = fig.subplots()
+        for i, (x, y) in enumerate(nodes[:n]):
+            _path_panel(ax, x, y, factor, u, "x", "y", color=_COORD_COLORS[i % len(_COORD_COLORS)])
+        for ax_, ay_ in d.anchors:
+            ax.plot(factor * ax_, factor * ay_, "x", color="k", ms=6)
+        return fig
+    _suptitle(fig, f"{title}: displacement paths of the {_count(n, 'mass')}")
+    factor, u = _si(disp, d.unit)
+    lim = 1.05 * factor * float(np.nanmax(np.abs(disp[np.isfinite(disp)]))) if np.isfinite(disp).any() else 1.0
     lim = lim if lim > 0 else 1.0
-    axes = fig.subplots(1, 3, sharex=True, sharey=True)
+    cols = n if n <= 4 else math.ceil(math.sqrt(n))
+    axes = np.atleast_1d(fig.subplots(math.ceil(n / cols), cols, sharex=True, sharey=True)).ravel()
     for i, ax in enumerate(axes):
-        _path_panel(ax, q[2 * i], q[2 * i + 1], factor, u, f"x{i + 1} - rest", f"y - rest",
-                    color=_COORD_COLORS[i])
+        if i >= n:
+            ax.set_visible(False)
+            continue
+        ix, iy = d.points[i]
+        _path_panel(ax, q[ix], q[iy], factor, u, f"x{i + 1} - rest", "y - rest",
+                    color=_COORD_COLORS[i % len(_COORD_COLORS)])
         ax.set_xlim(-lim, lim)
         ax.set_ylim(-lim, lim)
         ax.set_aspect("equal", adjustable="box")
-        rx, ry = model.rest[i]
-        ax.set_title(f"mass {i + 1}, rest at ({_fmt(rx)}, {_fmt(ry)}) m", fontsize=8)
-        if i:
+        rx, ry = d.reference[i]
+        ax.set_title(f"{labels[i]}, rest at ({_fmt(rx)}, {_fmt(ry)}) {d.unit}", fontsize=8)
+        if i % cols:
             ax.set_ylabel("")
     axes[0].legend(loc="upper left", fontsize=7)
     return fig
@@ -372,21 +461,26 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
     scene_name : str
         Stem of the file names (made lowercase with underscores).
     model : rk4core.models.Model
-        The scene's model; its kind selects the figures:
+        The scene's model; its :meth:`~rk4core.models.Model.drawing` (never
+        its name) selects the figures by ``layout``:
 
-        * ``chain`` with at most 10 masses: displacement and velocity of each
-          mass vs time (``_displacement``, ``_velocity``);
-        * ``chain`` with more masses: space-time images (mass index vs time,
-          colour = displacement / velocity), same two names;
-        * ``planar4``: position, velocity, spring elongations ``|r - a_j| - l``
-          and the x-y path (``_displacement``, ``_velocity``, ``_springs``,
-          ``_trajectory``);
-        * ``oscillator2d``: the x-y (Lissajous) trajectory and x, y vs time
-          (``_trajectory``, ``_displacement``);
-        * ``pendulums``: both angles vs time (``_angles``);
-        * ``triangle``: each mass' displacement path (``_paths``);
-        * any other model: its coordinates vs time (``_coordinates``).
+        * ``"line"`` with at most 10 masses: displacement and velocity of each
+          mass vs time (``_displacement``, ``_velocity``); with more masses,
+          space-time images (mass index vs time, colour = displacement /
+          velocity), same two names;
+        * ``"plane"`` with one point: its x, y and velocity vs time
+          (``_displacement``, ``_velocity``), the elongation ``|P_b - P_a| -
+          rest`` of each of the drawing's springs when it has any
+          (``_springs``; ``P`` = reference + displacement for a point, the
+          anchor's position for an anchor) and the x-y path (``_trajectory``,
+          titled by ``extra["path_title"]``);
+        * ``"plane"`` with several points: each point's displacement path
+          about its reference position (``_paths``);
+        * ``"angles"``: the angles vs time (``_angles``);
+        * ``"coordinates"``: the coordinates vs time (``_coordinates``).
 
+        Sentences quote the drawing's ``caption``, ``extra["thesis"]`` (the
+        thesis figures reproduced) and ``extra["rest_note"]``.
         Time series show the whole run and, below it, the first three periods of
         the slowest non-zero mode of the linearization (omitted when that is
         more than half the run).
@@ -401,6 +495,12 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
     -------
     list of (Path, str)
         Each PNG and the one-line sentence for ``index.md``.
+
+    Raises
+    ------
+    ValueError
+        ``t``/``y`` of the wrong shape, or a drawing whose fields do not fit
+        the model (unknown layout, point indices beyond ``n_dof``, ...).
     """
     t, y = _check_trajectory(model, t, y)
     stem = slug(scene_name)

@@ -3,12 +3,14 @@
 Solvers (``SOLVER_NAMES``)
 --------------------------
 ``rk4``, ``euler``, ``symplectic-euler``
-    ``rk4core.solve`` on ``model.rhs``; ``setting`` is the step ``h`` (s).
+    ``rk4core.solve`` on ``model.rhs`` (the compiled loop of ``rk4core.fast``
+    when the model has one); ``setting`` is the step ``h`` (s).
 ``dop853``
-    scipy's explicit RK 8(5,3) on ``model.rhs``; ``setting`` is ``rtol``.
+    scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
+    (``rk4core.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
 ``cvode-adams``, ``cvode-bdf``
-    SUNDIALS CVODE (scikit-sundae) on ``model.rhs``, analytic Jacobian, banded
-    for chains; ``setting`` is ``rtol``.
+    SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
+    DOP853), analytic Jacobian, banded for chains; ``setting`` is ``rtol``.
 ``heyoka``
     heyoka's Taylor integrator, double precision, on ``model.heyoka_system()``
     (the same ``_force`` code as ``model.rhs``); ``setting`` is ``rtol``.

@@ -16,7 +16,7 @@ from enum import Enum
 
 import numpy as np
 
-__all__ = ["Status", "SolverRun", "FIXED_STEP", "ADAPTIVE", "SOLVER_NAMES"]
+__all__ = ["Status", "SolverRun", "FIXED_STEP", "ADAPTIVE", "SOLVER_NAMES", "compiled_rhs"]
 
 
 class Status(str, Enum):
@@ -82,3 +82,18 @@ class SolverRun:
     @property
     def ok(self) -> bool:
         return self.status is Status.OK
+
+
+def compiled_rhs(model):
+    """The model's right-hand side compiled from its definition
+    (:class:`rk4core.fast.CompiledRHS`), built once per model object and
+    kept on it, or None for a model without a compiled form (a subclass with
+    a hand-written force: the solvers then call ``model.rhs``). Built before
+    a solver's clock starts: compilation is never timed."""
+    cached = model.__dict__.get("_references_rhs", False)
+    if cached is False:
+        from rk4core import fast
+
+        cached = fast.compiled_rhs(model)
+        model.__dict__["_references_rhs"] = cached
+    return cached

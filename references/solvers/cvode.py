@@ -51,7 +51,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from .base import SolverRun, Status
+from .base import SolverRun, Status, compiled_rhs
 
 __all__ = ["run_cvode", "interleave", "linear_jacobian", "DEFAULT_MAX_STEPS"]
 
@@ -141,9 +141,15 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
 
     calls = [0]
     bad = []  # time of the first non-finite right-hand side at a finite state
+    fast_rhs = compiled_rhs(model)
+    permuted = fast_rhs.permuted(perm) if fast_rhs is not None else None
 
     def rhsfn(t, z, zp):
         calls[0] += 1
+        if permuted is not None:
+            if permuted(z, zp) and not bad:
+                bad.append(float(t))
+            return
         ybuf[perm] = z
         f = model.rhs(t, ybuf)
         if not bad and not np.all(np.isfinite(f)) and np.all(np.isfinite(z)):
@@ -153,7 +159,7 @@ def run_cvode(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarray, rtol:
     t1, tn = float(t_eval[-1]), float(t_eval[0])
     n_steps, k, nfev, njev = 0, 1, 0, 0
     status, message, t_fail = Status.OK, f"{solver_name}: reached the end of the interval", None
-    extra = {"atol_state": atol, "max_steps": max_steps}
+    extra = {"atol_state": atol, "max_steps": max_steps, "rhs": "compiled" if fast_rhs is not None else "numpy"}
     start = time.perf_counter()
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):

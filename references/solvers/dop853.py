@@ -46,7 +46,7 @@ import warnings
 import numpy as np
 from scipy.integrate import DOP853
 
-from .base import SolverRun, Status
+from .base import SolverRun, Status, compiled_rhs
 
 __all__ = ["run_dop853", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
 
@@ -128,6 +128,8 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
     max_evals = EVALS_PER_STEP * int(max_steps) + 100
     calls = [0]
     bad = []  # (t, which) of the first non-finite right-hand side at a finite state
+    fast_rhs = compiled_rhs(model)
+    extra["rhs"] = "compiled" if fast_rhs is not None else "numpy"
 
     def fun(t, yy):
         calls[0] += 1
@@ -137,6 +139,11 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         if not math.isfinite(t):
             raise _Stop(Status.FAILED, f"dop853: the step size became non-finite (right-hand side asked "
                                        f"for at t = {t!r})")
+        if fast_rhs is not None:
+            f, nonfinite = fast_rhs.checked(yy)
+            if nonfinite and not bad:
+                bad.append(float(t))
+            return f
         f = model.rhs(t, yy)
         if not bad and np.all(np.isfinite(yy)) and not np.all(np.isfinite(f)):
             bad.append(float(t))

@@ -1,5 +1,6 @@
-"""A fast path for the built-in models: their right-hand sides and the
-fixed-step loop compiled with numba (cached on disk).
+"""A fast path for every model defined symbolically: its right-hand side and
+the fixed-step loop compiled with numba (cached on disk), printed from the
+model's definition (:mod:`rk4core.models.compiled`).
 
 >>> import rk4core, rk4core.fast
 >>> model = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
@@ -10,7 +11,6 @@ fixed-step loop compiled with numba (cached on disk).
 result type and semantics); any other right-hand side goes through the
 generic ``rk4core.solve``.
 """
-from .pack import supports
-from .solve import compile_time, solve_model, warm_up
+from .solve import CompiledRHS, compile_time, compiled_rhs, force_kernel, solve_model, supports, warm_up
 
-__all__ = ["solve_model", "supports", "warm_up", "compile_time"]
+__all__ = ["solve_model", "supports", "force_kernel", "compiled_rhs", "CompiledRHS", "warm_up", "compile_time"]

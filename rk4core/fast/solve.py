@@ -20,12 +20,102 @@ from ..solver import FixedStepResult, grid_time, grid_times, growth_bound, step_
 from ..validate import (check_max_growth, check_model_y0, check_output_size, check_step_args, check_t_eval,
                         check_t_span, check_y_scale)
 from . import _kernels as K
-from .codegen import MAX_UNROLLED_DIM, kernel, kinds_for
-from .pack import pack
+from .codegen import MAX_UNROLLED_DIM, array_kernel, kernel, model_module
 
-__all__ = ["solve_model", "warm_up", "compile_time"]
+__all__ = ["solve_model", "warm_up", "compile_time", "supports", "force_kernel", "compiled_rhs", "CompiledRHS"]
 
 _COMPILE_S: float | None = None
+
+#: Methods whose override in a subclass would make the compiled kernels (printed
+#: from the definition) disagree with the numpy right-hand side.
+_PHYSICS = ("_force", "force", "acceleration", "rhs", "force_kernel")
+
+
+def _owner(cls, attr):
+    return next((c for c in cls.__mro__ if attr in vars(c)), None)
+
+
+def force_kernel(model):
+    """The model's compiled force kernel (:meth:`Model.force_kernel`) when the
+    compiled path computes what ``model.rhs`` computes, else None: a subclass
+    that redefines the force (or the right-hand side) below the class that
+    derives the kernel runs on the generic path."""
+    cached = model.__dict__.get("_fast_force_kernel", False) if hasattr(model, "__dict__") else None
+    if cached is not False and cached is not None:
+        return cached
+    try:
+        kern = model.force_kernel()
+    except AttributeError:
+        return None
+    if kern is None:
+        return None
+    mro = type(model).__mro__
+    owner = _owner(type(model), "force_kernel")
+    for attr in _PHYSICS:
+        c = _owner(type(model), attr)
+        if c is not None and mro.index(c) < mro.index(owner):
+            return None
+    model.__dict__["_fast_force_kernel"] = kern  # built once per model object (models are not mutated)
+    return kern
+
+
+def supports(model) -> bool:
+    """True when ``model``'s right-hand side has a compiled form: its force
+    is derived from a symbolic definition (every shipped model, ``network``,
+    ``potential``, FPUT chains) and no subclass redefines it."""
+    return force_kernel(model) is not None
+
+
+class CompiledRHS:
+    """The right-hand side of a model compiled from its definition, for the
+    references (DOP853, CVODE): equal to ``model.rhs`` (bit for bit where
+    the elementary functions agree), without numpy's per-call overhead.
+
+    Built by :func:`compiled_rhs`. ``rhs(t, y)`` returns ``dy/dt`` as a new
+    array; :meth:`checked` also says whether it is non-finite at a finite
+    state (a spring of zero length reached); :meth:`permuted` gives CVODE's
+    in-place form for a reordered state.
+    """
+
+    def __init__(self, model, kern):
+        module = model_module(kern)
+        self._new, self._checked, self._perm = module.rhs_new, module.rhs_checked, module.rhs_permuted
+        self.fp = np.ascontiguousarray(kern.fp, dtype=float)
+        self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
+        self.mass = np.ascontiguousarray(model.mass, dtype=float)
+        self.w = np.zeros(kern.work_size)
+        self.n_state = 2 * model.n_dof
+        y = np.zeros(self.n_state)
+        self._new(self.fp, self.ip, self.mass, y, self.w)  # compile (or load) now, not in a timed run
+        self._checked(self.fp, self.ip, self.mass, y, self.w)
+
+    def __call__(self, t, y):
+        return self._new(self.fp, self.ip, self.mass, y, self.w)
+
+    def checked(self, y):
+        """``(dy/dt, bad)``: ``bad`` is True when ``y`` is finite and ``dy/dt`` is not."""
+        return self._checked(self.fp, self.ip, self.mass, y, self.w)
+
+    def permuted(self, perm):
+        """``fun(z, zp) -> bad``: writes ``zp = (dy/dt)[perm]`` for the state
+        ``y[perm] = z`` (CVODE's interleaved order) and says whether ``dy/dt``
+        is non-finite at a finite state."""
+        perm = np.ascontiguousarray(perm, dtype=np.int64)
+        buf = np.zeros((3, self.n_state))
+        fn, fp, ip, mass, w = self._perm, self.fp, self.ip, self.mass, self.w
+        fn(fp, ip, mass, np.zeros(self.n_state), np.zeros(self.n_state), perm, buf, w)  # compile now
+
+        def fun(z, zp):
+            return fn(fp, ip, mass, z, zp, perm, buf, w)
+
+        return fun
+
+
+def compiled_rhs(model) -> CompiledRHS | None:
+    """The model's :class:`CompiledRHS`, or None when it has no compiled form
+    (:func:`supports`)."""
+    kern = force_kernel(model)
+    return None if kern is None else CompiledRHS(model, kern)
 
 
 def _tableau_arrays(tab: Tableau):
@@ -105,7 +195,12 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     length gives a non-finite state (status -1), not an exception.
     """
     tab = get_method(method)
-    kind, ip, fp, mass = pack(model)
+    kern = force_kernel(model)
+    if kern is None:
+        raise ValueError(f"`model` must have a compiled force (a model defined by a potential, a network or "
+                         f"a chain; see rk4core.fast.supports) for the fast path, got {type(model).__name__}")
+    fp, ip = np.ascontiguousarray(kern.fp, dtype=float), np.ascontiguousarray(kern.ip, dtype=np.int64)
+    mass = np.ascontiguousarray(model.mass, dtype=float)
     t0, t1 = check_t_span(t_span)
     y = check_model_y0(model, y0)
     max_growth = check_max_growth(max_growth)
@@ -125,14 +220,14 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     ys = np.empty((idx.shape[0], y.shape[0]))
     bound, pending = growth_bound(y, max_growth, y_scale)
     y_fail = np.empty(y.shape[0])
-    if y.shape[0] <= MAX_UNROLLED_DIM and kind in kinds_for(y.shape[0]):
-        loop = kernel(tab, y.shape[0])
-        n_done, n_out, status, n_extra = loop(kind, ip, fp, mass, y, t0, step, n, idx, theta, ys,
+    if y.shape[0] <= MAX_UNROLLED_DIM and kern.has_scalar():
+        loop = kernel(tab, kern)
+        n_done, n_out, status, n_extra = loop(fp, ip, mass, y, t0, step, n, idx, theta, ys,
                                               bound, pending, y_fail)
     else:
-        A, b, c, A_v, b_v = _tableau_arrays(tab)
-        n_done, n_out, status, n_extra = K.integrate(kind, ip, fp, mass, y, t0, step, n, A, b, c, A_v, b_v,
-                                                     idx, theta, ys, bound, pending, y_fail)
+        w = np.zeros(kern.work_size)
+        n_done, n_out, status, n_extra = array_kernel(tab, kern)(fp, ip, mass, w, y, t0, step, n, idx, theta, ys,
+                                                                 bound, pending, y_fail)
     n_done, n_out, status = int(n_done), int(n_out), int(status)
     message = "The solver successfully reached the end of the integration interval."
     t_fail, reason = None, "ok"

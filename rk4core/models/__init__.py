@@ -2,11 +2,17 @@
 (``network``), a model whose potential is typed in the scene
 (``potential``), and a registry by scene key.
 
-A model of your own is one Python file: subclass :class:`Model`, give it a
-unique ``name``, and either call :func:`register_model` on the class or name
-it in a scene as ``model = "package.module:ClassName"`` (the module must be
-importable, e.g. on ``PYTHONPATH``; it is imported, so it must be your own
-code). Its constructor's keyword arguments are the scene's ``[params]``.
+A model of your own is one Python file: subclass :class:`Defined` and build
+its definition -- a :class:`PotentialModel` (the potential as text or
+:mod:`rk4core.expr` expressions) or a :class:`Network` -- in the constructor
+(``self._adopt(lambda: PotentialModel(...), "param")``), so that the force,
+the Hessian, the compiled kernels and heyoka's equations are derived from it;
+or subclass :class:`Model` and write ``_potential``/``_force`` by hand (the
+numpy path, no compiled kernel). Give it a unique ``name``, and either call
+:func:`register_model` on the class or name it in a scene as ``model =
+"package.module:ClassName"`` (the module must be importable, e.g. on
+``PYTHONPATH``; it is imported, so it must be your own code). Its
+constructor's keyword arguments are the scene's ``[params]``.
 """
 from __future__ import annotations
 
@@ -15,7 +21,7 @@ import inspect
 import re
 from collections.abc import Mapping
 
-from .base import HEYOKA, NUMPY, Model
+from .base import HEYOKA, NUMPY, Defined, Drawing, Model
 from .chain import Chain
 from .oscillator2d import Oscillator2D
 from .pendulums import Pendulums
@@ -27,7 +33,7 @@ from .triangle import Triangle
 MODELS: dict[str, type[Model]] = {c.name: c for c in (Chain, Planar4, Oscillator2D, Pendulums, Triangle,
                                                       Network, PotentialModel)}
 
-__all__ = ["Model", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
+__all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
            "MODELS", "make_model", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
 
 _NAME = re.compile(r"[a-z][a-z0-9_-]*")

@@ -21,11 +21,13 @@ is minus the gradient of the potential and that both evaluations agree.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-__all__ = ["Model", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses", "check_normal_positive"]
+__all__ = ["Model", "Defined", "Drawing", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses",
+           "check_normal_positive"]
 
 #: Smallest mass (kg, or kg m^2) a model accepts. Anything smaller is not a
 #: physical mass but an underflow: at 5e-324 (the smallest subnormal) the
@@ -125,6 +127,50 @@ class _LazyOps:
 HEYOKA = _LazyOps()
 
 
+@dataclass(frozen=True)
+class Drawing:
+    """How a model is drawn: read by the figures, which never branch on
+    model names.
+
+    Attributes
+    ----------
+    layout : {"line", "plane", "angles", "coordinates"}
+        ``"line"``: masses on a line, one displacement coordinate each
+        (traces per mass; a space-time image for a long line). ``"plane"``:
+        points in the plane (paths, springs). ``"angles"``: coordinates are
+        angles (rad). ``"coordinates"``: anything else.
+    points : tuple of (int, int)
+        ``"plane"``: the coordinate indices (x, y) of each drawn point.
+    reference : tuple of (float, float)
+        ``"plane"``: each point's reference position (m); its coordinates are
+        displacements from it.
+    anchors : tuple of (float, float)
+        Fixed points (m).
+    springs : tuple of (int, int, str)
+        Springs to draw: node indices (points first, then anchors) and a
+        label; their elongation (length minus ``rest``) can be plotted.
+    rest : tuple of float
+        Natural length of each spring (m).
+    unit : str
+        Unit of the coordinates (``"m"``, ``"rad"``).
+    point_labels : tuple of str
+        Names of the points (``"plane"``) or coordinates.
+    caption : str
+        A sentence on what the model's figures show (may be empty).
+    """
+
+    layout: str = "coordinates"
+    points: tuple = ()
+    reference: tuple = ()
+    anchors: tuple = ()
+    springs: tuple = ()
+    rest: tuple = ()
+    unit: str = "m"
+    point_labels: tuple = ()
+    caption: str = ""
+    extra: dict = field(default_factory=dict)
+
+
 class Model:
     """Base class of the mass-spring models.
 
@@ -155,6 +201,31 @@ class Model:
     def params(self) -> dict:
         """The parameters the model was built with (plain Python values)."""
         raise NotImplementedError
+
+    def force_kernel(self):
+        """The compiled form of the force (:mod:`rk4core.models.compiled`),
+        printed from the model's symbolic definition, or None (a model with a
+        hand-written ``_force``: it runs on the numpy path)."""
+        return None
+
+    def drawing(self) -> Drawing:
+        """How the model is drawn (:class:`Drawing`); by default its
+        generalized coordinates against time."""
+        return Drawing(layout="coordinates", point_labels=tuple(self.coord_names))
+
+    def frequency_range(self) -> tuple[float, float]:
+        """``(omega_min, omega_max)`` (rad/s): the slowest non-zero and the
+        fastest natural angular frequency of the linearization (a dense
+        eigensolve; models with large sparse stiffness matrices override
+        it)."""
+        if self.n_dof > 400:
+            raise ValueError(f"`model` {self.name!r} with {self.n_dof} DOF: no frequency estimate without a "
+                             f"dense eigensolve")
+        w = self.modes()[0]
+        nz = w[w > 1e-12 * w[-1]] if w.size and w[-1] > 0 else w[:0]
+        if not nz.size:
+            raise ValueError(f"`model` {self.name!r}: its linearization has no non-zero frequency")
+        return float(nz[0]), float(w[-1])
 
     # -- validation ---------------------------------------------------------
     def _gershgorin_w2(self) -> float:
@@ -364,3 +435,47 @@ class Model:
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self.params().items())
         return f"{type(self).__name__}({args})"
+
+
+class Defined(Model):
+    """A model whose mechanics is another model's definition -- a spring
+    :class:`~rk4core.models.Network` or a :class:`~rk4core.models.PotentialModel`
+    -- under its own parameters, name and coordinate names.
+
+    Subclasses set ``self.definition`` (and ``name``, ``coord_names``,
+    ``params``); force, potential, stiffness matrix, heyoka's equations and
+    the compiled kernels are the definition's.
+    """
+
+    definition: Model
+
+    def _adopt(self, build, blame: str) -> None:
+        """Build the definition with ``build()`` and take its mass, size and
+        linearity; its refusal (``ValueError``) is re-raised naming this
+        model's parameter ``blame``."""
+        try:
+            definition = build()
+        except ValueError as e:
+            raise ValueError(f"`{blame}` (with the other parameters of {self.name}): {e}") from None
+        self.definition = definition
+        self.n_dof = definition.n_dof
+        self.mass = definition.mass
+        self.linear = definition.linear
+
+    def _force(self, q, ops):
+        return self.definition._force(q, ops)
+
+    def _potential(self, q, ops):
+        return self.definition._potential(q, ops)
+
+    def stiffness_matrix(self, sparse: bool = False):
+        K = self.definition.stiffness_matrix()
+        K = np.asarray(K.toarray() if hasattr(K, "toarray") else K, dtype=float)
+        if sparse:
+            import scipy.sparse as sp
+
+            return sp.csr_matrix(K)
+        return K
+
+    def force_kernel(self):
+        return self.definition.force_kernel()

@@ -27,8 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import choice, finite, float_list
-from .base import Model, check_masses, check_normal_positive
-from .network import spring_energy, spring_energy_heyoka, spring_tension, spring_tension_heyoka
+from .base import Drawing, Model, check_masses, check_normal_positive
+from .compiled import ChainKernel
+from .network import (_np_stiffness, _np_tension_harmonic, spring_energy, spring_energy_heyoka, spring_tension,
+                      spring_tension_heyoka)
 
 WALLS = ("both", "left", "right", "none")
 
@@ -104,7 +106,7 @@ class Chain(Model):
         k = self.k if x.ndim == 1 else self.k[:, None]
         d = np.diff(u, axis=0)
         if self.linear:
-            return k * d
+            return _np_tension_harmonic(d, k)
         if x.dtype == object:
             return np.array([spring_tension_heyoka(d[j], self.k[j], self.alpha, self.beta)
                              for j in range(d.shape[0])], dtype=object)
@@ -129,12 +131,41 @@ class Chain(Model):
             return sum(spring_energy_heyoka(d[j], self.k[j], self.alpha, self.beta) for j in range(d.shape[0]))
         return np.sum(spring_energy(d, k, self.alpha, self.beta), axis=0)
 
+    def force_kernel(self):
+        return ChainKernel(self.k, self.alpha, self.beta, self._left, self._right, self.linear)
+
+    def drawing(self):
+        return Drawing(layout="line", point_labels=tuple(self.coord_names),
+                       extra={"thesis": "thesis Figs 4.1-4.6"})
+
+    def frequency_range(self) -> tuple[float, float]:
+        """``(omega_min, omega_max)`` (rad/s) of the linearization from the
+        tridiagonal eigenproblem (O(N) memory; two eigenvalues)."""
+        import math
+
+        from scipy.linalg import eigvalsh_tridiagonal
+
+        K = self.stiffness_matrix(sparse=True).tocsr()
+        m = np.asarray(self.mass, float)
+        d = K.diagonal() / m
+        n = d.shape[0]
+        if n == 1:
+            return math.sqrt(d[0]), math.sqrt(d[0])
+        e = K.diagonal(1) / np.sqrt(m[:-1] * m[1:])
+        hi = float(eigvalsh_tridiagonal(d, e, select="i", select_range=(n - 1, n - 1))[0])
+        lo = eigvalsh_tridiagonal(d, e, select="i", select_range=(0, 1))
+        lo = [v for v in lo if v > 1e-12 * hi]
+        return math.sqrt(lo[0]), math.sqrt(hi)
+
     def stiffness_matrix(self, sparse: bool = False):
-        """Tridiagonal K (N/m); ``sparse=True`` gives a scipy.sparse matrix (O(N) memory)."""
+        """Tridiagonal K (N/m): each spring's stiffness ``E''(0)`` from the
+        spring-energy template (``k``); ``sparse=True`` gives a scipy.sparse
+        matrix (O(N) memory)."""
         import scipy.sparse as sp
 
         N = self.n_dof
-        kpad = np.concatenate([[] if self._left else [0.0], self.k, [] if self._right else [0.0]])
+        k0 = np.asarray(_np_stiffness(0.0, self.k, self.alpha, self.beta), dtype=float) * np.ones_like(self.k)
+        kpad = np.concatenate([[] if self._left else [0.0], k0, [] if self._right else [0.0]])
         diag = kpad[:N] + kpad[1:]  # left spring + right spring of each mass
         off = -kpad[1:N]
         K = sp.diags([off, diag, off], [-1, 0, 1], format="csr")

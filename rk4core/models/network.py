@@ -32,7 +32,8 @@ import math
 import numpy as np
 
 from .. import expr as ex
-from .base import NUMPY, Model, check_masses
+from .base import NUMPY, Drawing, Model, check_masses
+from .compiled import SpringKernel
 
 __all__ = ["Network", "SPRING_ENERGY", "spring_energy", "spring_tension", "spring_energy_heyoka",
            "spring_tension_heyoka"]
@@ -44,6 +45,11 @@ _NAMES = ("r", "k", "alpha", "beta")
 _TENSION = ex.diff(SPRING_ENERGY, "r")
 _STIFFNESS = ex.diff(_TENSION, "r")
 _np_energy, _np_tension, _np_stiffness = (ex.lambdify(e, _NAMES) for e in (SPRING_ENERGY, _TENSION, _STIFFNESS))
+#: The tension with ``alpha = beta = 0`` substituted (it is ``k r``): the
+#: harmonic springs' numpy path, printed from the same template as the
+#: compiled kernels' (:mod:`rk4core.models.compiled`).
+_TENSION_HARMONIC = ex.substitute(_TENSION, {"alpha": 0.0, "beta": 0.0})
+_np_tension_harmonic = ex.lambdify(_TENSION_HARMONIC, ("r", "k"), broadcast=False)
 
 
 def spring_energy(r, k, alpha=0.0, beta=0.0):
@@ -164,6 +170,7 @@ class Network(Model):
         axes = "xy"[: self.dim]
         self.coord_names = [f"{c}{i + 1}" for i in range(n) for c in axes]
         self._springs_input = [list(s) for s in springs]
+        self._harmonic = not (np.any(self.alpha) or np.any(self.beta))
         self._check_scales("springs")
 
     def params(self):
@@ -212,7 +219,10 @@ class Network(Model):
                                  for i in range(self.k.size)], dtype=object)
         else:
             k, alpha, beta, rest = self._coefficients(q.ndim - 1)
-            t_over_L = _np_tension(L - rest, k, alpha, beta) / L
+            if self._harmonic:
+                t_over_L = _np_tension_harmonic(L - rest, k) / L
+            else:
+                t_over_L = _np_tension(L - rest, k, alpha, beta) / L
         F = t_over_L[:, None] * d                       # force on a (pulls a towards b when stretched)
         f = np.zeros((self.n_nodes,) + F.shape[1:], dtype=F.dtype)
         if q.dtype == object:
@@ -224,6 +234,17 @@ class Network(Model):
             np.add.at(f, self.a, F)
             np.add.at(f, self.b, -F)
         return f[: self.n_masses].reshape(q.shape)
+
+    def force_kernel(self):
+        return SpringKernel(self.dim, self.X, self.A, self.a, self.b, self.k, self.alpha, self.beta, self.rest)
+
+    def drawing(self):
+        if self.dim == 1:
+            return Drawing(layout="line", point_labels=tuple(self.coord_names))
+        return Drawing(layout="plane", points=tuple((2 * i, 2 * i + 1) for i in range(self.n_masses)),
+                       reference=tuple(map(tuple, self.X.tolist())), anchors=tuple(map(tuple, self.A.tolist())),
+                       springs=tuple((int(a), int(b), f"{a}-{b}") for a, b in zip(self.a, self.b)),
+                       rest=tuple(self.rest.tolist()), point_labels=tuple(f"mass {i + 1}" for i in range(self.n_masses)))
 
     def stiffness_matrix(self, sparse: bool = False):
         """Hessian of ``V`` at the reference state ``u = 0`` (N/m); ``sparse=True``

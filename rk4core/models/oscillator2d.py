@@ -6,36 +6,34 @@ ellipses), anisotropic otherwise (Lissajous figures, closed only when
 """
 from __future__ import annotations
 
-import numpy as np
+import math
 
 from ..validate import positive
-from .base import Model, check_normal_positive
+from .base import Defined, Drawing, check_normal_positive
+from .potential import PotentialModel
 
 
-class Oscillator2D(Model):
-    """Parameters: ``m`` (kg), ``kx``, ``ky`` (N/m)."""
+class Oscillator2D(Defined):
+    """Parameters: ``m`` (kg), ``kx``, ``ky`` (N/m). Defined by the potential
+    ``kx x^2/2 + ky y^2/2``."""
 
     name = "oscillator2d"
-    linear = True
 
     def __init__(self, m, kx, ky):
         self.m = check_normal_positive("m", positive("m", m))
         self.kx = check_normal_positive("kx", positive("kx", kx))
         self.ky = check_normal_positive("ky", positive("ky", ky))
-        self.n_dof = 2
-        self.mass = np.array([self.m, self.m])
+        self._adopt(lambda: PotentialModel(["x", "y"], [self.m, self.m], "kx*x^2/2 + ky*y^2/2",
+                                           {"kx": self.kx, "ky": self.ky}), "kx")
         self.coord_names = ["x", "y"]
         self._check_scales("kx")
 
     def params(self):
         return {"m": self.m, "kx": self.kx, "ky": self.ky}
 
-    def _potential(self, q, ops):
-        return 0.5 * (self.kx * q[0] * q[0] + self.ky * q[1] * q[1])
-
-    def _force(self, q, ops):
-        comps = [-self.kx * q[0], -self.ky * q[1]]
-        return np.array(comps, dtype=object) if q.dtype == object else np.stack(comps)
-
-    def stiffness_matrix(self):
-        return np.diag([self.kx, self.ky])
+    def drawing(self):
+        ratio = math.sqrt(self.kx / self.ky)
+        return Drawing(layout="plane", points=((0, 1),), reference=((0.0, 0.0),), point_labels=("mass",),
+                       caption=(f"omega_x/omega_y = {ratio:.4g}: an ellipse or line when isotropic, a closed "
+                                f"Lissajous figure for a rational ratio, space-filling for sqrt(2)"),
+                       extra={"thesis": "thesis Figs 4.15-4.20", "path_title": "x-y trajectory (Lissajous figure)"})

@@ -16,11 +16,17 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import boolean, positive
-from .base import Model, check_normal_positive
+from .base import Defined, Drawing, check_normal_positive
+from .network import Network
+from .potential import PotentialModel
 
 
-class Planar4(Model):
-    """Parameters: ``m`` (kg), ``k`` (N/m, each spring), ``l`` (m), ``linear`` (bool)."""
+class Planar4(Defined):
+    """Parameters: ``m`` (kg), ``k`` (N/m, each spring), ``l`` (m), ``linear`` (bool).
+
+    Defined as a :class:`~rk4core.models.Network` (one mass at the origin,
+    four anchors, springs of natural length ``l``), or, when ``linear``, as
+    the potential ``k (x^2 + y^2)``."""
 
     name = "planar4"
 
@@ -28,44 +34,31 @@ class Planar4(Model):
         self.m = check_normal_positive("m", positive("m", m))
         self.k = check_normal_positive("k", positive("k", k))
         self.l = check_normal_positive("l", positive("l", l))
-        self.linear = boolean("linear", linear)
-        self.n_dof = 2
-        self.mass = np.array([self.m, self.m])
-        self.coord_names = ["x", "y"]
+        linear = boolean("linear", linear)
         l_ = self.l
         self.anchors = ((-l_, 0.0), (l_, 0.0), (0.0, -l_), (0.0, l_))
+        if linear:
+            self._adopt(lambda: PotentialModel(["x", "y"], [self.m, self.m], "k*(x^2 + y^2)", {"k": self.k}), "k")
+        else:
+            self._adopt(lambda: Network(2, [self.m], [0.0, 0.0], [[0, j + 1, self.k, self.l] for j in range(4)],
+                                        anchors=[a for xy in self.anchors for a in xy]), "k")
+        self.linear = linear
+        self.coord_names = ["x", "y"]
         self._check_scales("k")
 
     def params(self):
         return {"m": self.m, "k": self.k, "l": self.l, "linear": self.linear}
 
-    def _spring_vectors(self, q):
-        x, y = q[0], q[1]
-        return [(x - ax, y - ay) for ax, ay in self.anchors]
-
     def spring_lengths(self, q, ops=None):
         """Lengths (m) of the four springs, anchor order as ``anchors``."""
         ops = ops or np
-        return [ops.sqrt(dx * dx + dy * dy) for dx, dy in self._spring_vectors(q)]
+        return [ops.sqrt((q[0] - ax) * (q[0] - ax) + (q[1] - ay) * (q[1] - ay)) for ax, ay in self.anchors]
 
-    def _potential(self, q, ops):
-        if self.linear:
-            return self.k * (q[0] * q[0] + q[1] * q[1])
-        total = 0.0
-        for L in self.spring_lengths(q, ops):
-            total = total + 0.5 * self.k * (L - self.l) * (L - self.l)
-        return total
-
-    def _force(self, q, ops):
-        if self.linear:
-            return np.array([-2.0 * self.k * q[0], -2.0 * self.k * q[1]], dtype=q.dtype)
-        fx, fy = 0.0, 0.0
-        for dx, dy in self._spring_vectors(q):
-            L = ops.sqrt(dx * dx + dy * dy)
-            s = self.k * (L - self.l) / L  # tension / length
-            fx = fx - s * dx
-            fy = fy - s * dy
-        return np.array([fx, fy], dtype=q.dtype) if q.dtype == object else np.stack([fx, fy])
-
-    def stiffness_matrix(self):
-        return np.diag([2.0 * self.k, 2.0 * self.k])
+    def drawing(self):
+        return Drawing(layout="plane", points=((0, 1),), reference=((0.0, 0.0),), anchors=self.anchors,
+                       springs=tuple((0, j + 1, name) for j, name in enumerate(("left", "right", "bottom", "top"))),
+                       rest=(self.l,) * 4, point_labels=("mass",),
+                       caption=("the linear model gives an ellipse, the exact geometry a precessing or "
+                                "rosette-like curve"),
+                       extra={"thesis": "thesis Figs 4.9-4.14",
+                              "rest_note": f"l = {self.l:g} m; erratum 3: not length - l^2"})

@@ -46,6 +46,7 @@ import numpy as np
 from .. import expr as ex
 from ..validate import float_list, positive
 from .base import Model, check_masses
+from .compiled import ExprKernel
 
 __all__ = ["PotentialModel", "MAX_COORDINATES"]
 
@@ -203,6 +204,9 @@ class PotentialModel(Model):
         if q.ndim == 1:
             return np.array(self._F_one(*q), dtype=float)
         return np.stack(self._F_fn(*q))
+
+    def force_kernel(self):
+        return ExprKernel(self.force_exprs, self.coordinates)
 
     def stiffness_matrix(self) -> np.ndarray:
         """Hessian of V at the reference state ``q = 0`` (N/m, or N m/rad),

@@ -4,14 +4,15 @@ before running it (for the runner's budget).
 :func:`estimate_steps` adds up, study by study, the steps of every run the
 study makes (fixed-step RK4/Euler steps, adaptive solvers' accepted steps,
 one per one-step-map probe of the boundary bisection). It never runs an
-integration and never solves a dense eigenproblem of the scene's model:
+integration, and no model is named here:
 
-* frequencies (rad/s) of the scene's model come from closed forms
-  (oscillator2d, planar4, pendulums, triangle) or, for chains, from LAPACK's
-  bisection on the symmetric tridiagonal ``M^-1/2 K M^-1/2``
-  (``scipy.linalg.eigvalsh_tridiagonal`` with an index range: O(N) per
-  eigenvalue), with the Gershgorin bound of
-  :func:`references.solvers.tolerances.omega_bound` for any other model;
+* frequencies (rad/s) of the scene's model come from its own
+  ``model.frequency_range()``: for chains LAPACK's bisection on the
+  symmetric tridiagonal ``M^-1/2 K M^-1/2`` (O(N) per eigenvalue), for
+  other models a dense eigensolve of the linearization, which they refuse
+  beyond 400 DOF (a ``ValueError``);
+* the amplitude and singular studies run only for a model drawn as the
+  four-spring mass (:func:`validation.stability.geometry.four_spring_params`);
 * the stiffness and mass-ratio sweeps integrate the study's own 8- and 2-DOF
   chains, whatever the scene: their modes (an 8 x 8 problem, microseconds)
   give RK4's error at each step of the halving loop from the exact per-step
@@ -40,6 +41,7 @@ import math
 import numpy as np
 
 from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
+from .geometry import four_spring_params
 from .long_horizon import rk4_phase_lag_per_step
 from .params import pick, validate_params
 
@@ -52,39 +54,10 @@ _EXCITED = 1e-3
 
 def frequency_range(model) -> tuple[float, float]:
     """``(omega_min, omega_max)`` (rad/s): the slowest non-zero and the fastest
-    natural angular frequency of ``model``'s linearization, without a dense
-    eigensolve (see the module docstring)."""
-    from rk4core.models import Chain, Oscillator2D, Pendulums, Planar4, Triangle
-
-    if isinstance(model, Chain):
-        from scipy.linalg import eigvalsh_tridiagonal
-
-        K = model.stiffness_matrix(sparse=True).tocsr()
-        m = np.asarray(model.mass, float)
-        d = K.diagonal() / m
-        n = d.shape[0]
-        if n == 1:
-            return math.sqrt(d[0]), math.sqrt(d[0])
-        e = K.diagonal(1) / np.sqrt(m[:-1] * m[1:])
-        hi = float(eigvalsh_tridiagonal(d, e, select="i", select_range=(n - 1, n - 1))[0])
-        lo = eigvalsh_tridiagonal(d, e, select="i", select_range=(0, 1))
-        lo = [v for v in lo if v > 1e-12 * hi]
-        return math.sqrt(lo[0]), math.sqrt(hi)
-    if isinstance(model, Oscillator2D):
-        w = sorted((math.sqrt(model.kx / model.m), math.sqrt(model.ky / model.m)))
-        return w[0], w[1]
-    if isinstance(model, Planar4):
-        w = math.sqrt(2 * model.k / model.m)
-        return w, w
-    if isinstance(model, Pendulums):
-        return math.sqrt(model.g / model.length), math.sqrt(model.g / model.length + 2 * model.k / model.m)
-    if isinstance(model, Triangle):
-        return math.sqrt(1.5 * model.k / model.m), math.sqrt(3 * model.k / model.m)
-    if model.n_dof <= 16:  # an unknown small model: its eigenproblem costs nothing
-        w = model.modes()[0]
-        return float(w[w > 0][0]), float(w[-1])
-    raise ValueError(f"`model` {model.name!r} with {model.n_dof} DOF: no frequency estimate without a dense "
-                     f"eigensolve")
+    natural angular frequency of ``model``'s linearization, from
+    ``model.frequency_range()`` (see the module docstring)."""
+    lo, hi = model.frequency_range()
+    return float(lo), float(hi)
 
 
 # -- adaptive solvers -------------------------------------------------------------------------
@@ -229,13 +202,13 @@ def _large_n(model, p, quick):
 
 
 def _amplitude(model, p, quick):
-    if model.name != "planar4":
+    if four_spring_params(model) is None:  # the study is skipped
         return {}
     return {"rk4": float(len(p["amplitudes"]) * 2 * round(5.0 * 400))}
 
 
 def _singular(model, p, quick):
-    if model.name != "planar4":
+    if four_spring_params(model) is None:  # the study is skipped
         return {}
     return {"rk4": 400.0 + 1.0}
 

@@ -26,10 +26,57 @@ import rk4core
 
 from ._common import integrate_fixed, loglog_slope
 
-__all__ = ["linearization_error", "closest_approach", "singular_pass", "amplitude_exponent"]
+__all__ = ["linearization_error", "closest_approach", "singular_pass", "amplitude_exponent",
+           "four_spring_params", "FOUR_SPRING_NEEDS"]
 
 #: Direction of the initial displacement: Table 4.5's (x, y) = (0.005, 0.03) m.
 TABLE_4_5_DIRECTION = (1 / 6, 1.0)
+
+
+#: What :func:`four_spring_params` looks for, for the note of a skipped study.
+FOUR_SPRING_NEEDS = ("needs the four-spring geometry: one mass drawn in the plane on four springs of equal natural "
+                     "length l to anchors at distance l on the axes through its rest position")
+
+
+def four_spring_params(model):
+    """``{"m", "k", "l"}`` (kg, N/m, m) of a model drawn as the four-spring
+    mass, or None.
+
+    Read from ``model.drawing()`` and the model's mechanics, never from its
+    name: the drawing must have layout ``"plane"``, one point, four anchors
+    at ``reference + (-l, 0), (l, 0), (0, -l), (0, l)`` and four springs, each
+    joining the point to a different anchor, of natural length ``l``; the
+    point's two coordinates must carry the same mass ``m``, and the
+    linearization at rest must be ``K = 2 k I`` (the two springs along each
+    axis: each spring's own ``k`` is not in the drawing, so they are taken
+    equal).
+    """
+    d = model.drawing()
+    if d.layout != "plane" or len(d.points) != 1 or len(d.anchors) != 4 or len(d.springs) != 4:
+        return None
+    (ix, iy), (rx, ry) = d.points[0], d.reference[0]
+    rest = np.asarray(d.rest, dtype=float)
+    l_ = float(rest[0]) if rest.size == 4 else 0.0
+    if not (l_ > 0 and np.all(np.abs(rest - l_) <= 1e-12 * l_)):
+        return None
+    ends = sorted(max(int(a), int(b)) for a, b, _ in d.springs)
+    if ends != [1, 2, 3, 4] or any(min(int(a), int(b)) != 0 for a, b, _ in d.springs):
+        return None
+    offsets = sorted((round((ax - rx) / l_, 9), round((ay - ry) / l_, 9)) for ax, ay in d.anchors)
+    if offsets != [(-1.0, 0.0), (0.0, -1.0), (0.0, 1.0), (1.0, 0.0)]:
+        return None
+    m = float(model.mass[ix])
+    if float(model.mass[iy]) != m:
+        return None
+    try:
+        K = np.asarray(model.stiffness_matrix(), dtype=float)
+    except NotImplementedError:
+        return None
+    k = 0.5 * float(K[ix, ix])
+    block = K[np.ix_([ix, iy], [ix, iy])]
+    if not (k > 0 and np.allclose(block, 2 * k * np.eye(2), rtol=0.0, atol=1e-12 * k)):
+        return None
+    return {"m": m, "k": k, "l": l_}
 
 
 def linearization_error(params: dict, amplitudes, periods: float = 5.0, steps_per_period: int = 400):
@@ -55,14 +102,17 @@ def linearization_error(params: dict, amplitudes, periods: float = 5.0, steps_pe
 
 
 def closest_approach(model, t, q):
-    """Closest approach of the path ``q`` (shape (2, m)) to any anchor, with
-    the path taken straight between output points.
+    """Closest approach of the path ``q`` (shape (2, m): the displacement of
+    the drawing's one point from its reference position) to any anchor of
+    ``model.drawing()``, with the path taken straight between output points.
 
     Returns (distance (m), anchor index, time (s)).
     """
+    drawing = model.drawing()
+    rx, ry = drawing.reference[0] if drawing.reference else (0.0, 0.0)
     best = (math.inf, -1, math.nan)
-    for j, (ax, ay) in enumerate(model.anchors):
-        p0 = q[:, :-1] - np.array([[ax], [ay]])
+    for j, (ax, ay) in enumerate(drawing.anchors):
+        p0 = q[:, :-1] - np.array([[ax - rx], [ay - ry]])
         d = q[:, 1:] - q[:, :-1]
         dd = np.sum(d * d, axis=0)
         s = np.clip(-np.sum(p0 * d, axis=0) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
@@ -83,7 +133,8 @@ def singular_pass(params: dict, offset: float, h: float, t_end: float, start_on_
     energy change over the run), ``result``.
     """
     model = rk4core.make_model("planar4", {k: params[k] for k in ("m", "k", "l")} | {"linear": False})
-    l_ = model.l
+    l_ = float(params["l"])
+    anchors = model.drawing().anchors
     q0 = np.array([l_, 0.0]) if start_on_anchor else np.array([2 * l_, offset])
     res, _ = integrate_fixed(model, (0.0, t_end), model.state(q0), h=h)
     out = {"result": res, "d_min": math.nan, "anchor": -1, "t_min": math.nan, "energy_jump": math.nan}
@@ -91,13 +142,13 @@ def singular_pass(params: dict, offset: float, h: float, t_end: float, start_on_
         last = res.y[:2, -1]
         out.update(status="unstable", message=(
             f"{res.message}; last finite position ({last[0]:.6g}, {last[1]:.6g}) m at t = {res.t[-1]:.6g} s, "
-            f"anchors at distance {min(np.hypot(last[0] - a, last[1] - b) for a, b in model.anchors):.3g} m"))
+            f"anchors at distance {min(np.hypot(last[0] - a, last[1] - b) for a, b in anchors):.3g} m"))
         return out
     d, j, tm = closest_approach(model, res.t, res.y[:2])
     with np.errstate(all="ignore"):
         E = model.energy(res.y)
     jump = float(np.max(np.abs(E - E[0])) / abs(E[0]))
-    ax, ay = model.anchors[j]
+    ax, ay = anchors[j]
     status = "singular" if d < 1e-6 * l_ else "ok"
     out.update(status=status, d_min=d, anchor=j, t_min=tm, energy_jump=jump, message=(
         f"closest approach {d:.3g} m to anchor {j} at ({ax:g}, {ay:g}) m at t = {tm:.6g} s "

@@ -284,17 +284,19 @@ def large_n(ctx: Context) -> StudyResult:
 
 
 def _planar_params(ctx):
-    m = ctx.model
-    return {"m": m.mass[0], "k": getattr(m, "k"), "l": getattr(m, "l")}
+    """``{"m", "k", "l"}`` when the scene's model is drawn as the four-spring
+    mass (:func:`geometry.four_spring_params`), else None."""
+    return G.four_spring_params(ctx.model)
 
 
 def amplitude(ctx: Context) -> StudyResult:
     res, s = StudyResult(), ctx.scene
-    if ctx.model.name != "planar4":
-        res.rows.append(row(s, "-", "amplitude", math.nan, status="skipped", note="needs planar4"))
+    p = _planar_params(ctx)
+    if p is None:
+        res.rows.append(row(s, "-", "amplitude", math.nan, status="skipped", note=f"amplitude {G.FOUR_SPRING_NEEDS}"))
         return res
     a = np.array(ctx.params["amplitudes"])
-    err = G.linearization_error(_planar_params(ctx), a)
+    err = G.linearization_error(p, a)
     slope = G.amplitude_exponent(a[a >= 1e-5], err[a >= 1e-5])
     for ai, ei in zip(a, err):
         res.rows.append(row(s, "rk4", f"linearization_error(a/l={ai:g})", ei, math.nan, None,
@@ -311,10 +313,10 @@ def amplitude(ctx: Context) -> StudyResult:
 
 def singular(ctx: Context) -> StudyResult:
     res, s = StudyResult(), ctx.scene
-    if ctx.model.name != "planar4":
-        res.rows.append(row(s, "-", "singular", math.nan, status="skipped", note="needs planar4"))
-        return res
     p = _planar_params(ctx)
+    if p is None:
+        res.rows.append(row(s, "-", "singular", math.nan, status="skipped", note=f"singular {G.FOUR_SPRING_NEEDS}"))
+        return res
     T = 2 * math.pi / math.sqrt(2 * p["k"] / p["m"])
     h, t_end = T / 200, 2 * T
     off = ctx.params["singular_offset"]
