@@ -111,8 +111,20 @@ class ForceKernel:
         computed once)."""
         cached = self.__dict__.get("_key")
         if cached is None:
-            cached = self.__dict__["_key"] = digest(self.array_source())
+            cached = self.__dict__["_key"] = digest(self.array_source() + self.slope_source())
         return cached
+
+    def slope_source(self) -> str:
+        """``def slope(fp, ip, mass, y, out, w)``: ``out = dy/dt`` for ``y =
+        [q, v]`` (``q' = v``, ``v' = F(q) / mass``, as ``Model.rhs``), by
+        default through :meth:`array_source`'s ``force``; a kernel may fuse
+        the two passes (same numbers)."""
+        return ("def slope(fp, ip, mass, y, out, w):\n"
+                "    n = y.shape[0] // 2\n"
+                "    force(fp, ip, y[:n], out[n:], w)\n"
+                "    for i in range(n):\n"
+                "        out[i] = y[n + i]\n"
+                "        out[n + i] = out[n + i] / mass[i]\n")
 
     def scalar_key(self) -> str:
         """Digest of the straight-line text (which also depends on the edge
@@ -321,6 +333,30 @@ class ChainKernel(ForceKernel):
         L += ["        " + line for line in T("0.0 - q[n - 1]", "fp[n - 1 + off]")]
         L += ["    else:", "        _Fnxt = 0.0",
               "    f[n - 1] = _Fnxt - _Fprev"]
+        return "\n".join(L) + "\n"
+
+    def slope_source(self) -> str:
+        """The force, the velocity copy and the division by the mass in one
+        pass over the chain (the numbers of the two-pass default)."""
+        t_lines, t_res = _tension_source(self.linear)
+        T = lambda r, k: ["_Fr = " + r, "_Fk = " + k] + t_lines + [f"_Fnxt = {t_res}"]  # noqa: E731
+        L = [
+            "def slope(fp, ip, mass, y, out, w):",
+            "    n = y.shape[0] // 2",
+            "    nk = fp.shape[0] - 2",
+            "    _Fal, _Fbe = fp[nk], fp[nk + 1]",
+            "    off = 1 if ip[0] != 0 else 0",
+            "    _Fprev = 0.0",
+            "    if ip[0] != 0:",
+        ]
+        L += ["        " + line for line in T("y[0] - 0.0", "fp[0]")]
+        L += ["        _Fprev = _Fnxt", "    for i in range(n - 1):"]
+        L += ["        " + line for line in T("y[i + 1] - y[i]", "fp[i + off]")]
+        L += ["        out[i] = y[n + i]", "        out[n + i] = (_Fnxt - _Fprev) / mass[i]", "        _Fprev = _Fnxt",
+              "    if ip[1] != 0:"]
+        L += ["        " + line for line in T("0.0 - y[n - 1]", "fp[n - 1 + off]")]
+        L += ["    else:", "        _Fnxt = 0.0",
+              "    out[n - 1] = y[2 * n - 1]", "    out[2 * n - 1] = (_Fnxt - _Fprev) / mass[n - 1]"]
         return "\n".join(L) + "\n"
 
     def scalar_lines(self, q, f):
