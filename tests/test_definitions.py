@@ -207,7 +207,9 @@ def test_compiled_rhs_equals_numpy_rhs(case):
     assert rhs is not None
     Y = _states(case)
     perm = np.random.default_rng(2).permutation(2 * n)
-    permuted = rhs.permuted(perm)
+    # CVODE's permuted form is one more compiled entry point per structure:
+    # checked on a chain, a network and a potential (its text is the same wrapper).
+    permuted = rhs.permuted(perm) if case.id in ("chain-case1", "network-2d", "henon-heiles") else None
     for j in range(Y.shape[1]):
         y = np.ascontiguousarray(Y[:, j])
         want = model.rhs(0.0, y)
@@ -215,6 +217,8 @@ def test_compiled_rhs_equals_numpy_rhs(case):
         got, bad = rhs.checked(y)
         assert not bad
         _assert_rhs_close(got, want, n)
+        if permuted is None:
+            continue
         zp = np.full(2 * n, np.nan)
         assert not permuted(np.ascontiguousarray(y[perm]), zp)
         back = np.empty(2 * n)
@@ -286,35 +290,33 @@ def test_modes_are_the_generalized_eigenproblem(case):
         np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-12 * np.max(np.abs(P_ref)))
 
 
-# -- 6. generated straight-line loop and generic array loop ---------------------------------
+# -- 6. generated straight-line loop and the generic numpy path ----------------------------
+_TRANSCENDENTAL = ("math.sin", "math.cos", "math.tan", "math.exp", "math.log")
+
+
 @pytest.mark.parametrize("case", STRAIGHT_LINE_CASES, ids=[c.id for c in STRAIGHT_LINE_CASES])
-def test_generated_loop_is_bit_identical_to_generic_loop(case):
-    # Both loops do RK4's arithmetic in the same order on the same kernel text
-    # (straight-line or array form): the same numbers, bit for bit.
-    from rk4core.fast import codegen
-    from rk4core.fast.solve import _output_points, _tableau_arrays
-    from rk4core.methods import get_method
+def test_generated_loop_equals_the_numpy_path(case):
+    # The straight-line loop does RK4's arithmetic in rk_step's order on force
+    # code printed in the numpy path's order: the same numbers, bit for bit,
+    # where only + - * / sqrt (correctly rounded everywhere) are involved; with
+    # sin/cos/exp/log, numpy's and libm's may differ in the last bit.
+    import rk4core
 
     model = _model(case.id)
     kern = fast.force_kernel(model)
-    fp, ip = np.ascontiguousarray(kern.fp, dtype=float), np.ascontiguousarray(kern.ip, dtype=np.int64)
-    mass = np.ascontiguousarray(model.mass, dtype=float)
-    tab = get_method("rk4")
     y0 = np.ascontiguousarray(_states(case, m=1, seed=3)[:, 0])
     n, step = 200, 0.1 / model.omega_bound()  # h omega <= 0.1: a stable, accurate run
     t_eval = np.array([0.0, 0.37, 0.5, 0.999, 1.0]) * n * step  # on and off the grid (Hermite)
-    idx, theta, _ = _output_points(0.0, step, n, t_eval, 1)
-    bound = np.full(y0.size, np.finfo(float).max)
-    ys_gen, ys_gl = np.full((idx.size, y0.size), np.nan), np.full((idx.size, y0.size), np.nan)
-    fail_gen, fail_gl = np.zeros(y0.size), np.zeros(y0.size)
-    ret_gen = codegen.model_module(kern).integrate(fp, ip, mass, np.zeros(kern.work_size), y0, 0.0, step, n,
-                                                   *_tableau_arrays(tab), idx, theta, ys_gen, bound.copy(), 0.0,
-                                                   fail_gen)
-    ret_gl = codegen.kernel(tab, kern)(fp, ip, mass, y0, 0.0, step, n, idx, theta, ys_gl, bound.copy(), 0.0,
-                                       fail_gl)
-    assert tuple(ret_gl) == tuple(ret_gen) == (n, idx.size, 0, int(np.count_nonzero(theta)))
-    assert np.all(np.isfinite(ys_gen)) and not np.array_equal(ys_gen[-1], y0)
-    np.testing.assert_array_equal(ys_gl, ys_gen)
+    kw = dict(n_steps=n, t_eval=t_eval)
+    res = fast.solve_model(model, (0.0, n * step), y0, **kw)
+    gen = rk4core.solve(model.rhs, (0.0, n * step), y0, **kw)
+    assert res.success and gen.success and res.nfev == gen.nfev
+    assert np.all(np.isfinite(gen.y)) and not np.array_equal(gen.y[:, -1], y0)
+    hoisted, body = kern.scalar_lines([f"q{i}" for i in range(kern.n_dof)], [f"f{i}" for i in range(kern.n_dof)])
+    if any(f in line for line in hoisted + body for f in _TRANSCENDENTAL):
+        np.testing.assert_allclose(res.y, gen.y, rtol=0, atol=1e-14 * np.max(np.abs(gen.y)))
+    else:
+        np.testing.assert_array_equal(res.y, gen.y)
 
 
 # -- 7. FPUT with alpha = beta = 0 is the linear chain -------------------------------------

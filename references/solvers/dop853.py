@@ -130,6 +130,9 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
     bad = []  # (t, which) of the first non-finite right-hand side at a finite state
     fast_rhs = compiled_rhs(model)
     extra["rhs"] = "compiled" if fast_rhs is not None else "numpy"
+    if fast_rhs is not None:
+        with np.errstate(all="ignore"):
+            fast_rhs.checked(np.ascontiguousarray(y0, dtype=float))  # compiled (or loaded) before the clock starts
 
     def fun(t, yy):
         calls[0] += 1

@@ -79,22 +79,27 @@ class CompiledRHS:
 
     def __init__(self, model, kern):
         module = model_module(kern)
-        self._new, self._checked, self._perm = module.rhs_new, module.rhs_checked, module.rhs_permuted
+        self._perm = module.rhs_permuted  # one compiled entry point (identity order for DOP853)
         self.fp = np.ascontiguousarray(kern.fp, dtype=float)
         self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
         self.mass = np.ascontiguousarray(model.mass, dtype=float)
         self.w = np.zeros(kern.work_size)
         self.n_state = 2 * model.n_dof
-        y = np.zeros(self.n_state)
-        self._new(self.fp, self.ip, self.mass, y, self.w)  # compile (or load) now, not in a timed run
-        self._checked(self.fp, self.ip, self.mass, y, self.w)
+        self._identity = np.arange(self.n_state, dtype=np.int64)
+        self._buf = np.zeros((3, self.n_state))
+        # Each entry point is compiled (or loaded from the disk cache) on its
+        # first call: call it once before a timed run (the references do).
 
     def __call__(self, t, y):
-        return self._new(self.fp, self.ip, self.mass, y, self.w)
+        out = np.empty(self.n_state)
+        self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        return out
 
     def checked(self, y):
         """``(dy/dt, bad)``: ``bad`` is True when ``y`` is finite and ``dy/dt`` is not."""
-        return self._checked(self.fp, self.ip, self.mass, y, self.w)
+        out = np.empty(self.n_state)
+        bad = self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        return out, bad
 
     def permuted(self, perm):
         """``fun(z, zp) -> bad``: writes ``zp = (dy/dt)[perm]`` for the state
@@ -186,9 +191,11 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     -----
     A state of up to ``codegen.MAX_UNROLLED_DIM`` components (the 2-DOF
     models) runs a loop generated from the method's tableau with the state in
-    registers (:mod:`rk4core.fast.codegen`); larger states run the generic
-    array loop ``_kernels.integrate``. Both give the same numbers bit for bit.
-    The first call in a process for a method and state size compiles the loop,
+    registers (:mod:`rk4core.fast.codegen`); larger states run an array loop
+    generated from the same tableau. Both give the numbers of
+    ``rk4core.solve(model.rhs, ...)`` bit for bit wherever the elementary
+    functions agree. The first call in a process for a method and a force
+    structure compiles the loop,
     or loads it from numba's on-disk cache; call :func:`warm_up` (with the
     model and method) first to keep that time out of a timed run. The
     kernels divide as numpy does (``error_model="numpy"``): a zero spring
@@ -252,10 +259,10 @@ def warm_up(model=None, method="rk4") -> float:
     """Compile the loop(s) ``solve_model(model, ..., method=method)`` will run,
     or load them from numba's on-disk cache.
 
-    A state of up to ``MAX_UNROLLED_DIM`` components runs a loop generated for
-    its method, model kind and size (:mod:`rk4core.fast.codegen`); larger
-    states run the one generic loop. Without ``model`` the generic loop and
-    the loop of a two-mass chain are prepared.
+    Each (method, force structure) has its own generated loop
+    (:mod:`rk4core.fast.codegen`): straight-line up to ``MAX_UNROLLED_DIM``
+    state components, an array loop beyond. Without ``model`` the loops of a
+    two-mass chain and of a longer chain are prepared.
 
     Returns
     -------
