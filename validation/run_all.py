@@ -33,18 +33,25 @@ line); 130 interrupted by SIGINT, 143 by SIGTERM.
 """
 from __future__ import annotations
 
-import os
-import signal
+try:
+    import os
+    import signal
 
-if __name__ == "__main__":
-    # Until main() installs its handlers (imports take a while), a signal ends
-    # the process with one line; nothing has been written yet.
-    def _early_exit(signum, frame):
-        os.write(2, f"run_all: interrupted ({signal.Signals(signum).name}) before any scene ran\n".encode())
-        os._exit(128 + signum)
+    if __name__ == "__main__":
+        # Until main() installs its handlers (imports take a while), a signal ends
+        # the process with one line; nothing has been written yet.
+        def _early_exit(signum, frame):
+            os.write(2, f"run_all: interrupted ({signal.Signals(signum).name}) before any scene ran\n".encode())
+            os._exit(128 + signum)
 
-    signal.signal(signal.SIGINT, _early_exit)
-    signal.signal(signal.SIGTERM, _early_exit)
+        signal.signal(signal.SIGINT, _early_exit)
+        signal.signal(signal.SIGTERM, _early_exit)
+except KeyboardInterrupt:  # SIGINT while the early handler was being installed
+    import sys as _sys
+
+    _sys.stderr.write("run_all: interrupted (SIGINT) before any scene ran\n")
+    _sys.stderr.flush()
+    raise SystemExit(130) from None
 
 import argparse
 import errno
