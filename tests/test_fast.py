@@ -417,3 +417,15 @@ def test_same_array_text_other_edge_list_gets_its_own_loop():
         y0 = model.state([0.1, -0.05], [0.0, 0.2])
         np.testing.assert_array_equal(fast.solve_model(model, (0.0, 1.0), y0, h=0.01).y,
                                       rk4core.solve(model.rhs, (0.0, 1.0), y0, h=0.01).y)
+
+
+def test_a_force_patched_onto_the_class_disables_the_compiled_path(monkeypatch):
+    # The compiled kernels are printed from the definition; a force or
+    # right-hand side assigned onto the class afterwards is not in them.
+    from rk4core.models.chain import Chain
+
+    model, y0 = _model(MODEL_CASES[1])
+    assert fast.supports(model)
+    monkeypatch.setattr(Chain, "_force", lambda self, q, ops: 0.0 * q)
+    patched = rk4core.make_model("chain", dict(MODEL_CASES[1][2]))
+    assert not fast.supports(patched)

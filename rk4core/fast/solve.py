@@ -1,4 +1,4 @@
-"""Fixed-step integration of a built-in model with compiled kernels.
+"""Fixed-step integration of a symbolically defined model with compiled kernels.
 
 :func:`solve_model` has the semantics of :func:`rk4core.solve` applied to
 ``model.rhs`` -- same step-count rule, same output grid or ``t_eval`` handling
@@ -54,6 +54,10 @@ def force_kernel(model):
     for attr in _PHYSICS:
         c = _owner(type(model), attr)
         if c is not None and mro.index(c) < mro.index(owner):
+            return None
+        # a function assigned onto the class later (a monkeypatch) is not the class's own
+        fn = vars(c)[attr] if c is not None else None
+        if fn is not None and not getattr(fn, "__qualname__", "").startswith(c.__qualname__ + "."):
             return None
     model.__dict__["_fast_force_kernel"] = kern  # built once per model object (models are not mutated)
     return kern
@@ -163,12 +167,12 @@ def _output_rows(n, t_eval, record_every) -> int:
 
 def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
                 record_every=1, max_growth=1e8, y_scale=None) -> FixedStepResult:
-    """Integrate a built-in model's equations of motion with compiled kernels.
+    """Integrate a model's equations of motion with loops compiled from its definition.
 
     Parameters
     ----------
     model : rk4core.models.Model
-        A built-in model (see :func:`rk4core.fast.supports`); its right-hand
+        A model with a compiled force (see :func:`rk4core.fast.supports`); its right-hand
         side is ``model.rhs`` (``y = [q, v]``, SI units of the model).
     t_span, y0, h, n_steps, t_eval, method, max_growth, y_scale
         As :func:`rk4core.solve` (same caps on the step count and the output
