@@ -157,3 +157,36 @@ def test_many_random_kills(setup, tmp_path, i):
     rng = random.Random()
     sig = rng.choice([signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
     _kill_once(setup, tmp_path, sig, rng.uniform(*WINDOW))
+
+
+def test_a_swallowed_signal_stops_the_run_at_the_next_unit(tmp_path, capsys):
+    # A signal whose exception Python could not propagate (raised inside a
+    # ctypes callback while numba compiles: printed as "Exception ignored" and
+    # dropped) is still recorded; the run stops at the next work unit, and the
+    # dropped exception is not printed as a traceback.
+    import types
+
+    from validation import interrupt
+    from validation.run_all import Interrupted, _Signals, run
+    from validation.scenes import load_scene
+
+    (tmp_path / "b.toml").write_text(SCENE_B)
+    scene = load_scene(tmp_path / "b.toml")
+    seen = []
+
+    def progress(message):
+        seen.append(message)
+        if len(seen) == 2:
+            interrupt.record(signal.SIGTERM)  # as the handler does before its exception is dropped
+
+    interrupt.reset()
+    try:
+        with pytest.raises(Interrupted) as info:
+            run([scene], tmp_path, repeats=1, figures=False, progress=progress)
+        assert info.value.signum == signal.SIGTERM and len(seen) == 2
+    finally:
+        interrupt.reset()
+    with _Signals():
+        sys.unraisablehook(types.SimpleNamespace(exc_type=Interrupted, exc_value=Interrupted(signal.SIGTERM),
+                                                 exc_traceback=None, err_msg=None, object=None))
+    assert "Traceback" not in capsys.readouterr().err

@@ -208,6 +208,17 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     t0 = time.perf_counter()
     run.completed = []
     results, tables, failures, findings = [], {}, [], []
+    user_progress = progress
+
+    def progress(message):
+        # A signal whose exception was swallowed (raised inside a ctypes
+        # callback, e.g. numba's compiler notifying its object cache) is
+        # recorded: it stops the run at the next work unit.
+        if interrupt.pending():
+            raise Interrupted(interrupt.pending())
+        if user_progress is not None:
+            user_progress(message)
+
     for scene in scenes:
         try:
             r = experiments.run_scene(scene, out_dir, quick=quick, repeats=repeats, figures=figures,
@@ -276,15 +287,24 @@ class _Signals:
             return
         raise Interrupted(signum)
 
+    def _unraisable(self, info):
+        # An Interrupted raised where Python cannot propagate it (a ctypes
+        # callback) is already recorded (interrupt.pending); say nothing.
+        if isinstance(info.exc_value, Interrupted):
+            return
+        self.saved_hook(info)
+
     def __enter__(self):
         for s in self.SIGNALS:
             self.saved[s] = signal.signal(s, self._handler)
+        self.saved_hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
 
     def __exit__(self, *exc):
         for s, h in self.saved.items():
             # the command line's outcome is decided: a late signal no longer changes it
             signal.signal(s, h if self.restore else signal.SIG_IGN)
+        sys.unraisablehook = self.saved_hook
         return False
 
     def hold(self):
