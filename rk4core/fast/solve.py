@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..methods import Tableau, get_method
+from ..methods import get_method
 from ..solver import FixedStepResult, grid_time, grid_times, growth_bound, step_count, unstable_message
 from ..validate import (check_max_growth, check_model_y0, check_output_size, check_step_args, check_t_eval,
                         check_t_span, check_y_scale)
@@ -125,13 +125,6 @@ def compiled_rhs(model) -> CompiledRHS | None:
     (:func:`supports`)."""
     kern = force_kernel(model)
     return None if kern is None else CompiledRHS(model, kern)
-
-
-def _tableau_arrays(tab: Tableau):
-    f = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
-    A_v = tab.A_v if tab.partitioned else tab.A
-    b_v = tab.b_v if tab.partitioned else tab.b
-    return f(tab.A), f(tab.b), f(tab.c), f(A_v), f(b_v)
 
 
 def _output_points(t0, step, n, t_eval, record_every):

@@ -312,52 +312,43 @@ class ChainKernel(ForceKernel):
         self.ip = np.array([int(left), int(right)], dtype=np.int64)
         self.left, self.right, self.linear = bool(left), bool(right), bool(linear)
 
-    def array_source(self) -> str:
+    def _pass(self, slope: bool) -> str:
+        """One pass over the chain, each tension formed once and carried to
+        the next mass: ``force`` (``F`` into ``f``) or, when ``slope``, the
+        fused ``slope`` (velocity copy and ``F / m`` in the same pass; the
+        numbers of the two-pass default)."""
         t_lines, t_res = _tension_source(self.linear)
         T = lambda r, k: ["_Fr = " + r, "_Fk = " + k] + t_lines + [f"_Fnxt = {t_res}"]  # noqa: E731
-        L = [
-            "def force(fp, ip, q, f, w):",
-            "    n = f.shape[0]",
-            "    nk = fp.shape[0] - 2",
-            "    _Fal, _Fbe = fp[nk], fp[nk + 1]",
-            "    off = 1 if ip[0] != 0 else 0",
-            "    _Fprev = 0.0",
-            "    if ip[0] != 0:",
-        ]
-        L += ["        " + line for line in T("q[0] - 0.0", "fp[0]")]
+        q = "y" if slope else "q"
+
+        def store(i, n_):  # F_i = T_{i+1} - T_i, stored
+            if slope:
+                return [f"out[{i}] = y[{n_} + {i}]", f"out[{n_} + {i}] = (_Fnxt - _Fprev) / mass[{i}]"]
+            return [f"f[{i}] = _Fnxt - _Fprev"]
+
+        L = ["def slope(fp, ip, mass, y, out, w):" if slope else "def force(fp, ip, q, f, w):",
+             "    n = y.shape[0] // 2" if slope else "    n = f.shape[0]",
+             "    nk = fp.shape[0] - 2",
+             "    _Fal, _Fbe = fp[nk], fp[nk + 1]",
+             "    off = 1 if ip[0] != 0 else 0",
+             "    _Fprev = 0.0",
+             "    if ip[0] != 0:"]
+        L += ["        " + line for line in T(f"{q}[0] - 0.0", "fp[0]")]
         L += ["        _Fprev = _Fnxt",
               "    for i in range(n - 1):  # the springs between masses: no branch inside"]
-        L += ["        " + line for line in T("q[i + 1] - q[i]", "fp[i + off]")]
-        L += ["        f[i] = _Fnxt - _Fprev", "        _Fprev = _Fnxt",
-              "    if ip[1] != 0:"]
-        L += ["        " + line for line in T("0.0 - q[n - 1]", "fp[n - 1 + off]")]
-        L += ["    else:", "        _Fnxt = 0.0",
-              "    f[n - 1] = _Fnxt - _Fprev"]
+        L += ["        " + line for line in T(f"{q}[i + 1] - {q}[i]", "fp[i + off]")]
+        L += ["        " + line for line in store("i", "n")] + ["        _Fprev = _Fnxt", "    if ip[1] != 0:"]
+        L += ["        " + line for line in T(f"0.0 - {q}[n - 1]", "fp[n - 1 + off]")]
+        L += ["    else:", "        _Fnxt = 0.0"] + ["    " + line for line in store("n - 1", "n")]
         return "\n".join(L) + "\n"
+
+    def array_source(self) -> str:
+        return self._pass(slope=False)
 
     def slope_source(self) -> str:
         """The force, the velocity copy and the division by the mass in one
         pass over the chain (the numbers of the two-pass default)."""
-        t_lines, t_res = _tension_source(self.linear)
-        T = lambda r, k: ["_Fr = " + r, "_Fk = " + k] + t_lines + [f"_Fnxt = {t_res}"]  # noqa: E731
-        L = [
-            "def slope(fp, ip, mass, y, out, w):",
-            "    n = y.shape[0] // 2",
-            "    nk = fp.shape[0] - 2",
-            "    _Fal, _Fbe = fp[nk], fp[nk + 1]",
-            "    off = 1 if ip[0] != 0 else 0",
-            "    _Fprev = 0.0",
-            "    if ip[0] != 0:",
-        ]
-        L += ["        " + line for line in T("y[0] - 0.0", "fp[0]")]
-        L += ["        _Fprev = _Fnxt", "    for i in range(n - 1):"]
-        L += ["        " + line for line in T("y[i + 1] - y[i]", "fp[i + off]")]
-        L += ["        out[i] = y[n + i]", "        out[n + i] = (_Fnxt - _Fprev) / mass[i]", "        _Fprev = _Fnxt",
-              "    if ip[1] != 0:"]
-        L += ["        " + line for line in T("0.0 - y[n - 1]", "fp[n - 1 + off]")]
-        L += ["    else:", "        _Fnxt = 0.0",
-              "    out[n - 1] = y[2 * n - 1]", "    out[2 * n - 1] = (_Fnxt - _Fprev) / mass[n - 1]"]
-        return "\n".join(L) + "\n"
+        return self._pass(slope=True)
 
     def scalar_lines(self, q, f):
         n = self.n_dof

@@ -13,8 +13,6 @@ blow-up at that time rather than raising.
 """
 from __future__ import annotations
 
-import numpy as np
-
 from ..validate import boolean, positive
 from .base import Defined, Drawing, check_normal_positive
 from .network import Network
@@ -48,11 +46,6 @@ class Planar4(Defined):
 
     def params(self):
         return {"m": self.m, "k": self.k, "l": self.l, "linear": self.linear}
-
-    def spring_lengths(self, q, ops=None):
-        """Lengths (m) of the four springs, anchor order as ``anchors``."""
-        ops = ops or np
-        return [ops.sqrt((q[0] - ax) * (q[0] - ax) + (q[1] - ay) * (q[1] - ay)) for ax, ay in self.anchors]
 
     def drawing(self):
         return Drawing(layout="plane", points=((0, 1),), reference=((0.0, 0.0),), anchors=self.anchors,
