@@ -6,7 +6,7 @@ import pytest
 import rk4core
 from references.solvers import integrate
 from rk4core.models import Chain
-from validation.experiments import modal_energies
+from validation.execute import modal_energies
 from validation.metrics import fit_order
 
 N = 8

@@ -115,13 +115,19 @@ def _kill_once(setup, tmp_path, sig, delay):
     if _tree(out) != before:  # not the previous report: then the new one, whole
         assert not (p.returncode == 128 + sig and "left unchanged" in stderr), what
         _assert_complete_new(out)
+    # The records of an interrupted run stay for --resume (and the message says
+    # so); a finished run removes them. Nothing else is left behind.
+    store = f".{out.name}.records"
+    resumable = "rerun with --resume" in stderr
     if sig != signal.SIGKILL:
-        assert _leftovers(tmp_path) == [], what
+        assert _leftovers(tmp_path) == ([store] if resumable else []), what
     else:  # kill -9 cannot clean up; the next start does, without touching the report
         kept = _tree(out)
         atomic.recover(out)
-        assert _leftovers(tmp_path) == [], what
+        assert set(_leftovers(tmp_path)) <= {store}, what
         assert _tree(out) == kept
+    if finished:
+        assert store not in _leftovers(tmp_path), what
     return out, what
 
 

@@ -12,7 +12,11 @@ import pytest
 
 from references.exact import modal_solution
 from references.solvers import integrate
-from validation import experiments
+import dataclasses
+
+from validation import execute as X
+from validation import measure as M
+from validation import plan as P
 from validation.scenes import SCENE_DIR, load_scene, load_scenes
 
 from _scenes import one_mass
@@ -36,12 +40,18 @@ ORDER_CASES = [pytest.param(s, m, id=f"{s.name}-{m}",
 def test_observed_order_on_every_linear_scene(scene, method):
     # Sweeps of h = theta / omega_max over one period of the fastest mode, against
     # the exact modal solution; classical orders: RK4 4, explicit and symplectic Euler 1.
-    model = scene.build_model()
-    thetas = experiments.RK4_THETAS if method == "rk4" else experiments.EULER_THETAS
-    T = experiments.convergence_horizon(scene, model)
-    fit, hs, errs = experiments.order_sweep(model, scene.y0(), method, thetas, T)
-    assert fit.n_points >= 3, (hs, errs)
-    assert fit.order == pytest.approx(experiments.EXPECTED_ORDER[method], abs=0.1)
+    # Through the pipeline: the plan's order specs of this method, executed, measured.
+    conv = dataclasses.replace(scene, outputs=["convergence"])
+    specs = [s for s in P.plan(conv, figures=False)
+             if s.solver == method or (s.purpose == "truth" and s.grid == "order")]
+    assert [s.setting for s in specs if s.purpose == "order"] == list(
+        P.RK4_THETAS if method == "rk4" else P.EULER_THETAS)
+    records = {s.key: X.execute(conv, s) for s in specs}
+    res = M.measure(conv, specs, records, figures=False)
+    (row,) = [r for r in res.tables["convergence"] if r["solver"] == method]
+    assert row["n_points"] >= 3, row
+    assert row["observed_order"] == pytest.approx(P.EXPECTED_ORDER[method], abs=0.1)
+    assert row["passed"] is True
 
 
 @pytest.mark.parametrize("scene", LINEAR, ids=lambda s: s.name)

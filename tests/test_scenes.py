@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from validation.scenes import SCENE_DIR, SceneError, load_scene, load_scenes, scene_from_dict
+from validation.scenes import SCENE_DIR, SceneError, load_scene, load_scene_points, load_scenes, scene_from_dict
 
 SHIPPED = sorted(SCENE_DIR.glob("*.toml"))
 
@@ -23,13 +23,15 @@ VALID = {
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
 def test_shipped_scene_loads(path):
-    s = load_scene(path)
-    model = s.build_model()
-    assert s.y0().shape == (model.n_state,)
-    # every output time is a step of every fixed-step run
-    for h in s.h:
-        assert abs(s.output_dt / h - round(s.output_dt / h)) < 1e-9
-    assert s.t_eval()[-1] == s.t_end
+    points = load_scene_points(path)  # one scene per [sweep] point; [scene] without a sweep
+    assert points
+    for s in points:
+        model = s.build_model()
+        assert s.y0().shape == (model.n_state,)
+        # every output time is a step of every fixed-step run
+        for h in s.h:
+            assert abs(s.output_dt / h - round(s.output_dt / h)) < 1e-9
+        assert s.t_eval()[-1] == s.t_end
 
 
 def test_quick_subset_is_a_proper_subset():

@@ -257,7 +257,7 @@ def test_run_contract_on_a_small_scene(tmp_path):
     result = run(scene_from_dict(doc), tmp_path, quick=True)
     assert {"scene", "solver", "quantity", "measured", "theory", "passed"} <= set(result.rows[0])
     statuses = {r["quantity"]: r["status"] for r in result.rows}
-    assert statuses["blowup_time_s(start_on_anchor)"] == "unstable"
+    assert statuses["blowup_time_on_anchor_s"] == "unstable"
     assert all(r["passed"] for r in result.rows)
     assert result.findings
 
@@ -330,31 +330,30 @@ def test_closest_approach_uses_the_drawings_anchors_about_its_reference():
     assert (d, j) == (pytest.approx(0.0, abs=1e-15), 1) and tm == pytest.approx(0.5)
 
 
-def _study_ctx(model, tmp_path):
+def _study_ctx(model):
     from validation.stability.studies import Context
 
     return Context("s", model, model.state(np.zeros(model.n_dof)),
-                   validate_params({"studies": ["amplitude", "singular"], "singular_offset": 1e-9}), True,
-                   tmp_path)
+                   validate_params({"studies": ["amplitude", "singular"], "singular_offset": 1e-9}), True)
 
 
 @pytest.mark.parametrize("study", ["amplitude", "singular"])
-def test_planar_studies_skip_a_model_not_drawn_as_the_four_spring_mass(study, tmp_path):
-    from validation.stability.studies import STUDY_FUNCTIONS
+def test_planar_studies_skip_a_model_not_drawn_as_the_four_spring_mass(study):
+    from validation.stability.studies import run_unit_in
 
     model = rk4core.make_model("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5})
     model.name = "planar4"  # the name plays no part
-    res = STUDY_FUNCTIONS[study](_study_ctx(model, tmp_path))
+    res = run_unit_in(_study_ctx(model), study)
     (r,) = res.rows
     assert r["status"] == "skipped" and "four-spring geometry" in r["note"]
 
 
-def test_singular_study_runs_on_the_four_spring_network(tmp_path):
-    from validation.stability.studies import STUDY_FUNCTIONS
+def test_singular_study_runs_on_the_four_spring_network():
+    from validation.stability.studies import run_unit_in
 
-    res = STUDY_FUNCTIONS["singular"](_study_ctx(_four_spring_network(), tmp_path))
+    res = run_unit_in(_study_ctx(_four_spring_network()), "singular")
     statuses = {r["quantity"]: r["status"] for r in res.rows}
-    assert statuses["blowup_time_s(start_on_anchor)"] == "unstable"
+    assert statuses["blowup_time_on_anchor_s"] == "unstable"
     assert all(r["passed"] for r in res.rows)
 
 

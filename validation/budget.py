@@ -8,13 +8,13 @@ no eigensolve: the fastest frequency is the Gershgorin bound
 bound of the linearized spectrum.
 
 ``steps``
-    double-precision integration steps: every fixed-step run (``ceil(t_end /
-    h)`` per solver and step), the convergence sweeps
-    (:func:`validation.experiments.order_sweep`), the RK4 run behind the state
-    figures, for each adaptive run a lower bound of
+    double-precision integration steps, summed over the scene's plan
+    (:func:`validation.plan.plan`, one term per spec: :func:`spec_steps`):
+    every fixed-step run (``ceil(t_end / h)``), the convergence sweeps, the
+    RK4 run behind the state figures, for each adaptive run a lower bound of
     :data:`ADAPTIVE_STEPS_PER_PERIOD` steps per period of the fastest mode,
-    and the stability study (:func:`validation.stability.estimate_steps`).
-    Timing repeats are not counted (runs longer than 1 s are timed once).
+    and each stability unit (:func:`validation.stability.unit_steps`).
+    Timing repeats are not counted (runs longer than 0.1 s are timed once).
     Cap: :data:`MAX_STEPS` (``--max-steps``).
 ``truth_steps``
     quadruple-precision Taylor steps of the reference of a nonlinear model
@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from references.solvers.base import ADAPTIVE, FIXED_STEP
+from references.solvers.base import FIXED_STEP
 
 from .scenes import Scene, SceneError
 
@@ -77,7 +77,8 @@ BASE_BYTES = 400 * 2**20
 @dataclass(frozen=True)
 class Estimate:
     """What a scene will cost: steps, quadruple-precision steps, output points,
-    state size, the fastest frequency bound (rad/s)."""
+    state size, the fastest frequency bound (rad/s), and the number of runs
+    of its plan (``runs``)."""
 
     steps: float
     truth_steps: float
@@ -85,6 +86,7 @@ class Estimate:
     state_size: int
     omega_max: float
     dense_dof: int = 0
+    runs: int = 0
 
     @property
     def trajectory_bytes(self) -> float:
@@ -114,56 +116,84 @@ def _steps(t_end: float, h: float) -> int:
     return step_count((0.0, t_end), h)  # the integrator's own rule
 
 
-def estimate(scene: Scene, model=None) -> Estimate:
-    """Estimate the cost of ``scene`` (see the module docstring). Raises
+def spec_steps(scene, spec, model, w, quick=False) -> tuple[float, float]:
+    """``(steps, truth_steps)`` of one spec (see the module docstring); ``w``
+    is the model's fastest-frequency bound (rad/s)."""
+    periods = lambda T: T * w / (2 * math.pi)  # noqa: E731
+    nonlinear = not getattr(model, "linear", True)
+    p = spec.purpose
+    if p == "truth":
+        if spec.grid == "order":
+            T = min(scene.convergence.get("t_end", 2.0 * math.pi / w), scene.t_end) if w > 0 else 0.0
+            return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
+        return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
+    if p in ("run", "figure", "modal"):
+        if spec.solver in FIXED_STEP:
+            return float(_steps(scene.t_end, spec.setting)), 0.0
+        return ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end), 0.0
+    if p == "order":
+        if w <= 0:
+            return 0.0, 0.0
+        T = min(scene.convergence.get("t_end", 2.0 * math.pi / w), scene.t_end)
+        top = spec.param("theta0")
+        n0 = max(1, math.ceil(T * w / top))
+        return float(n0 * max(1, round(top / spec.setting))), 0.0
+    if p == "stability":
+        from .stability import unit_steps
+
+        return float(unit_steps(scene, spec.unit, quick)), 0.0
+    if p == "linearization":
+        return 0.0, 0.0  # its truth is the scene grid's
+    if p == "packet":
+        return 4e4, 0.0  # wavepacket.measure_group_velocity: 400 sites, about 4e4 steps
+    return 0.0, 0.0
+
+
+def spec_cost_function():
+    """``cost(scene, spec) -> float``: a relative cost estimate (steps x DOF,
+    quadruple-precision steps weighted 1e3) for ordering the work."""
+    cache = {}
+
+    def cost(scene, spec):
+        if scene.name not in cache:
+            try:
+                model = scene.build_model()
+                cache[scene.name] = (model, _omega_bound(model))
+            except Exception:  # noqa: BLE001 - ordering only
+                cache[scene.name] = (None, math.nan)
+        model, w = cache[scene.name]
+        if model is None or not math.isfinite(w):
+            return 0.0
+        try:
+            steps, truth = spec_steps(scene, spec, model, w)
+        except Exception:  # noqa: BLE001
+            return 0.0
+        return steps * model.n_dof + 1e3 * truth * model.n_dof
+    return cost
+
+
+def estimate(scene: Scene, model=None, *, quick: bool = False) -> Estimate:
+    """Estimate the cost of ``scene``: the sum over its plan
+    (:func:`validation.plan.plan`) of :func:`spec_steps`. Raises
     ``ValueError`` when the model's frequency bound is not a finite number."""
-    from .experiments import EULER_THETAS, RK4_THETAS
+    from .plan import plan
 
     model = model if model is not None else scene.build_model()
     w = _omega_bound(model)
     if not math.isfinite(w) or w < 0:
         raise ValueError(f"the fastest frequency bound of the model is {w!r} rad/s, not a finite number "
                          f"(are the masses or stiffnesses extreme?)")
-    periods = lambda T: T * w / (2 * math.pi)  # noqa: E731
-    want = set(scene.outputs)
     steps = truth = 0.0
-    nonlinear = not getattr(model, "linear", True)
-    if {"state", "energy", "work_precision"} & want:
-        for s in scene.solvers:
-            if s in FIXED_STEP:
-                steps += sum(_steps(scene.t_end, h) for h in scene.h)
-            elif s in ADAPTIVE:
-                steps += len(scene.tolerances) * ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end)
-        truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
-    if "figures" in want:
-        if scene.h and "rk4" in scene.solvers:
-            steps += _steps(scene.t_end, min(scene.h))
-        else:
-            truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
-    if "convergence" in want and w > 0:
-        T = min(scene.convergence.get("t_end", 2.0 * math.pi / w), scene.t_end)
-        for thetas in (scene.convergence.get("theta", RK4_THETAS),
-                       scene.convergence.get("theta_euler", EULER_THETAS),
-                       scene.convergence.get("theta_euler", EULER_THETAS)):
-            top = max(thetas)
-            n0 = max(1, math.ceil(T * w / top))
-            steps += sum(n0 * max(1, round(top / th)) for th in thetas)
-        truth += nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
-    if "modal_energy" in want:  # one run per solver at its finest setting
-        for s in scene.solvers:
-            if s in FIXED_STEP:
-                steps += _steps(scene.t_end, min(scene.h))
-            elif s in ADAPTIVE:
-                steps += ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end)
-    if "stability" in want:
-        from .stability import estimate_steps
-
-        steps += float(estimate_steps(scene))
+    specs = plan(scene, quick=quick)
+    for spec in specs:
+        a, b = spec_steps(scene, spec, model, w, quick)
+        steps += a
+        truth += b
     if not (math.isfinite(steps) and math.isfinite(truth)):
         raise ValueError(f"the estimate is not finite (steps {steps!r}, quadruple-precision steps {truth!r})")
     dense = model.n_dof if set(scene.outputs) - {"stability"} else 0
     return Estimate(steps=steps, truth_steps=truth, output_points=scene.n_output_points,
-                    state_size=2 * model.n_dof, omega_max=w, dense_dof=dense)
+                    state_size=2 * model.n_dof, omega_max=w, dense_dof=dense, runs=len(specs))
 
 
 def _gib(b: float) -> str:

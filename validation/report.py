@@ -32,7 +32,8 @@ COLUMNS = {
                  "rk4_is_cheapest"],
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],
-    "stability": ["scene", "solver", "quantity", "measured", "theory", "passed", "status", "note"],
+    "stability": None,  # validation.stability.COLUMNS (filled below)
+    "linearization": ["scene", "amplitude_q", "error_max_q", "error_rel_q"],
     "modal_energy": ["scene", "solver", "setting", "mode", "omega_rad_s", "fraction_start", "fraction_min",
                      "t_min", "fraction_peak", "t_peak", "status"],
 }
@@ -40,6 +41,16 @@ COLUMNS = {
 #: Columns that hold timings (not reproducible); whole tables built on timings.
 TIMING = {"accuracy": {"wall_s", "compile_s"}, "work_precision": {"wall_s"},
           "cheapest": None, "stability": None}
+
+
+def _stability_columns():
+    from validation.stability import COLUMNS as cols, TIMING_COLUMNS as timing
+
+    COLUMNS["stability"] = list(cols)
+    TIMING["stability"] = set(timing)
+
+
+_stability_columns()
 
 DESCRIPTIONS = {
     "accuracy": "one row per (scene, solver, setting): largest error against the reference over all "
@@ -65,6 +76,10 @@ DESCRIPTIONS = {
                     "the fraction of the initial energy at the start, its minimum (and when), and its "
                     "peak (and when): for mode 1 its largest return after that minimum, for the "
                     "others their largest share.",
+    "linearization": "a nonlinear scene's linearized model (its exact modal solution) against the "
+                     "nonlinear truth: largest coordinate error over the output grid, absolute and relative "
+                     "to the largest coordinate (amplitude_q): what modelling only the small-amplitude "
+                     "physics costs at this amplitude.",
     "stability": "the stability study: step-size boundaries, stiffness, long horizons, large N and "
                  "singular geometry, measured beside theory.",
 }
@@ -84,14 +99,18 @@ def _frame(name, rows):
     return df[cols + extra]
 
 
-def write_tables(out_dir, tables: dict) -> dict:
-    """Write ``tables`` (name -> rows) as ``name.csv``; returns name -> path."""
+def write_tables(out_dir, tables: dict, front=()) -> dict:
+    """Write ``tables`` (name -> rows) as ``name.csv``; returns name -> path.
+    Columns in ``front`` (a sweep's parameters) come right after ``scene``."""
     out = {}
     for name, rows in tables.items():
         if not rows:
             continue
         path = Path(out_dir) / f"{name}.csv"
-        _frame(name, rows).to_csv(path, index=False, lineterminator="\n")
+        df = _frame(name, rows)
+        first = [c for c in ("scene", *front) if c in df.columns]
+        df = df[first + [c for c in df.columns if c not in first]]
+        df.to_csv(path, index=False, lineterminator="\n")
         out[name] = path
     return out
 
@@ -155,14 +174,15 @@ def _md_table(header, rows) -> list[str]:
 
 
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
-                seconds, n_scenes=None) -> Path:
+                seconds, n_scenes=None, timing=None) -> Path:
     """Write ``index.md``: failures first, findings, tables, figures, errata, versions."""
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
     lines.append(f"Mode: **{mode}**, {n_scenes if n_scenes is not None else len(results)} scene(s), wall time {seconds:.0f} s. Each timed run is "
-                 f"the median of {repeats} repeat(s) (runs longer than 1 s: one); compile time (heyoka JIT, numba) is kept apart in "
+                 f"the median of {repeats} repeat(s) (runs longer than 0.1 s: one); compile time (heyoka JIT, numba) is kept apart in "
                  f"`compile_s`. Errors are measured against exact modal solutions (linear models) or "
-                 f"heyoka in quadruple precision (nonlinear models).")
+                 f"heyoka in quadruple precision (nonlinear models)."
+                 + (f" Timed runs: {timing}." if timing else ""))
     lines.append("")
     if failures:
         lines += ["## Failures", "", f"{len(failures)} expectation(s) did not hold:", ""]
@@ -177,10 +197,12 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
         lines.append(f"- [{path.name}]({path.name}): {DESCRIPTIONS.get(name, '')}")
     lines += ["", "## Figures", ""]
     for r in results:
-        if not r.figures:
+        drawn = getattr(r, "drawn", None)
+        drawn = drawn if drawn is not None else r.figures
+        if not drawn:
             continue
         lines += [f"### {r.scene}", ""]
-        for path, sentence in r.figures:
+        for path, sentence in drawn:
             rel = Path(path).relative_to(out_dir) if Path(path).is_absolute() else Path(path)
             lines.append(f"- [{Path(path).name}]({rel.as_posix()}): {sentence}")
         lines.append("")

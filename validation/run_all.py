@@ -4,7 +4,7 @@ Usage::
 
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
                                  [--max-output-points N] [--max-steps N] [--max-truth-steps N]
-                                 [--replace]
+                                 [--replace] [--workers N] [--scheduler ADDRESS] [--resume]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
@@ -24,6 +24,13 @@ it), so an interrupted or killed run never leaves a half-written or mixed
 report; leftovers of killed runs are cleaned at the next start. SIGINT
 (Ctrl-C) and SIGTERM stop the run, remove its temporary directory and print
 which scenes had finished.
+
+The work is a plan (:mod:`validation.plan`): one record per spec, executed
+on ``--workers`` local processes (default: every core this process may use)
+or on a Dask cluster (``--scheduler``), written to ``.<DIR>.records`` beside
+``DIR`` as it arrives (:mod:`validation.records`). After an interrupted run,
+``--resume`` reruns only the specs that have no record. The records are
+removed once the report is in place.
 
 Exit status: 0 every expectation held; 1 at least one failed (``index.md``
 lists them first); 2 bad input (one line on stderr naming the file and the
@@ -117,6 +124,12 @@ def _parser():
     p.add_argument("--replace", action="store_true",
                    help="let a --quick or --scene run replace a full report in --out")
     p.add_argument("--no-figures", action="store_true", help="tables and index.md only")
+    p.add_argument("--workers", type=_int_at_least(1, 1024), default=None, metavar="N",
+                   help="local worker processes (default: the cores this process may use; 1: no pool)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the plan on the Dask distributed scheduler at ADDRESS (tcp://host:port)")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the records of an interrupted run into the same --out and run only the rest")
     p.add_argument("--max-output-points", type=_int_at_least(2), default=None, metavar="N",
                    help="decimate each scene's output grid to at most N points (every k-th point; "
                         "a scene's own [run] max_output_points wins)")
@@ -129,7 +142,9 @@ def _parser():
 
 
 class Progress:
-    """A bar on a terminal, plain lines otherwise."""
+    """A bar on a terminal, plain lines otherwise: ``total`` is the plan's
+    length; the ETA assumes the remaining specs cost the mean so far (the plan
+    starts the longest ones, so it errs high early)."""
 
     def __init__(self, total, stream=None):
         self.total, self.done = max(total, 1), 0
@@ -139,15 +154,18 @@ class Progress:
 
     def __call__(self, msg):
         self.done += 1
-        self.total = max(self.total, self.done)  # an estimate that fell short grows, never overflows
+        if self.done > self.total:
+            raise RuntimeError(f"progress: unit {self.done} of a plan of {self.total}")
         el = time.perf_counter() - self.t0
+        eta = f" ETA {el / self.done * (self.total - self.done):.0f}s" if self.done < self.total else ""
         if self.tty:
             width = 30
             fill = int(width * self.done / self.total)
-            line = f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} {el:5.0f}s {msg[:60]:<60}"
+            line = (f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} {el:5.0f}s{eta:>10} "
+                    f"{msg[:55]:<55}")
             self.stream.write(line)
         else:
-            self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s {msg}\n")
+            self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s{eta} {msg}\n")
         self.stream.flush()
 
     def close(self):
@@ -178,8 +196,14 @@ def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
     return scenes
 
 
-def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None):
+def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None, workers=1,
+        scheduler=None, store=None, stats=None):
     """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
+
+    The pipeline (``validation.plan`` -> ``validation.engine`` ->
+    ``validation.measure`` -> ``validation.draw`` / ``validation.report``):
+    every scene's plan is executed (records), then tables, checks and figures
+    are computed from the records alone.
 
     Parameters
     ----------
@@ -194,21 +218,35 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     figures : bool
         Draw the figures.
     progress : callable(str) or None
-        Called once per work unit.
+        Called once per spec of the plan.
+    workers : int >= 1
+        Local processes (1: this process).
+    scheduler : str or None
+        A Dask scheduler's address.
+    store : validation.records.RecordStore or None
+        Records to resume from and to write.
+    stats : validation.engine.PlanStats or None
+        Filled with the counts of planned, resumed and executed specs.
 
     Returns ``(results, failures)``. A fault inside a scene, solver or figure
     is a failure line (and a ``failed`` row where a row exists), never an
     exception; only ``KeyboardInterrupt`` (and :class:`Interrupted`) escape.
     Bad arguments raise ``ValueError`` naming the argument. The names of the
-    scenes finished so far are kept in ``run.completed``.
+    scenes whose records are complete are kept in ``run.completed``.
     """
     scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
-    from validation import atomic, experiments, interrupt, report
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"`workers` must be an integer >= 1, got {workers!r}")
+    from validation import engine, interrupt, plan
 
     t0 = time.perf_counter()
     run.completed = []
-    results, tables, failures, findings = [], {}, [], []
     user_progress = progress
+    jobs = plan.plan_all(scenes, quick=quick, figures=figures, repeats=repeats)
+    keys_of = {}
+    for scene, spec in jobs:
+        keys_of.setdefault(scene.name, set()).add(spec.key)
+    finished = set()
 
     def progress(message):
         # A signal whose exception was swallowed (raised inside a ctypes
@@ -219,27 +257,64 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         if user_progress is not None:
             user_progress(message)
 
+    def completed(records):
+        for scene in scenes:
+            if scene.name not in finished and keys_of.get(scene.name, set()) <= records.keys():
+                finished.add(scene.name)
+                run.completed.append(scene.name)
+
+    records = {}
+
+    def tick(message):
+        completed(records)
+        progress(message)
+
+    pools = engine.LocalPools(workers) if workers > 1 else None
+    try:
+        return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
+                    tick, completed, t0)
+    finally:
+        if pools is not None:
+            pools.close()
+
+
+def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
+         completed, t0):
+    from validation import atomic, budget, draw, engine, interrupt, measure, report
+
+    t_run = time.perf_counter()
+    records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
+                              store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
+                              records=records, pools=pools)
+    completed(records)
+    t_measure = time.perf_counter()
+    results, tables, failures, findings = [], {}, [], []
     for scene in scenes:
+        specs = [s for sc, s in jobs if sc is scene]
         try:
-            r = experiments.run_scene(scene, out_dir, quick=quick, repeats=repeats, figures=figures,
-                                      progress=progress)
-        except KeyboardInterrupt:
-            raise
+            r = measure.measure(scene, specs, records, quick=quick, figures=figures)
         except Exception as e:  # noqa: BLE001 - one scene's fault does not stop the run
             if interrupt.pending():
                 raise Interrupted(interrupt.pending()) from e
             if atomic.is_environment_error(e):
-                raise  # a full disk is not the scene's fault: the run stops (exit 3)
-            r = experiments.SceneResult(scene.name)
-            r.failures.append(f"{scene.name}: the scene raised {type(e).__name__}: "
-                              f"{str(e).splitlines()[0] if str(e) else ''}")
+                raise
+            r = measure.SceneTables(scene.name)
+            r.check("scene", False, f"{scene.name}: the scene raised {type(e).__name__}: "
+                                    f"{str(e).splitlines()[0] if str(e) else ''}")
         results.append(r)
+    figure_jobs = draw.sweep_jobs(scenes, results) if figures else []
+    by_name = {s.name: s for s in scenes}
+    t_draw = time.perf_counter()
+    if figures:
+        _draw_all(results, figure_jobs, out_dir, by_name, pools)
+    t_write = time.perf_counter()
+    for r in results:
         for name, rows in r.tables.items():
             tables.setdefault(name, []).extend(rows)
         failures += r.failures
         findings += r.findings
-        run.completed.append(scene.name)
     findings = report.summarize(tables) + findings
+    extra = []
     if figures and tables.get("cheapest"):
         import pandas as pd
 
@@ -247,15 +322,61 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
 
         try:
             path, sentence = fig.crossover(out_dir, pd.DataFrame(tables["cheapest"]))
-            r = experiments.SceneResult("all scenes", figures=[(path, sentence)])
-            results.append(r)
+            extra.append(measure.SceneTables("all scenes", drawn=[(path, sentence)]))
         except Exception as e:  # noqa: BLE001
+            if atomic.is_environment_error(e) or interrupt.pending():
+                raise
             findings.append(f"(crossover figure not drawn: {type(e).__name__}: {e})")
-    paths = report.write_tables(out_dir, tables)
-    report.write_index(out_dir, results=results, tables=tables, table_paths=paths,
+    front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
+    paths = report.write_tables(out_dir, tables, front=front)
+    report.write_index(out_dir, results=results + extra, tables=tables, table_paths=paths,
                        failures=failures, findings=findings, mode="quick" if quick else "full",
-                       repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes))
+                       repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes),
+                       timing=getattr(stats, "timing", None))
+    if stats is not None:
+        stats.phases = {"plan": t_run - t0, "runs": t_measure - t_run, "measure": t_draw - t_measure,
+                        "figures": t_write - t_draw, "write": time.perf_counter() - t_write}
     return results, failures
+
+
+def _draw_job(job, out_dir, scene):
+    from validation import draw
+
+    if not Path(out_dir).is_dir():  # the run was stopped and its directory removed: draw nothing
+        raise FileNotFoundError(f"{out_dir} is gone")
+    return draw.draw(job, out_dir, {job.scene: scene} if scene is not None else {})
+
+
+def _draw_all(results, sweep_jobs, out_dir, by_name, pools):
+    """Draw every figure job (on the worker processes when there are any); a
+    plotting fault is a failed check of its scene."""
+    from validation import atomic, interrupt, measure
+
+    sweeps = {}
+    for job in sweep_jobs:
+        sweeps.setdefault(job.scene, measure.SceneTables(f"sweep {job.scene}"))
+    work = [(r, j) for r in results for j in r.figures] + [(sweeps[j.scene], j) for j in sweep_jobs]
+    items = [(j, out_dir, by_name.get(j.scene) if j.kind == "state" else None) for _, j in work]
+    if pools is not None and len(items) > 1:
+        outs = pools.map(_draw_job, items)
+    else:
+        outs = []
+        for item in items:
+            try:
+                outs.append(_draw_job(*item))
+            except Exception as e:  # noqa: BLE001
+                if atomic.is_environment_error(e) or interrupt.pending():
+                    raise
+                outs.append(e)
+    for (r, job), out in zip(work, outs):
+        if isinstance(out, BaseException):
+            if atomic.is_environment_error(out):
+                raise out
+            r.check(f"{job.kind} figure", False, f"{job.scene}: the {job.kind} figure failed: "
+                                                  f"{type(out).__name__}: {str(out).splitlines()[0] if str(out) else ''}")
+        else:
+            r.drawn.extend(out)
+    results.extend(sweeps.values())
 
 
 run.completed = []
@@ -388,6 +509,11 @@ def _main(argv, sig) -> int:
     except SceneError as e:
         sys.stderr.write(f"{e}\n")
         return 2
+    if args.scheduler:
+        try:
+            _check_scheduler(args.scheduler)
+        except _BadInput as e:
+            return _fail(str(e))
     if not scenes:
         return _fail("no scenes to run" + (" (none is marked quick = true)" if args.quick else ""))
     repeats = args.repeats if args.repeats is not None else (REPEATS_QUICK if args.quick else REPEATS_FULL)
@@ -421,26 +547,34 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
     (the caller holds the lock)."""
     import shutil
 
-    from validation import atomic
-    from validation.experiments import planned_units
+    from validation import atomic, engine, records
+    from validation.plan import plan_all
 
-    tmp = atomic.fresh_dir(target)
     figures = not args.no_figures
+    store = records.RecordStore(target, resume=args.resume)
+    tmp = atomic.fresh_dir(target)
+    workers = args.workers or engine.default_workers()
+    stats = engine.PlanStats()
     progress, swapped = None, False
     run.completed = []
     try:
         try:
-            progress = Progress(sum(planned_units(s, figures=figures) for s in scenes))
+            total = len(plan_all(scenes, quick=args.quick, figures=figures, repeats=repeats))
+            progress = Progress(total)
             _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats, figures=figures,
-                              progress=progress)
+                              progress=progress, workers=workers, scheduler=args.scheduler, store=store,
+                              stats=stats)
             progress.close()
             sig.hold()  # the swap is not interrupted half-way
             atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
             swapped = True
+            store.remove()
         finally:
             sig.held = True  # cleanup is not interrupted either
             if not swapped:
                 shutil.rmtree(tmp, ignore_errors=True)
+                if not store.keys():  # nothing to resume from: leave no empty store behind
+                    store.remove()
         sig.release()
     except KeyboardInterrupt as e:
         if progress is not None:
@@ -450,19 +584,36 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
         names = ", ".join(done) or "none"
         state = (f"the report was written to {target}" if swapped
                  else f"{args.out} left unchanged")
+        kept = "" if swapped else (f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded: "
+                                   f"rerun with --resume to run only the rest")
         sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
-                         f"({len(done)} of {len(scenes)}): {names}; {state}\n")
+                         f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
         return 128 + signum
     finally:
         sig.held, sig.pending = False, None
     if atomic.swap_into_place.kept is not None:
         sys.stderr.write(f"run_all: the previous report changed during the run; it was kept aside as "
                          f"{atomic.swap_into_place.kept}\n")
+    phases = ", ".join(f"{k} {v:.1f} s" for k, v in getattr(stats, "phases", {}).items())
+    print(f"{stats.planned} runs planned, {stats.resumed} resumed, {stats.executed} executed "
+          f"({'Dask at ' + args.scheduler if args.scheduler else f'{workers} worker(s)'}); {phases}")
     print(f"report written to {target} ({len(scenes)} scene(s)); "
           f"{'all expectations held' if not failures else f'{len(failures)} expectation(s) failed'}")
     for f in failures:
         print(f"FAILED: {f}")
     return 1 if failures else 0
+
+
+def _check_scheduler(address):
+    """A Dask scheduler address: ``tcp://host:port`` (or ``host:port``)."""
+    import re
+
+    if not re.fullmatch(r"(tcp|tls|inproc|ws|wss)://[^\s/]+|[^\s/:]+:\d+", address):
+        raise _BadInput(f"--scheduler: must be an address like tcp://127.0.0.1:8786, got {address!r}")
+
+
+class _BadInput(ValueError):
+    pass
 
 
 def _with_max_points(scene, max_points):

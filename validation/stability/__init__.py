@@ -1,51 +1,72 @@
 """Numerical-stability study (issue 6): where fixed-step RK4 breaks, what it
 costs to stay accurate, and what the references do there.
 
-``run(scene, out_dir, quick, progress=None) -> StudyResult`` runs the studies a
-scene's ``[stability]`` table names (see :mod:`.params`) and returns
-``stability.csv`` rows (scene, solver, quantity, measured, theory, passed,
-status, note), figures ``(Path, sentence)`` and one-line findings. Computation
-lives in :mod:`.boundary`, :mod:`.long_horizon`, :mod:`.stiffness`,
-:mod:`.mass_ratio`, :mod:`.large_n`, :mod:`.geometry`; drawing in :mod:`.plots`.
+The study is data for the pipeline (plan -> RunSpec -> execute -> records ->
+report):
 
-A study that fails (a bug, a missing solver, a run beyond the work cap
-``_common.MAX_STEP_WORK``) becomes a row with status ``failed`` and the error
-in its note; it never raises into the runner. :func:`estimate_steps` says
-beforehand how many integration steps a scene's study will take, without
-integrating (:mod:`.estimate`); :data:`PARAMS` holds every key's bounds.
+``units(scene, quick) -> list[str]``
+    the independent work units of the studies the scene's ``[stability]``
+    table names (:mod:`.params`), in a deterministic order;
+``run_unit(scene, unit, quick) -> StudyResult``
+    one unit's ``rows``, ``findings`` and ``plots`` (plot descriptions: plain
+    data), safe in any process or on any machine; no file written, no
+    plotting library imported; exceptions propagate (:func:`failed_unit`
+    makes the ``failed`` row of a unit that raised);
+``assemble(scene, quick, {unit: StudyResult}) -> StudyResult``
+    the merge (one cost plot and one finding per sweep ...); integrates nothing;
+``draw(plot, out_dir) -> (Path, sentence)``
+    one plot description drawn in the style of :mod:`validation.figures`
+    (the only place the study imports matplotlib);
+``unit_steps(scene, unit, quick) -> float``
+    the integration steps of one unit, estimated without integrating;
+    :func:`estimate_steps` is their sum over :func:`units`.
+
+Rows have the columns :data:`COLUMNS` (tidy: parameters such as ``theta``,
+``mode``, ``mu`` in their own columns, ``quantity`` a bare name); only
+:data:`TIMING_COLUMNS` are read from a clock. :func:`run` is the former
+single entry point, kept as a thin wrapper (units, assemble, draw).
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-import numpy as np
-
-from ._common import StudyResult, row
-from .estimate import estimate_steps
+from ._common import COLUMNS, PARAM_COLUMNS, TIMING_COLUMNS, StudyResult, row
+from .estimate import estimate_steps, unit_steps
 from .params import DEFAULTS, PARAMS, STUDIES, params_table_markdown, validate_params
+from .studies import assemble, failed_unit, parse_unit, run_unit, units
 
-__all__ = ["run", "validate_params", "estimate_steps", "StudyResult", "STUDIES", "DEFAULTS", "PARAMS",
-           "params_table_markdown"]
+__all__ = ["units", "run_unit", "assemble", "draw", "unit_steps", "failed_unit", "parse_unit", "run",
+           "COLUMNS", "PARAM_COLUMNS", "TIMING_COLUMNS", "validate_params", "estimate_steps", "StudyResult",
+           "STUDIES", "DEFAULTS", "PARAMS", "params_table_markdown"]
+
+
+def draw(plot: dict, out_dir) -> tuple[Path, str]:
+    """Draw one plot description (from :func:`run_unit` / :func:`assemble`)
+    into ``out_dir``; returns ``(path, sentence)``."""
+    from .plots import draw as _draw
+
+    return _draw(plot, out_dir)
 
 
 def run(scene, out_dir, quick: bool, progress=None) -> StudyResult:
-    """Run the stability studies of ``scene`` (a :class:`validation.scenes.Scene`
-    whose ``stability`` dict names them) and return a :class:`StudyResult`."""
-    from .studies import STUDY_FUNCTIONS, Context
-
-    params = validate_params(scene.stability or {})
+    """Every unit of ``scene``'s study in this process, merged and drawn into
+    ``out_dir`` (figures in ``.figures``). A unit or figure that raises becomes
+    a ``failed`` row; nothing raises into the caller but a bad ``[stability]``
+    table (``ValueError``)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick),
-                  out_dir, progress)
-    result = StudyResult()
-    for name in params["studies"]:
-        ctx.say(name)
+    results = {}
+    for unit in units(scene, quick):
+        if progress is not None:
+            progress(f"stability {scene.name}: {unit}")
         try:
-            with np.errstate(all="ignore"):  # blow-ups are reported by status, not warnings
-                result.extend(STUDY_FUNCTIONS[name](ctx))
-        except Exception as exc:  # noqa: BLE001 - a study failure is a row, not a crash
-            result.rows.append(row(scene.name, "-", name, math.nan, passed=False, status="failed",
-                                   note=f"{type(exc).__name__}: {exc}"))
+            results[unit] = run_unit(scene, unit, quick)
+        except Exception as exc:  # noqa: BLE001 - a unit failure is a row, not a crash
+            results[unit] = failed_unit(scene.name, unit, exc)
+    result = assemble(scene, quick, results)
+    for plot in result.plots:
+        try:
+            result.figures.append(draw(plot, out_dir))
+        except Exception as exc:  # noqa: BLE001
+            result.rows.append(row(scene.name, plot.get("study", "-"), "-", "figure", float("nan"), passed=False,
+                                   status="failed", note=f"figure {plot.get('kind')}: {type(exc).__name__}: {exc}"))
     return result

@@ -1,22 +1,42 @@
-"""Shared helpers of the stability study: rows, the RK4 entry point, fits."""
+"""Shared pieces of the stability study: the result type, tidy rows, the one
+fixed-step entry point, the one error metric, fits."""
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 import rk4core
 
-__all__ = ["StudyResult", "row", "integrate_fixed", "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK",
-           "StudyCapError"]
+from ..metrics import error_max
+
+__all__ = ["StudyResult", "row", "COLUMNS", "PARAM_COLUMNS", "TIMING_COLUMNS", "integrate_fixed", "error_rel",
+           "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK", "StudyCapError"]
 
 #: Cap on one fixed-step run of a study: steps x degrees of freedom (about
 #: 2.5e9 steps of a 2-DOF chain, a minute or two on the compiled path). A run
 #: beyond it is refused before it starts (:class:`StudyCapError`), so no
 #: parameter combination starts a run of days.
 MAX_STEP_WORK = 5e9
+
+#: Parameter columns of ``stability.csv``: NaN where a row has no such parameter.
+#: theta = omega h (rad; of the fastest mode, or of ``mode``), mode (1 = slowest),
+#: mu = m2/m1, ratio = stiff spring / the others, n = masses of a chain,
+#: a_over_l = initial amplitude / natural length, offset (m) = aim past an anchor,
+#: periods = run length in periods of the slowest mode, target_error = the
+#: relative error a cost row is measured at.
+PARAM_COLUMNS = ("theta", "mode", "mu", "ratio", "n", "a_over_l", "offset", "periods", "target_error")
+
+#: Columns read from a clock (not reproducible): ``wall_s`` is the wall time (s)
+#: of the run a row measures; ``measured_timed`` holds a row's measured value
+#: when that value is itself derived from wall times (``measured`` is then NaN).
+TIMING_COLUMNS = ("wall_s", "measured_timed")
+
+#: Every column of ``stability.csv``, in order. All but :data:`TIMING_COLUMNS`
+#: are deterministic: a rerun gives them bit for bit.
+COLUMNS = ("scene", "study", "solver", "quantity", *PARAM_COLUMNS, "measured", "theory", "passed", "status", "note",
+           *TIMING_COLUMNS)
 
 
 class StudyCapError(ValueError):
@@ -25,63 +45,63 @@ class StudyCapError(ValueError):
 
 @dataclass
 class StudyResult:
-    """What :func:`validation.stability.run` returns.
+    """What :func:`validation.stability.run_unit` / :func:`~validation.stability.assemble`
+    return (plain data: picklable, and storable in a run record).
 
     Attributes
     ----------
     rows : list of dict
-        ``stability.csv`` rows: scene, solver, quantity, measured, theory,
-        passed, and optionally status, note.
-    figures : list of (Path, str)
-        PNGs and the one-sentence reading of each.
+        ``stability.csv`` rows with the keys :data:`COLUMNS` (see :func:`row`).
     findings : list of str
         One-line conclusions for index.md.
+    plots : list of dict
+        Plot descriptions ``{"kind", "scene", "name", "data"}``: ``data`` a dict
+        of numpy arrays, floats, strings (and dicts of those); drawn by
+        :func:`validation.stability.draw`.
+    figures : list of (Path, str)
+        Only filled by :func:`validation.stability.run` (the old entry point),
+        which draws the plots.
     """
 
     rows: list = field(default_factory=list)
-    figures: list = field(default_factory=list)
     findings: list = field(default_factory=list)
+    plots: list = field(default_factory=list)
+    figures: list = field(default_factory=list)
 
     def extend(self, other: "StudyResult") -> None:
         self.rows += other.rows
-        self.figures += other.figures
         self.findings += other.findings
+        self.plots += other.plots
+        self.figures += other.figures
 
 
-def row(scene, solver, quantity, measured, theory=math.nan, passed=None, status="ok", note=""):
-    """One stability.csv row; ``passed`` is None (reported as empty) when the
-    quantity is informative only."""
-    return {"scene": scene, "solver": solver, "quantity": quantity,
-            "measured": float(measured), "theory": float(theory),
-            "passed": None if passed is None else bool(passed), "status": status, "note": note}
+def row(scene, study, solver, quantity, measured, theory=math.nan, passed=None, status="ok", note="", *,
+        wall_s=math.nan, measured_timed=math.nan, **params):
+    """One ``stability.csv`` row (keys :data:`COLUMNS`). ``passed`` is None
+    (reported as empty) when the quantity is informative only; ``params`` are
+    :data:`PARAM_COLUMNS` (others raise ``TypeError``); the quantity is a bare
+    name, its parameters go into those columns."""
+    bad = set(params) - set(PARAM_COLUMNS)
+    if bad:
+        raise TypeError(f"unknown parameter column(s) {sorted(bad)}; known: {PARAM_COLUMNS}")
+    if "(" in quantity or "=" in quantity:
+        raise ValueError(f"`quantity` must be a bare name, got {quantity!r}")
+    out = {"scene": scene, "study": study, "solver": solver, "quantity": quantity}
+    for p in PARAM_COLUMNS:
+        v = params.get(p)
+        out[p] = math.nan if v is None else (int(v) if p in ("mode", "n") else float(v))
+    out.update({"measured": float(measured), "theory": float(theory),
+                "passed": None if passed is None else bool(passed), "status": status, "note": note,
+                "wall_s": float(wall_s), "measured_timed": float(measured_timed)})
+    return out
 
 
-def _no_growth_stop(fn) -> dict:
-    """``{"max_growth": None}`` when ``fn`` has rk4core's growth stop (a run is
-    ended as unstable once the state grows ``max_growth`` times): the study
-    measures growth factors up to 1e100 and blow-up times to overflow against
-    ``log(DBL_MAX) / log g``, so it keeps only the non-finite test."""
-    import inspect
-
-    try:
-        return {"max_growth": None} if "max_growth" in inspect.signature(fn).parameters else {}
-    except (TypeError, ValueError):
-        return {}
-
-
-def _fast_solver():
-    try:
-        from rk4core import fast  # written in parallel; optional
-    except ImportError:
-        return None
-    return getattr(fast, "solve_model", None)
-
-
-def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
-                    record_every=1, fast=True):
-    """Fixed-step run of ``model``: the compiled path (``rk4core.fast.solve_model``)
-    when it is installed and ``fast``, :func:`rk4core.solve` otherwise.
-    ``record_every`` (compiled path only) keeps every k-th step.
+def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4", record_every=1):
+    """Fixed-step run of ``model``: the compiled loop (``rk4core.fast.solve_model``)
+    exactly when ``rk4core.fast.supports(model)``, else :func:`rk4core.solve` on
+    ``model.rhs``. An exception on either path propagates (the caller's unit
+    becomes a ``failed`` row); there is no silent fallback. ``record_every``
+    keeps every k-th step (and the last).
 
     Returns the solver result (``.t``, ``.y``, ``.status``, ``.t_fail``, ...)
     and the name of the path used (``"fast"`` or ``"solve"``). Floating-point
@@ -91,26 +111,33 @@ def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, met
     (``max_growth``) is switched off: a blow-up here ends on a non-finite
     state, as the study's theory (``log(DBL_MAX) / log g`` steps) assumes.
     """
+    from rk4core import fast
+
     kw = {"h": h} if n_steps is None else {"n_steps": int(n_steps)}
     steps = float(n_steps) if n_steps is not None else (
         math.ceil((t_span[1] - t_span[0]) / h) if h and math.isfinite(h) and h > 0 else math.inf)
     if steps * model.n_dof > MAX_STEP_WORK:
         raise StudyCapError(f"a {method} run of {steps:.3g} steps on {model.n_dof} degrees of freedom exceeds the "
                             f"study cap of {MAX_STEP_WORK:.3g} step x DOF (validation.stability._common.MAX_STEP_WORK)")
-    solver = _fast_solver() if fast else None
     with np.errstate(all="ignore"):
-        if solver is not None:
-            try:
-                return solver(model, t_span, y0, t_eval=t_eval, method=method,
-                              record_every=record_every, **kw, **_no_growth_stop(solver)), "fast"
-            except Exception:  # noqa: BLE001 - compiled path unavailable: use the generic loop
-                pass
-        res = rk4core.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, **kw,
-                            **_no_growth_stop(rk4core.solve))
+        if fast.supports(model):
+            return fast.solve_model(model, t_span, y0, t_eval=t_eval, method=method, record_every=record_every,
+                                    max_growth=None, **kw), "fast"
+        res = rk4core.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, max_growth=None, **kw)
         if record_every > 1 and t_eval is None:
             keep = np.unique(np.r_[np.arange(0, res.t.shape[0], record_every), res.t.shape[0] - 1])
             res.t, res.y = res.t[keep], res.y[:, keep]
         return res, "solve"
+
+
+def error_rel(model, y, y_ref, scale) -> float:
+    """The study's one error metric: ``max_i |q_i - q_i^ref| / scale`` over the
+    position components (and output times) of ``y`` (validation.metrics.error_max
+    of the positions, divided by ``scale``, e.g. ``max |q(0)|``); NaN when ``y``
+    is not finite."""
+    n = model.n_dof
+    y, y_ref = np.asarray(y, float), np.asarray(y_ref, float)
+    return error_max(y[:n], y_ref[:n]) / scale
 
 
 def loglog_slope(x, y):

@@ -1,8 +1,10 @@
 """How many integration steps the stability study of a scene will take, estimated
 before running it (for the runner's budget).
 
-:func:`estimate_steps` adds up, study by study, the steps of every run the
-study makes (fixed-step RK4/Euler steps, adaptive solvers' accepted steps,
+:func:`unit_steps` estimates one work unit (:func:`validation.stability.units`);
+:func:`estimate_steps` is the sum over the scene's units, so a budget can be
+summed over a plan. Each adds up the steps of every run the unit makes
+(fixed-step RK4/Euler steps, adaptive solvers' accepted steps,
 one per one-step-map probe of the boundary bisection). It never runs an
 integration, and no model is named here:
 
@@ -26,8 +28,11 @@ run, heyoka takes ``max(1.2 P_fast, 3.5 P_exc) + 15`` steps, DOP853 ``max(1.0
 P_fast, 7 P_exc) + 5`` and CVODE-BDF ``100 (1e-10 / rtol)^(1/5) P_exc + 100``,
 with ``P_fast`` the periods of the fastest mode and ``P_exc`` those of the
 fastest mode excited above 1e-3 of the amplitude; a tolerance ladder is
-assumed to be walked down to ``target / 10`` (heyoka, DOP853) or ``target /
-1000`` (CVODE-BDF, whose global error is larger than its rtol). Measured on
+assumed to need ``target / 10`` (heyoka, DOP853) or ``target / 1000``
+(CVODE-BDF, whose global error is larger than its rtol), and the guided
+search (:func:`validation.stability.stiffness.ladder_search`) to run the
+two loosest rungs, that rung and its looser neighbour; a skipped solver
+(:func:`validation.stability.stiffness.skip_reason`) counts 0. Measured on
 the shipped stability scenes (``--quick``): the totals are within 0.7x-1.0x
 of the steps counted in a real run, which ``tests/test_hostile_references.py``
 checks to a factor of 2 (the fixed-step part, which dominates, to 5 %); one
@@ -44,8 +49,9 @@ from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
 from .long_horizon import rk4_phase_lag_per_step
 from .params import pick, validate_params
+from .studies import parse_unit, units
 
-__all__ = ["estimate_steps", "frequency_range"]
+__all__ = ["estimate_steps", "unit_steps", "frequency_range", "heyoka_steps"]
 
 _FMAX_LOG = math.log(np.finfo(float).max)
 _ADAPTIVE_CAP = 5_000_000  # references.solvers' default max_steps
@@ -61,7 +67,9 @@ def frequency_range(model) -> tuple[float, float]:
 
 
 # -- adaptive solvers -------------------------------------------------------------------------
-def _heyoka(p_fast, p_exc):
+def heyoka_steps(p_fast, p_exc):
+    """heyoka's Taylor steps over ``p_fast`` periods of the fastest mode
+    (``p_exc`` of the fastest excited one); calibrated on the shipped scenes."""
     return max(1.2 * p_fast, 3.5 * p_exc) + 15
 
 
@@ -74,12 +82,10 @@ def _bdf(p_exc, rtol):
 
 
 def _rungs(ladder, target, depth):
-    out = []
-    for rtol in ladder:
-        out.append(rtol)
-        if rtol <= target * depth:
-            break
-    return out
+    """The rungs the guided search runs: the two loosest, the one meeting
+    ``target * depth`` and its looser neighbour."""
+    m = next((i for i, rtol in enumerate(ladder) if rtol <= target * depth), len(ladder) - 1)
+    return [ladder[i] for i in sorted({0, min(1, m), max(m - 1, 0), m})]
 
 
 # -- the cost sweeps (study-own small chains) ---------------------------------------------------
@@ -109,7 +115,7 @@ def _rk4_error(omega, phi, amp, t_end, h, scale):
     return n, float(err)
 
 
-def _sweep(model, y0, target, ladder, skip_dop853, max_rk4_steps=5e7):
+def _sweep(model, y0, target, ladder, skipped, max_rk4_steps=5e7):
     """Steps per solver of :func:`validation.stability.stiffness.cost_at_target`."""
     omega, phi, amp = _modal_amplitudes(model, y0)
     pos = omega > 0
@@ -127,94 +133,118 @@ def _sweep(model, y0, target, ladder, skip_dop853, max_rk4_steps=5e7):
         if err <= target:
             break
         h /= 2
-    out["dop853"] = 0.0 if skip_dop853 else sum(
+    out["dop853"] = 0.0 if "dop853" in skipped else sum(
         min(_dop853(p_fast, p_exc), _ADAPTIVE_CAP) for _ in _rungs(ladder, target, 0.1))
-    out["cvode-bdf"] = sum(min(_bdf(p_exc, r), _ADAPTIVE_CAP) for r in _rungs(ladder, target, 1e-3))
-    out["heyoka"] = sum(min(_heyoka(p_fast, p_exc), _ADAPTIVE_CAP) for _ in _rungs(ladder, target, 0.1))
+    out["cvode-bdf"] = 0.0 if "cvode-bdf" in skipped else sum(
+        min(_bdf(p_exc, r), _ADAPTIVE_CAP) for r in _rungs(ladder, target, 1e-3))
+    out["heyoka"] = sum(min(heyoka_steps(p_fast, p_exc), _ADAPTIVE_CAP) for _ in _rungs(ladder, target, 0.1))
     return out
 
 
-# -- the studies ------------------------------------------------------------------------------
-def _boundary(model, p, quick):
+def _cost_point(p, quick, study, x):
+    from .stiffness import RTOL_LADDER, RTOL_LADDER_QUICK, excited_ratio, mass_ratio_chain, skip_reason, stiff_chain
+
+    what, build = {"stiffness": ("ratio", stiff_chain), "mass_ratio": ("mu", mass_ratio_chain)}[study]
+    model, y0 = build(x)
+    ratio, exc = excited_ratio(model, y0)
+    skipped = {sv for sv in ("dop853", "cvode-bdf", "heyoka") if skip_reason(sv, what, ratio, exc, quick)}
+    return _sweep(model, y0, p["target_error"], RTOL_LADDER_QUICK if quick else RTOL_LADDER, skipped)
+
+
+# -- the units --------------------------------------------------------------------------------
+def _boundary(model, p, quick, part):
     if not model.linear:
         return {}
     probes = 3 * min(2 + math.ceil(math.log2(1.0 / p["bisection_rtol"])) + 1, MAX_BISECTIONS + 12)
-    euler = sum(growth_steps("euler", th) for th in (1e-3, 0.1, 0.5, 1.0))
-    fig = {meth: sum(growth_steps(meth, th) for th in p["growth_theta"])
-           for meth in ("rk4", "euler", "symplectic-euler")}
+    runs = {("euler", float(th)) for th in (1e-3, 0.1, 0.5, 1.0)}  # one run per (method, theta)
+    runs |= {(meth, float(th)) for meth in ("rk4", "euler", "symplectic-euler") for th in p["growth_theta"]}
+    steps = {meth: float(sum(growth_steps(m, th) for m, th in runs if m == meth))
+             for meth in ("rk4", "euler", "symplectic-euler")}
     g_rk4 = float(theory_growth("rk4", 1.2 * 2 * math.sqrt(2)))
-    blow_rk4 = min(3000, math.ceil(_FMAX_LOG / math.log(g_rk4)))
-    blow_euler = min(6000, math.ceil(_FMAX_LOG / math.log(math.sqrt(2.0))))
-    return {"probe": float(probes), "rk4": float(fig["rk4"] + blow_rk4),
-            "euler": float(euler + fig["euler"] + blow_euler), "symplectic-euler": float(fig["symplectic-euler"])}
+    steps["rk4"] += min(3000, math.ceil(_FMAX_LOG / math.log(g_rk4)))
+    steps["euler"] += min(6000, math.ceil(_FMAX_LOG / math.log(math.sqrt(2.0))))
+    return {"probe": float(probes), **steps}
 
 
-def _long_horizon(model, p, quick, w_lo, w_hi):
-    if not model.linear:
+def _long_horizon(model, p, quick, part):
+    if not model.linear or part not in ("drift", "rk4", "heyoka", "cvode-bdf"):
         return {}
+    w_lo, w_hi = frequency_range(model)
     periods = pick(p, "long_periods", quick)
-    drift = 2000.0 * len(p["drift_theta"])
-    n_long = math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi))
+    if part == "drift":
+        return {"rk4": 2000.0 * len(p["drift_theta"])}
+    if part == "rk4":
+        return {"rk4": float(math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi)))}
+    if part == "heyoka":
+        from .studies import long_reference_max_steps
+
+        return {"heyoka": float(min(heyoka_steps(periods * w_hi / w_lo, periods * w_hi / w_lo),
+                                    long_reference_max_steps(model, periods)))}
     ref = min(periods, pick(p, "reference_periods", quick))
-    return {"rk4": drift + n_long,
-            "heyoka": min(_heyoka(periods * w_hi / w_lo, periods * w_hi / w_lo), _ADAPTIVE_CAP),
-            "cvode-bdf": min(_bdf(ref * w_hi / w_lo, 1e-10), _ADAPTIVE_CAP)}
+    return {"cvode-bdf": min(_bdf(ref * w_hi / w_lo, 1e-10), _ADAPTIVE_CAP)}
 
 
-def _roundoff(model, p, quick, w_lo, w_hi):
+def _roundoff(model, p, quick, part):
     if not model.linear:
         return {}
+    w_lo, w_hi = frequency_range(model)
     t_end = 2 * math.pi / w_lo
     return {"rk4": float(sum(math.ceil(t_end / (th / w_hi)) for th in pick(p, "roundoff_theta", quick)))}
 
 
-def _sweeps(xs, build, p, quick, what):
-    from .stiffness import RTOL_LADDER, RTOL_LADDER_QUICK
+def _large_n(model, p, quick, part):
+    from .studies import LARGE_N_TIMING
 
-    ladder = RTOL_LADDER_QUICK if quick else RTOL_LADDER
-    total: dict = {}
-    for x in xs:
-        model, y0 = build(x)
-        w_lo, w_hi = frequency_range(model)
-        big = w_hi / w_lo > (1e3 if quick else 1e4)
-        for k, v in _sweep(model, y0, p["target_error"], ladder, big and what == "ratio").items():
-            total[k] = total.get(k, 0.0) + v
-    return total
-
-
-def _stiffness(model, p, quick):
-    from .stiffness import stiff_chain
-
-    return _sweeps(pick(p, "stiffness_ratios", quick), stiff_chain, p, quick, "ratio")
-
-
-def _mass_ratio(model, p, quick):
-    from .stiffness import mass_ratio_chain
-
-    return _sweeps(pick(p, "mu", quick), mass_ratio_chain, p, quick, "mu")
-
-
-def _large_n(model, p, quick):
+    n_steps, repeats = LARGE_N_TIMING[bool(quick)]
     Ns = [int(v) for v in pick(p, "n_values", quick)]
-    # rk4_cost: one warm-up step and 3 repeats of 500; rk4_peak_bytes: 3 steps; CVODE-BDF
+    # rk4_cost: one warm-up step and the timed repeats; rk4_peak_bytes: 3 steps; CVODE-BDF
     # (band) over one period of the lowest mode at rtol 1e-6, only that mode excited
-    return {"rk4": float(sum(1 + 3 * 500 + 3 for _ in Ns)), "cvode-bdf": float(len(Ns) * _bdf(1.0, 1e-6))}
+    return {"rk4": float(sum(1 + repeats * n_steps + 3 for _ in Ns)), "cvode-bdf": float(len(Ns) * _bdf(1.0, 1e-6))}
 
 
-def _amplitude(model, p, quick):
+def _amplitude(model, p, quick, part):
     if four_spring_params(model) is None:  # the study is skipped
         return {}
     return {"rk4": float(len(p["amplitudes"]) * 2 * round(5.0 * 400))}
 
 
-def _singular(model, p, quick):
+def _singular(model, p, quick, part):
     if four_spring_params(model) is None:  # the study is skipped
         return {}
     return {"rk4": 400.0 + 1.0}
 
 
+_UNITS = {"boundary": _boundary, "long_horizon": _long_horizon, "roundoff": _roundoff, "large_n": _large_n,
+          "amplitude": _amplitude, "singular": _singular}
+
+
+def _unit_detail(model, p, quick, unit) -> dict:
+    study, part, params = parse_unit(unit)
+    if study in ("stiffness", "mass_ratio"):
+        if part == "closed_form":
+            return {}
+        if not params:
+            raise ValueError(f"`unit` {unit!r}: expected {study}:<name>=<number>")
+        return _cost_point(p, quick, study, next(iter(params.values())))
+    return _UNITS[study](model, p, quick, part)
+
+
+def unit_steps(scene, unit: str, quick: bool = False, *, detail: bool = False):
+    """Estimated integration steps of one unit of ``scene``'s stability study
+    (fixed-step steps, adaptive solvers' steps, one-step-map probes added up;
+    ``detail=True``: ``{solver: steps}``). No integration; see the module
+    docstring for the model and its accuracy."""
+    p = validate_params(dict(scene.stability or {}))
+    study = parse_unit(unit)[0]
+    if study not in p["studies"]:
+        raise ValueError(f"`unit` {unit!r}: scene {scene.name!r} has no {study} study")
+    d = _unit_detail(scene.build_model(), p, bool(quick), unit)
+    return d if detail else float(sum(d.values()))
+
+
 def estimate_steps(scene, quick: bool = False, *, detail: bool = False):
-    """Estimated total integration steps of the stability study of ``scene``.
+    """Estimated total integration steps of the stability study of ``scene``:
+    the sum of :func:`unit_steps` over :func:`validation.stability.units`.
 
     Parameters
     ----------
@@ -224,7 +254,8 @@ def estimate_steps(scene, quick: bool = False, *, detail: bool = False):
         Estimate the ``--quick`` settings (the ``*_quick`` parameters, the
         short tolerance ladder).
     detail : bool
-        Return ``{study: {solver: steps}}`` instead of the total.
+        Return ``{study: {solver: steps}}`` (summed over the study's units)
+        instead of the total.
 
     Returns
     -------
@@ -239,18 +270,11 @@ def estimate_steps(scene, quick: bool = False, *, detail: bool = False):
         return {} if detail else 0.0
     p = validate_params(dict(scene.stability))
     model = scene.build_model()
-    needs_w = any(s in p["studies"] for s in ("long_horizon", "roundoff")) and model.linear
-    w_lo, w_hi = frequency_range(model) if needs_w else (math.nan, math.nan)
-    parts = {}
-    for study in p["studies"]:
-        if study == "long_horizon":
-            parts[study] = _long_horizon(model, p, quick, w_lo, w_hi)
-        elif study == "roundoff":
-            parts[study] = _roundoff(model, p, quick, w_lo, w_hi)
-        else:
-            parts[study] = {"boundary": _boundary, "stiffness": _stiffness, "mass_ratio": _mass_ratio,
-                            "large_n": _large_n, "amplitude": _amplitude, "singular": _singular}[study](
-                model, p, quick)
+    parts: dict = {study: {} for study in p["studies"]}
+    for unit in units(scene, quick):
+        study = parse_unit(unit)[0]
+        for k, v in _unit_detail(model, p, bool(quick), unit).items():
+            parts[study][k] = parts[study].get(k, 0.0) + v
     if detail:
         return parts
     return float(sum(v for d in parts.values() for v in d.values()))

@@ -29,7 +29,7 @@ from references.exact import modal_solution
 
 from ..metrics import rk4_energy_loss
 
-from ._common import integrate_fixed, mode_amplitudes
+from ._common import error_rel, integrate_fixed, mode_amplitudes
 
 __all__ = ["rk4_energy_loss_per_step", "rk4_phase_lag_per_step", "rk4_phase_arg", "measure_drift_and_phase",
            "roundoff_sweep", "reference_drift"]
@@ -174,32 +174,30 @@ def measure_drift_and_phase(model, y0, h, n_steps, *, record_every=1):
 def roundoff_sweep(model, y0, t_end, hs):
     """RK4 error at ``t_end`` against the modal solution for each step in ``hs``.
 
-    Error: ``max_i |q_i - q_i^exact| / max_i |q_i^exact(0)|`` at ``t_end``.
-    Returns (h_used, errors, paths).
+    Error: :func:`._common.error_rel` (``max_i |q_i - q_i^exact| / max_i
+    |q_i(0)|``) at ``t_end``. Returns (h_used, errors, paths).
     """
     exact = modal_solution(model, y0)
-    n = model.n_dof
-    ref = exact(np.array([t_end]))[:n, 0]
-    scale = float(np.max(np.abs(y0[:n]))) or 1.0
+    ref = exact(np.array([t_end]))
+    scale = float(np.max(np.abs(y0[: model.n_dof]))) or 1.0
     h_used, errs, paths = [], [], []
     for h in hs:
         res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end])
         h_used.append(res.h)
-        errs.append(float(np.max(np.abs(res.y[:n, -1] - ref))) / scale if res.success else math.nan)
+        errs.append(error_rel(model, res.y[:, -1:], ref, scale) if res.success else math.nan)
         paths.append(path)
     return np.array(h_used), np.array(errs), paths
 
 
-def reference_drift(solver, model, y0, t_end, setting, n_out=200):
+def reference_drift(solver, model, y0, t_end, setting, n_out=200, max_steps=None):
     """Run a reference solver through ``references.solvers.integrate`` and
-    return ``(run, t, rel_energy_error)``; ``run`` is None when the solver
-    interface is not installed."""
-    try:
-        from references.solvers import integrate
-    except ImportError:
-        return None, None, None
+    return ``(run, t, rel_energy_error)``; ``max_steps`` (default: the
+    solver interface's) caps its steps."""
+    from references.solvers import integrate
+
     t_eval = np.linspace(0.0, t_end, n_out)
+    kw = {} if max_steps is None else {"max_steps": int(max_steps)}
     with np.errstate(all="ignore"):
-        run = integrate(solver, model, y0, t_eval, setting)
-    E = model.energy(run.y)
+        run = integrate(solver, model, y0, t_eval, setting, **kw)
+        E = model.energy(run.y)
     return run, run.t, np.abs(E - E[0]) / abs(E[0])

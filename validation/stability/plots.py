@@ -1,136 +1,235 @@
-"""Figures of the stability study (Agg backend). Each function only draws the
-data it is given, saves ``OUT/<scene>_stability_<what>.png`` and returns
-``(Path, sentence)``."""
+"""Drawing of the stability study's plot descriptions: the only module of the
+study that imports matplotlib (through :mod:`validation.figures`, whose style
+it shares: size, dpi, solver colours and markers, a title on every figure,
+file names ``<scene>_stability_<name>.png``).
+
+A plot description is plain data made by :func:`validation.stability.run_unit`
+or :func:`validation.stability.assemble`: ``{"kind", "scene", "study",
+"name", "data"}``. :func:`draw` computes nothing but display aids (axis
+windows, guide lines).
+"""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.ticker  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from .. import figures as F
 
-__all__ = ["growth_figure", "cost_figure", "drift_figure", "roundoff_figure", "large_n_figure",
-           "amplitude_figure"]
-
-_COLORS = {"rk4": "C0", "euler": "C3", "symplectic-euler": "C2", "dop853": "C1", "cvode-bdf": "C4",
-           "heyoka": "C5", "cvode-adams": "C6"}
+__all__ = ["draw", "KINDS"]
 
 
-def _save(fig, out_dir, scene, what, sentence):
-    path = Path(out_dir) / f"{scene.replace('-', '_').lower()}_stability_{what}.png"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path, sentence
+def _stem(plot) -> str:
+    return f"{F.slug(plot['scene'])}_stability_{F.slug(plot.get('name') or plot['kind'])}"
 
 
-def growth_figure(out_dir, scene, theta, theory, measured):
-    """``theory``: method -> growth over ``theta``; ``measured``: method ->
-    (theta points, growth points)."""
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for meth, g in theory.items():
-        ax.plot(theta, g, color=_COLORS.get(meth), label=f"{meth} theory")
-        th, gm = measured.get(meth, ([], []))
-        ax.plot(th, gm, "o", mfc="none", color=_COLORS.get(meth), label=f"{meth} measured")
-    ax.axhline(1.0, color="k", lw=0.6)
-    ax.axvline(2.0, color="C2", ls=":", lw=0.8)
-    ax.axvline(2 * np.sqrt(2), color="C0", ls=":", lw=0.8)
+def _log_axes(ax, x=True, y=True):
+    """Log scales, the figures' grid, and no minor tick labels; an axis
+    spanning under two decades gets plain major ticks at 1, 2, 5 x 10^k."""
+    from matplotlib import ticker
+
+    for on, axis, lim in ((x, ax.xaxis, ax.get_xlim), (y, ax.yaxis, ax.get_ylim)):
+        if not on:
+            continue
+        (ax.set_xscale if axis is ax.xaxis else ax.set_yscale)("log")
+        lo, hi = sorted(lim())
+        axis.set_minor_formatter(ticker.NullFormatter())
+        if lo > 0 and math.log10(hi / lo) < 2:
+            axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(ticker.FormatStrFormatter("%g"))
+    ax.grid(which="major", alpha=0.3)
+    ax.grid(which="minor", alpha=0.1)
+
+
+def _growth(plot, out_dir):
+    d = plot["data"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: growth per step of the fastest mode against omega h")
+    ax = fig.subplots()
+    for meth, g in d["theory"].items():
+        color, marker = F.solver_style(meth)
+        ax.plot(d["theta_line"], g, color=color, lw=1.2, label=f"{meth} theory")
+        ax.plot(d["theta"], d["measured"][meth], marker, mfc="none", color=color, ls="none", ms=6,
+                label=f"{meth} measured")
+    ax.axhline(1.0, color="0.35", lw=0.8, ls="-", label="growth 1")
+    for meth, th in d["boundary"].items():
+        color, _ = F.solver_style(meth)
+        ax.axvline(th, color=color, ls=":", lw=1.0, label=f"{meth} boundary {th:.3g}")
     ax.set_yscale("log")
-    ax.set_xlabel(r"$\omega h$")
+    ax.grid(which="major", alpha=0.3)
+    ax.set_xlabel("omega_max h")
     ax.set_ylabel("growth factor per step")
-    ax.legend(fontsize=7, ncol=2)
-    return _save(fig, out_dir, scene, "growth", (
-        "Amplitude growth per step of the fastest mode against omega*h: RK4 stays <= 1 up to 2.83, "
-        "symplectic Euler is exactly 1 up to 2, explicit Euler exceeds 1 for every step; "
-        "circles are measured from integrated runs."))
+    fig.legend(loc="outside lower center", ncol=3, fontsize=7, frameon=False)
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, ("Amplitude growth per step of the fastest mode against omega*h: RK4 stays <= 1 up to 2.83, "
+                  "symplectic Euler is exactly 1 up to 2, explicit Euler exceeds 1 for every step; circles are "
+                  "measured from integrated runs, lines the stability functions.")
 
 
-def cost_figure(out_dir, scene, curves, xlabel):
-    """``curves``: solver -> (x, nfev, wall_s) arrays (NaN where not reached)."""
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
-    for solver, (x, nfev, wall) in curves.items():
-        axs[0].loglog(x, nfev, "o-", color=_COLORS.get(solver), label=solver)
-        axs[1].loglog(x, wall, "o-", color=_COLORS.get(solver), label=solver)
-    axs[0].set_ylabel("RHS evaluations (heyoka: steps x order)")
-    axs[1].set_ylabel("wall time (s)")
-    for ax in axs:
-        ax.set_xlabel(xlabel)
-        ax.legend(fontsize=8)
-    return _save(fig, out_dir, scene, "cost", (
-        f"Cost of reaching the target error against {xlabel}: the explicit methods' cost grows with "
-        "omega_max (RK4 ~ omega_max), BDF's stays flat when the fast mode is not excited."))
+def _drift(plot, out_dir):
+    d = plot["data"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: RK4 energy loss and phase lag per step against theta = omega h")
+    ax_e, ax_p = fig.subplots(1, 2)
+    color, marker = F.solver_style("rk4")
+    line = d["theta_line"]
+    for ax, th_curve, lead, pts, ylabel, lab, lab_lead in (
+            (ax_e, d["loss_theory"], line**6 / 72, d["energy_loss"], "relative energy loss per step",
+             "theory 1 - |R(i theta)|^2", "leading order theta^6/72"),
+            (ax_p, d["lag_theory"], line**5 / 120, d["phase_lag"], "phase lag per step (rad)",
+             "theory theta - arg R(i theta)", "leading order theta^5/120")):
+        ax.plot(line, th_curve, "-", color=color, lw=1.2, label=lab)
+        ax.plot(line, lead, ":", color="0.35", lw=1.0, label=lab_lead)
+        ax.plot(d["theta"], pts, marker, mfc="none", color=color, ls="none", ms=6, label="measured (2000 steps)")
+        _log_axes(ax)
+        ax.set_xlabel("theta = omega_max h")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7, loc="upper left")
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, ("RK4 loses energy and phase at the predicted rates per step: measured circles on the exact "
+                  "curves (solid), the leading-order terms dotted.")
 
 
-def drift_figure(out_dir, scene, theta_line, loss_th, lag_th, points, series):
-    """Per-step energy loss / phase lag vs theta (theory lines, measured
-    points) and relative energy error vs time of the long runs (``series``:
-    label -> (t, err))."""
-    fig, axs = plt.subplots(1, 3, figsize=(14, 4))
-    axs[0].loglog(theta_line, loss_th, "C0-", label=r"$1-|R(i\theta)|^2$")
-    axs[0].loglog(theta_line, theta_line**6 / 72, "k:", label=r"$\theta^6/72$")
-    axs[0].loglog(points["theta"], points["energy_loss"], "C0o", mfc="none", label="measured")
-    axs[0].set_ylabel("energy loss per step")
-    axs[1].loglog(theta_line, lag_th, "C1-", label=r"$\theta-\arg R(i\theta)$")
-    axs[1].loglog(theta_line, theta_line**5 / 120, "k:", label=r"$\theta^5/120$")
-    axs[1].loglog(points["theta"], points["phase_lag"], "C1o", mfc="none", label="measured")
-    axs[1].set_ylabel("phase lag per step (rad)")
-    for ax in axs[:2]:
-        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_xlabel(r"$\theta = \omega h$")
-        ax.legend(fontsize=8)
-    for label, (t, e) in series.items():
-        sel = (t > 0) & (e > 0)
-        axs[2].loglog(t[sel], e[sel], label=label)
-    axs[2].set_xlabel("t (s)")
-    axs[2].set_ylabel(r"$|E(t)-E_0|/|E_0|$")
-    axs[2].legend(fontsize=8)
-    return _save(fig, out_dir, scene, "drift", (
-        "RK4 loses energy and phase at the predicted rates per step (left, middle: measured circles on "
-        "the exact curves, leading-order terms dotted); right: energy error over the long run for RK4 "
-        "and the references."))
+def _long_energy(plot, out_dir):
+    series = plot["data"]["series"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: relative energy error over the long horizon, RK4 and references")
+    ax = fig.subplots()
+    floor = math.inf
+    for label, sd in series.items():
+        t, err = np.asarray(sd["t"], float), np.abs(np.asarray(sd["err"], float))
+        color, _ = F.solver_style(label)
+        show = (t > 0) & np.isfinite(err)
+        env = np.fmax.accumulate(np.where(np.isfinite(err), err, np.nan)) if err.size else err
+        env = np.where(env > 0, env, np.nan)
+        ax.plot(t[show], np.where(err > 0, err, np.nan)[show], color=color, lw=0.4, alpha=0.25)
+        ax.plot(t[show], env[show], color=color, lw=1.6, label=str(label))
+        if np.isfinite(env[show]).any():
+            floor = min(floor, float(np.nanmin(env[show])))
+    _log_axes(ax)
+    if math.isfinite(floor):
+        ax.set_ylim(bottom=max(floor / 10.0, 1e-18))
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel("|E(t) - E0| / |E0|")
+    ax.legend(fontsize=7, loc="upper left", title="thick: running maximum, thin: instantaneous", title_fontsize=7)
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, ("Relative energy error over the long horizon, log-log: RK4 dissipates steadily (slope 1: "
+                  "theta^6/72 per step per mode until the fast mode is gone), heyoka stays near its tolerance, "
+                  "CVODE-BDF (a shorter run, for cost) drifts at its own rate.")
 
 
-def roundoff_figure(out_dir, scene, h, err, h_best):
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.loglog(h, err, "o-", label="RK4 error at t_end")
+def _roundoff(plot, out_dir):
+    d = plot["data"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: RK4 error after one slow period against the step (round-off floor)")
+    ax = fig.subplots()
+    color, marker = F.solver_style("rk4")
+    h, err = d["h"], d["error"]
+    ax.plot(h, err, "-", color=color, marker=marker, ms=5, lw=1.2, label="RK4 error at t_end")
     i = int(np.nanargmin(err))
-    ax.loglog([h_best], [err[i]], "r*", ms=14, label=f"best h = {h_best:.2g} s")
-    ax.set_xlabel("h (s)")
+    ax.plot([d["h_best"]], [err[i]], "*", color="k", ms=14, ls="none", label=f"best h = {d['h_best']:.3g} s")
+    ok = np.isfinite(err) & (err > 0)
+    if ok.sum() >= 1:
+        j = int(np.argmax(np.where(ok, h, -np.inf)))  # anchor the slope-4 guide at the largest step
+        xs = np.array([h[ok].min(), h[j]])
+        ax.plot(xs, err[j] * (xs / h[j]) ** 4, "--", color="0.35", lw=1.0, label="slope 4 (truncation, h^4)")
+    _log_axes(ax)
+    ax.set_ylim(bottom=max(float(np.nanmin(np.where(ok, err, np.nan))) / 10, 1e-18) if ok.any() else None)
+    ax.set_xlabel("step size h (s)")
     ax.set_ylabel("max |q - q_exact| / max |q0|")
-    ax.legend()
-    return _save(fig, out_dir, scene, "roundoff", (
-        "RK4 error against step: slope 4 down to the star (best h), below which accumulated round-off "
-        "makes the error grow again."))
+    ax.legend(fontsize=8, loc="lower right")
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, ("RK4 error against step: slope 4 down to the star (best h), below which accumulated round-off "
+                  "makes the error grow again.")
 
 
-def large_n_figure(out_dir, scene, N, rk4_time, rk4_bytes, cvode_time, fits):
-    fig, axs = plt.subplots(1, 2, figsize=(10, 4))
-    axs[0].loglog(N, rk4_time, "C0o-", label=f"RK4 (slope {fits['rk4_time']:.2f})")
-    if cvode_time is not None:
-        axs[0].loglog(N, cvode_time, "C4s-", label=f"CVODE-BDF band (slope {fits['cvode_time']:.2f})")
-    axs[0].set_ylabel("wall time per step (s)")
-    axs[1].loglog(N, rk4_bytes, "C0o-", label=f"RK4 peak bytes (slope {fits['rk4_bytes']:.2f})")
-    axs[1].set_ylabel("peak bytes (tracemalloc)")
-    for ax in axs:
+def _cost(plot, out_dir):
+    d = plot["data"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: cost of reaching error {d['target_error']:g} against the "
+                     f"{'spring' if d['what'] == 'ratio' else 'mass'} ratio")
+    ax_n, ax_t = fig.subplots(1, 2, sharex=True)
+    for solver in F._in_palette_order(list(d["nfev"])):
+        color, marker = F.solver_style(solver)
+        x = d["x"]
+        n, w = np.asarray(d["nfev"][solver], float), np.asarray(d["wall_s"][solver], float)
+        lab = solver + (" (steps x Taylor order)" if solver == "heyoka" else "")
+        if not np.isfinite(n).any():
+            lab += " (not run / not reached)"
+        ax_n.plot(x, n, "-", color=color, marker=marker, ms=5, lw=1.2, label=lab)
+        ax_t.plot(x, w, "-", color=color, marker=marker, ms=5, lw=1.2)
+    for ax, yl in ((ax_n, "right-hand-side evaluations"), (ax_t, "wall time of the run (s)")):
+        _log_axes(ax)
+        ax.set_xlabel(d["xlabel"])
+        ax.set_ylabel(yl)
+    fig.legend(loc="outside lower center", ncol=4, fontsize=7, frameon=False)
+    path = F._save(fig, out_dir, _stem(plot))
+    r = d["stiffness_ratio"]
+    return path, (f"Cost of reaching error {d['target_error']:g} in one slow period against the "
+                  f"{'spring' if d['what'] == 'ratio' else 'mass'} ratio (omega_max/omega_min "
+                  f"{np.nanmin(r):.3g} to {np.nanmax(r):.3g}): the explicit methods' cost grows with omega_max; "
+                  f"BDF's stays flat when the fast mode is not excited; missing points were skipped for cost or "
+                  f"did not reach the target (see stability.csv).")
+
+
+def _large_n(plot, out_dir):
+    d = plot["data"]
+    fits = d["fits"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: cost per step and memory against chain length N")
+    ax_t, ax_b = fig.subplots(1, 2, sharex=True)
+    N = d["n"]
+    c_rk, m_rk = F.solver_style("rk4")
+    c_cv, m_cv = F.solver_style("cvode-bdf")
+    ax_t.plot(N, d["rk4_wall_per_step"], "-", color=c_rk, marker=m_rk, label=f"rk4 (slope {fits['rk4_time']:.2f})")
+    ax_t.plot(N, d["cvode_wall_per_step"], "-", color=c_cv, marker=m_cv,
+              label=f"cvode-bdf band (slope {fits['cvode_time']:.2f})")
+    ax_b.plot(N, d["rk4_peak_bytes"], "-", color=c_rk, marker=m_rk,
+              label=f"rk4 peak bytes (slope {fits['rk4_bytes']:.2f})")
+    for ax, y in ((ax_t, d["rk4_wall_per_step"]), (ax_b, d["rk4_peak_bytes"])):
+        ax.plot(N, y[0] * N / N[0], ":", color="0.35", lw=1.0, label="slope 1 (O(N))")
+        _log_axes(ax)
         ax.set_xlabel("N masses")
-        ax.legend(fontsize=8)
-    return _save(fig, out_dir, scene, "large_n", (
-        "Cost per step and memory against chain length N: slopes near 1 mean O(N) work and storage."))
+        ax.legend(fontsize=7)
+    ax_t.set_ylabel("wall time per step (s)")
+    ax_b.set_ylabel("peak bytes (tracemalloc)")
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, "Cost per step and memory against chain length N: slopes near 1 (dotted) mean O(N) work and storage."
 
 
-def amplitude_figure(out_dir, scene, a, err, slope):
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.loglog(a, err, "o-", label=f"measured (slope {slope:.2f} for a <= 1e-2)")
-    sel = np.isfinite(err)
-    i = np.argmin(np.abs(np.log(a[sel]) - np.log(1e-3)))
-    ax.loglog(a, err[sel][i] * (a / a[sel][i]) ** 2, "k:", label="slope 2")
+def _amplitude(plot, out_dir):
+    d = plot["data"]
+    a, err = d["a_over_l"], d["error"]
+    fig = F._new_figure()
+    F._suptitle(fig, f"{plot['scene']}: error of the linearized model against amplitude")
+    ax = fig.subplots()
+    color, marker = F.solver_style("rk4")
+    ax.plot(a, err, "-", color=color, marker=marker, ms=5, lw=1.2,
+            label=f"measured (slope {d['slope']:.2f} for a/l <= 1e-2)")
+    sel = np.isfinite(err) & (err > 0)
+    if sel.any():
+        i = int(np.argmin(np.abs(np.log(a[sel]) - math.log(1e-3))))
+        ax.plot(a, err[sel][i] * (a / a[sel][i]) ** 2, ":", color="0.35", lw=1.0, label="slope 2 ((r/l)^2, theory)")
+    _log_axes(ax)
     ax.set_xlabel("initial amplitude / l")
-    ax.set_ylabel("linearized model error / amplitude")
-    ax.legend()
-    return _save(fig, out_dir, scene, "amplitude", (
-        "Relative error of the small-oscillation model over 5 periods against amplitude: grows like "
-        "(r/l)^2; read off the largest amplitude at which the cheap model is good enough."))
+    ax.set_ylabel("max |q_nl - q_lin| / r0 over 5 periods")
+    ax.legend(fontsize=8, loc="upper left")
+    path = F._save(fig, out_dir, _stem(plot))
+    return path, ("Relative error of the small-oscillation model over 5 periods against amplitude: grows like "
+                  "(r/l)^2; read off the largest amplitude at which the cheap model is good enough.")
+
+
+KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "roundoff": _roundoff, "cost": _cost,
+         "large_n": _large_n, "amplitude": _amplitude}
+
+
+def draw(plot: dict, out_dir) -> tuple[Path, str]:
+    """Draw one plot description into ``out_dir``: ``(path, sentence)``.
+    ValueError for a kind it does not know (e.g. a unit's part that
+    :func:`validation.stability.assemble` has not merged)."""
+    kind = plot.get("kind") if isinstance(plot, dict) else None
+    if kind not in KINDS:
+        raise ValueError(f"`plot` kind {kind!r} is not drawable (kinds: {', '.join(KINDS)}; parts are merged by "
+                         f"validation.stability.assemble)")
+    return KINDS[kind](plot, out_dir)

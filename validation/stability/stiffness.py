@@ -10,10 +10,26 @@ displaced 0.01 m: both modes are excited, so the fast one must be resolved.
 
 Each run spans one period of the slowest mode. The error is
 ``max_i |q_i(t_end) - q_i^exact| / max_i |q_i(0)|`` against the modal
-solution. RK4's step starts just below its stability limit ``2 sqrt 2 /
-omega_max`` and is halved until the target error is met; the adaptive solvers'
-``rtol`` is lowered along a ladder until it is met. The cost reported is that
-of the first setting meeting the target (nfev; heyoka: Taylor steps x order).
+solution (:func:`._common.error_rel`, the study's one metric).
+:func:`cost_at_target` is the study's one cost-at-target search: RK4's step
+starts just below its stability limit ``2 sqrt 2 / omega_max`` and is halved
+until the target error is met; for the adaptive solvers the loosest ``rtol``
+of a ladder that meets it is searched (:func:`ladder_search`: guided by the
+measured error's slope against rtol, so the expensive tight rungs are mostly
+jumped over instead of walked). The cost reported is that of the loosest setting
+meeting the target (nfev; heyoka: Taylor steps x order).
+
+Skipped for cost (:func:`skip_reason`, status ``skipped`` with the reason):
+
+* DOP853 on the stiff chain beyond omega_max/omega_min = 1e4 (1e3 in quick
+  mode): an explicit method is held to ``h ~ 3.3/omega_max`` by stability, so
+  it pays ~omega_max/omega_min steps of ~0.1-0.2 ms each (scipy's per-step
+  Python overhead) for an accuracy the slow motion alone sets;
+* CVODE-BDF on the two-mass chain where both modes are excited and
+  omega_max/omega_min > 1e3 (mu <= 1e-6 or >= 1e6 on the shipped grid): BDF
+  (order <= 5) must resolve every fast period to reach the target, and first
+  meets 1e-6 at rtol 1e-12 with 4.3e5 steps; its rtol search took 51 s CPU at
+  mu = 1e-6 (the whole point 66 s; 6 s without it, DOP853's search included).
 """
 from __future__ import annotations
 
@@ -25,12 +41,20 @@ import numpy as np
 import rk4core
 from references.exact import modal_solution
 
-from ._common import integrate_fixed
+from ._common import error_rel, integrate_fixed
 
-__all__ = ["stiff_chain", "mass_ratio_chain", "cost_at_target"]
+__all__ = ["stiff_chain", "mass_ratio_chain", "cost_at_target", "ladder_search", "skip_reason",
+           "excited_ratio", "RTOL_LADDER", "RTOL_LADDER_QUICK", "EXCITED"]
 
 RTOL_LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 RTOL_LADDER_QUICK = (1e-5, 1e-7, 1e-9, 1e-11)
+#: A mode counts as excited when its displacement amplitude is above this
+#: fraction of the largest initial displacement.
+EXCITED = 1e-3
+#: DOP853 is skipped on the stiff chain beyond this omega_max/omega_min (quick, full).
+DOP853_MAX_RATIO = {True: 1e3, False: 1e4}
+#: CVODE-BDF is skipped where an excited mode is this many times faster than the slowest.
+BDF_MAX_EXCITED_RATIO = 1e3
 
 
 def stiff_chain(ratio: float, N: int = 8):
@@ -48,31 +72,131 @@ def mass_ratio_chain(mu: float):
     return model, model.state([0.01, 0.01])
 
 
-def _error(model, y, ref, scale):
+def excited_ratio(model, y0) -> tuple[float, float]:
+    """``(omega_max / omega_min, omega_exc / omega_min)``: the stiffness ratio and
+    that of the fastest mode whose displacement amplitude exceeds :data:`EXCITED`
+    of ``max |q(0)|`` (both from the model's modes, no integration)."""
+    omega, phi = model.modes()
     n = model.n_dof
-    return float(np.max(np.abs(y[:n] - ref[:n]))) / scale
+    M = model.mass
+    eta, deta = phi.T @ (M * y0[:n]), phi.T @ (M * y0[n:])
+    pos = omega > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        amp = np.where(pos, np.hypot(omega * eta, deta) / np.where(pos, omega, 1.0), np.abs(eta))
+    scale = float(np.max(np.abs(y0[:n]))) or 1.0
+    exc = pos & (amp * np.max(np.abs(phi), axis=0) >= EXCITED * scale)
+    w_lo = float(omega[pos][0])
+    w_exc = float(omega[exc][-1]) if exc.any() else w_lo
+    return float(omega[-1]) / w_lo, w_exc / w_lo
+
+
+def skip_reason(solver: str, what: str, ratio: float, exc_ratio: float, quick: bool):
+    """Why ``solver`` is skipped at a sweep point (``what``: "ratio" for the
+    stiff chain, "mu" for the two-mass chain), or None; see the module
+    docstring. ``ratio``/``exc_ratio`` from :func:`excited_ratio`."""
+    if solver == "dop853" and what == "ratio" and ratio > DOP853_MAX_RATIO[bool(quick)]:
+        return (f"skipped for cost: omega_max/omega_min = {ratio:.3g} > {DOP853_MAX_RATIO[bool(quick)]:g}; "
+                f"explicit DOP853 is held to h ~ 3.3/omega_max by stability (~{ratio:.2g} steps of ~0.1-0.2 ms "
+                f"from Python per rtol tried) for an error the slow mode alone sets")
+    if solver == "cvode-bdf" and what == "mu" and exc_ratio > BDF_MAX_EXCITED_RATIO:
+        return (f"skipped for cost: both modes excited, omega_max/omega_min = {exc_ratio:.3g} > "
+                f"{BDF_MAX_EXCITED_RATIO:g}; BDF must resolve every fast period (measured at mu = 1e-6: first "
+                f"meets 1e-6 at rtol 1e-12 with 4.3e5 steps, 51 s CPU for the rtol search)")
+    return None
+
+
+def ladder_search(ladder, target: float, run):
+    """Loosest rung of ``ladder`` (rtols, loosest first) whose run meets
+    ``target``, found with fewer (and cheaper) runs than a walk down every rung.
+
+    ``run(rtol)`` returns a dict with ``status`` ("ok" or a failure status)
+    and ``error``. The two loosest rungs are run first (as in a walk); then,
+    from the last two misses, the straight line of log(error) against
+    log(rtol) -- its slope held in [1, 3], so that the jump errs towards
+    looser, cheaper rungs -- predicts the first rung meeting the target, which
+    is run; a miss there repeats the prediction from the new pair, a hit is
+    confirmed by walking back to looser rungs until one misses. The answer
+    is thus always a hit whose looser neighbour missed; the rungs jumped over
+    (all looser than a measured miss) are not run, which equals the walk
+    whenever the error falls with rtol. A run that fails (step cap,
+    instability) ends the jumps: the rungs between the last miss and it are
+    walked, and if none meets, the failure is the answer.
+
+    Returns ``(index, runs)``: the index of the rung found (None if none
+    meets) and ``{index: run result}`` of every rung probed, in probing order.
+    """
+    runs: dict = {}
+    n = len(ladder)
+
+    def probe(i):
+        if i not in runs:
+            runs[i] = run(ladder[i])
+        r = runs[i]
+        return "fail" if r["status"] != "ok" else ("hit" if r["error"] <= target else "miss")
+
+    misses = []
+    i = 0
+    while i < n:
+        out = probe(i)
+        if out == "hit":
+            j = i  # walk back to the first miss (or the loosest rung)
+            while j > 0 and (j - 1) not in misses:
+                if probe(j - 1) != "hit":
+                    break
+                j -= 1
+            return j, runs
+        if out == "fail":
+            for k in range((misses[-1] + 1) if misses else 0, i):
+                out_k = probe(k)
+                if out_k == "hit":
+                    return k, runs
+                if out_k == "fail":
+                    break
+            return None, runs
+        misses.append(i)
+        i = i + 1 if len(misses) < 2 else max(i + 1, _predict(ladder, target, runs, misses[-2], misses[-1]))
+    return None, runs
+
+
+def _predict(ladder, target, runs, a, b):
+    """First rung whose rtol is at or below where the line through misses
+    ``a`` and ``b`` (slope held in [1, 3]) reaches ``target``."""
+    xa, xb = math.log(ladder[a]), math.log(ladder[b])
+    ea, eb = runs[a]["error"], runs[b]["error"]
+    slope = 1.0
+    if ea > 0 and eb > 0 and math.isfinite(ea) and math.isfinite(eb) and xa != xb:
+        slope = (math.log(ea) - math.log(eb)) / (xa - xb)
+    slope = min(max(slope if math.isfinite(slope) else 1.0, 1.0), 3.0)
+    x = xb + (math.log(target) - math.log(eb)) / slope if eb > 0 and math.isfinite(eb) else xb
+    return next((k for k in range(len(ladder)) if math.log(ladder[k]) <= x + 1e-9), len(ladder) - 1)
 
 
 def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 5e7,
-                   skip=lambda solver: False, rtol_ladder=RTOL_LADDER):
-    """Cheapest setting of each solver meeting ``target``.
+                   skip=lambda solver: None, rtol_ladder=RTOL_LADDER):
+    """Cheapest setting of each solver meeting ``target`` (the study's one
+    cost-at-target search; see the module docstring).
 
-    Returns a list of dicts: solver, setting, error, nfev, n_steps, wall_s,
-    status ("ok", "not-reached", "skipped", or the run's failure status),
-    note, and ``omega_max``, ``omega_min``, ``stiffness_ratio``.
+    ``skip(solver)`` returns the reason a solver is skipped (a string), or
+    None/False to run it.
+
+    Returns a list of dicts: solver, setting, error, nfev, n_steps, wall_s
+    (a timing: the wall time of the reported run), status ("ok",
+    "not-reached", "skipped", or the run's failure status), note (deterministic),
+    and ``omega_max``, ``omega_min``, ``stiffness_ratio``.
     """
     omega = model.modes()[0]
     w_lo, w_hi = float(omega[omega > 0][0]), float(omega[-1])
     t_end = 2 * math.pi / w_lo
-    ref = modal_solution(model, y0)(np.array([t_end]))[:, 0]
+    ref = modal_solution(model, y0)(np.array([t_end]))[:, :1]
     scale = float(np.max(np.abs(y0[: model.n_dof])))
     common = {"omega_max": w_hi, "omega_min": w_lo, "stiffness_ratio": w_hi / w_lo, "t_end": t_end}
     out = []
     for solver in solvers:
         rec = {"solver": solver, "setting": math.nan, "error": math.nan, "nfev": math.nan,
                "n_steps": math.nan, "wall_s": math.nan, "status": "not-reached", "note": "", **common}
-        if skip(solver):
-            rec.update(status="skipped", note="too slow for this mode (see params)")
+        why = skip(solver)
+        if why:
+            rec.update(status="skipped", note=why if isinstance(why, str) else "skipped (see params)")
             out.append(rec)
             continue
         if solver == "rk4":
@@ -81,8 +205,9 @@ def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 
                 t0 = time.perf_counter()
                 res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end])
                 wall = time.perf_counter() - t0
-                err = _error(model, res.y[:, -1], ref, scale) if res.success else math.nan
-                rec.update(setting=res.h, error=err, nfev=res.nfev, n_steps=res.n_steps, wall_s=wall,
+                err = error_rel(model, res.y[:, -1:], ref, scale) if res.success else math.nan
+                rec.update(setting=res.h, error=err, nfev=res.nfev, n_steps=res.n_steps,
+                           wall_s=wall,
                            note=f"path={path}; h_stab={2 * math.sqrt(2) / w_hi:.3g}")
                 if not res.success:
                     rec.update(status="unstable", note=res.message)
@@ -94,18 +219,21 @@ def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 
         else:
             from references.solvers import integrate
 
-            for rtol in rtol_ladder:
+            def one(rtol, solver=solver):
                 with np.errstate(all="ignore"):
                     run = integrate(solver, model, y0, np.array([0.0, t_end]), rtol)
-                err = _error(model, run.y[:, -1], ref, scale) if run.ok else math.nan
+                err = error_rel(model, run.y[:, -1:], ref, scale) if run.ok else math.nan
                 nfev = run.nfev if solver != "heyoka" else run.n_steps * (run.taylor_order or 0)
-                rec.update(setting=rtol, error=err, nfev=nfev, n_steps=run.n_steps, wall_s=run.wall_s,
-                           note="heyoka: nfev = Taylor steps x order" if solver == "heyoka" else "")
-                if not run.ok:
-                    rec.update(status=run.status.value, note=run.message)
-                    break
-                if err <= target:
-                    rec["status"] = "ok"
-                    break
+                return {"status": "ok" if run.ok else run.status.value, "error": err, "setting": rtol,
+                        "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message}
+
+            found, runs = ladder_search(rtol_ladder, target, one)
+            tried = ", ".join(f"{rtol_ladder[j]:.0e}" for j in runs)
+            pick_ = found if found is not None else max(runs)
+            r = runs[pick_]
+            rec.update({k: r[k] for k in ("setting", "error", "nfev", "n_steps", "wall_s")})
+            rec["status"] = "ok" if found is not None else ("not-reached" if r["status"] == "ok" else r["status"])
+            rec["note"] = ("heyoka: nfev = Taylor steps x order; " if solver == "heyoka" else "") + \
+                f"rtol tried: {tried}" + ("" if r["status"] == "ok" else f"; {r['message']}")
         out.append(rec)
     return out

@@ -1,8 +1,42 @@
-"""The eight studies, each ``study(ctx) -> StudyResult``; ``ctx`` carries the
-scene name, model, initial state, validated parameters, mode and output dir."""
+"""The stability study as independent work units, and their merge.
+
+A scene's ``[stability]`` table names studies; each study is one or more
+*units* (:func:`units`), string keys such as ``"boundary"``,
+``"stiffness:ratio=1e+03"`` or ``"mass_ratio:mu=1e-06"``. :func:`run_unit`
+computes one unit -- rows, findings and plot descriptions, all plain data, no
+file written, no plotting library imported -- in any process or on any
+machine; :func:`assemble` merges the units' results of a scene (one cost plot
+per sweep, the sweep's finding) without integrating anything.
+
+Units, and why a study is split where it is (CPU seconds measured on the
+shipped scenes, 2-core machine):
+
+``boundary``, ``roundoff``, ``large_n``, ``amplitude``, ``singular``
+    one unit each (each under ~7 s in full mode);
+``long_horizon:drift``, ``long_horizon:rk4``, ``long_horizon:heyoka``, ``long_horizon:cvode-bdf``
+    the 2000-step drift and phase fits, the long RK4 run, and each
+    reference's energy drift: separate runs of a few seconds each, so a pool
+    runs them side by side (a nonlinear model: one unit ``long_horizon``, skipped);
+``stiffness:ratio=X``, ``mass_ratio:closed_form``, ``mass_ratio:mu=X``
+    one unit per point of the cost sweeps (the dearest point was ~60 s).
+
+Reference choice on the long horizon (``long_horizon:*``): heyoka's Taylor
+integrator covers the whole horizon (``long_periods``: 1e6 slow periods of the
+2-DOF case, 7.9e6 Taylor steps at tol 1e-12, about 2.6-3.6 s), while
+CVODE-BDF runs only ``reference_periods`` (default 200, quick 20): at about
+8 ms of CPU per period (rtol 1e-10) the former 1e4-period run cost 78 s CPU
+(69-117 s wall), a third of the whole study, for one informative number;
+200 periods cost under 2 s and still show BDF's drift per period beside
+RK4's and heyoka's.
+
+Timings: a row's ``wall_s`` (and ``measured_timed``, for the large-N time
+exponents) is the only non-reproducible content; every other column is the
+same bit for bit on a rerun (:data:`validation.stability.COLUMNS`).
+"""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,15 +46,26 @@ from . import geometry as G
 from . import large_n as LN
 from . import long_horizon as LH
 from . import mass_ratio as MR
-from . import plots
 from . import stiffness as ST
-from ._common import StudyResult, integrate_fixed, row
-from .params import pick
+from ._common import PARAM_COLUMNS, StudyResult, integrate_fixed, row
+from .params import STUDIES, pick, validate_params
 
-__all__ = ["Context", "STUDY_FUNCTIONS"]
+__all__ = ["units", "run_unit", "run_unit_in", "assemble", "failed_unit", "parse_unit", "unit_key", "Context",
+           "context", "REL_BOUNDARY", "REL_DRIFT", "COST_SOLVERS"]
 
 REL_BOUNDARY = 0.005  # issue 6: boundaries within 0.5 % of theory
 REL_DRIFT = 0.02      # issue 6: drift and phase rates within 2 % where theta <= 0.5
+COST_SOLVERS = ("rk4", "dop853", "cvode-bdf", "heyoka")
+#: Long-horizon references: (solver, rtol).
+LONG_REFERENCES = (("heyoka", 1e-12), ("cvode-bdf", 1e-10))
+#: heyoka's step cap on the long horizon: this many times the calibrated
+#: estimate (:mod:`.estimate`), at least LONG_MIN_STEPS (the references'
+#: default cap, which stopped the former 1e6-period run at 63 %), at most
+#: LONG_MAX_STEPS.
+LONG_STEP_MARGIN = 3.0
+LONG_MIN_STEPS = 5_000_000
+LONG_MAX_STEPS = 100_000_000
+_LONG_PARTS = ("drift", "rk4", "heyoka", "cvode-bdf")
 
 
 @dataclass
@@ -30,24 +75,111 @@ class Context:
     y0: np.ndarray
     params: dict
     quick: bool
-    out_dir: object
-    progress: object = None
-
-    def say(self, text):
-        if self.progress is not None:
-            self.progress(f"stability {self.scene}: {text}")
 
 
+def context(scene, quick: bool) -> Context:
+    """The validated parameters, model and initial state of ``scene``'s study."""
+    params = validate_params(dict(scene.stability or {}))
+    return Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick))
+
+
+# -- unit keys --------------------------------------------------------------------------------
+def _num(x: float) -> str:
+    """Shortest ``%.{d}e`` form of ``x`` that reads back as ``x`` (``1e+03``, ``2.5e-06``)."""
+    x = float(x)
+    for d in range(17):
+        s = f"{x:.{d}e}"
+        if float(s) == x:
+            return s
+    return repr(x)
+
+
+def unit_key(study: str, part: str | None = None, **param) -> str:
+    """``study``, ``study:part`` or ``study:name=value``."""
+    if param:
+        ((k, v),) = param.items()
+        return f"{study}:{k}={_num(v)}"
+    return study if part is None else f"{study}:{part}"
+
+
+def parse_unit(unit: str):
+    """``(study, part, params)`` of a unit key: ``"stiffness:ratio=1e+03"`` ->
+    ``("stiffness", "ratio=1e+03", {"ratio": 1000.0})``; ValueError naming the
+    unit if it is malformed."""
+    if not isinstance(unit, str):
+        raise ValueError(f"`unit` must be a string, got {unit!r}")
+    study, _, part = unit.partition(":")
+    if study not in STUDIES:
+        raise ValueError(f"`unit` {unit!r}: unknown study {study!r} (known: {', '.join(STUDIES)})")
+    params = {}
+    if "=" in part:
+        k, _, v = part.partition("=")
+        if k not in PARAM_COLUMNS:
+            raise ValueError(f"`unit` {unit!r}: unknown parameter {k!r}")
+        try:
+            params[k] = float(v)
+        except ValueError:
+            raise ValueError(f"`unit` {unit!r}: {v!r} is not a number") from None
+    return study, (part or None), params
+
+
+def _dedup(xs):
+    out = []
+    for x in xs:
+        if float(x) not in out:
+            out.append(float(x))
+    return out
+
+
+def _study_units(study, model, p, quick):
+    if study == "long_horizon":
+        return [unit_key(study, part) for part in _LONG_PARTS] if model.linear else [study]
+    if study == "stiffness":
+        return [unit_key(study, ratio=x) for x in _dedup(pick(p, "stiffness_ratios", quick))]
+    if study == "mass_ratio":
+        return [unit_key(study, "closed_form")] + [unit_key(study, mu=x) for x in _dedup(pick(p, "mu", quick))]
+    return [study]
+
+
+def units(scene, quick: bool) -> list[str]:
+    """The independent work units of ``scene``'s stability studies, in the
+    order of its ``studies`` list (and of each sweep's values). Needs the
+    model's linearity only: no eigensolve, no integration."""
+    p = validate_params(dict(scene.stability or {}))
+    model = scene.build_model() if any(s in p["studies"] for s in ("long_horizon",)) else None
+    out = []
+    for study in p["studies"]:
+        out += _study_units(study, model, p, bool(quick))
+    return out
+
+
+# -- skips and failures -----------------------------------------------------------------------
 def _needs_linear(ctx, study):
     if ctx.model.linear:
         return None
     r = StudyResult()
-    r.rows.append(row(ctx.scene, "-", f"{study}", math.nan, status="skipped",
+    r.rows.append(row(ctx.scene, study, "-", study, math.nan, status="skipped",
                       note=f"{study} needs a linear model; {ctx.model.name} is nonlinear"))
     return r
 
 
-def boundary(ctx: Context) -> StudyResult:
+def failed_unit(scene, unit: str, exc: BaseException | str) -> StudyResult:
+    """The result of a unit that raised (``exc``: the exception or its text):
+    one row with status ``failed`` (passed False), the unit's parameter in its
+    column and the error in the note. ``scene``: a scene or its name."""
+    scene_name = getattr(scene, "name", scene)
+    try:
+        study, part, params = parse_unit(unit)
+    except ValueError:
+        study, part, params = str(unit).partition(":")[0], None, {}
+    solver = part if part in ("rk4", "heyoka", "cvode-bdf") else "-"
+    text = exc if isinstance(exc, str) else f"{type(exc).__name__}: {exc}"
+    return StudyResult(rows=[row(scene_name, study, solver, study, math.nan, passed=False, status="failed",
+                                 note=f"unit {unit}: {text}", **params)])
+
+
+# -- boundary ---------------------------------------------------------------------------------
+def _boundary(ctx: Context, part) -> StudyResult:
     if (skip := _needs_linear(ctx, "boundary")) is not None:
         return skip
     res, s, m = StudyResult(), ctx.scene, ctx.model
@@ -56,192 +188,297 @@ def boundary(ctx: Context) -> StudyResult:
     for meth in ("rk4", "symplectic-euler", "euler"):
         h_star, probes = B.largest_stable_step(m, meth, ctx.params["bisection_rtol"], w)
         h_th = B.theory_boundary(meth, w)
-        if h_th > 0:
-            ok = abs(h_star / h_th - 1) <= REL_BOUNDARY
-        else:
-            ok = h_star == 0.0
-        res.rows.append(row(s, meth, "largest_stable_h_s", h_star, h_th, ok, note=(
+        ok = abs(h_star / h_th - 1) <= REL_BOUNDARY if h_th > 0 else h_star == 0.0
+        res.rows.append(row(s, "boundary", meth, "largest_stable_h_s", h_star, h_th, ok, note=(
             f"omega_max = {w:.6g} rad/s; bisection on rho(S(h)) <= 1 + {B.STABLE_TOL:g}, rtol "
             f"{ctx.params['bisection_rtol']:g}, {probes} probes"
             + ("; no stable h down to omega h = 1e-5" if meth == "euler" else ""))))
         if h_th > 0:
             res.findings.append(f"{s}: {meth} largest stable step {h_star:.6g} s = {h_star * w:.5f}/omega_max "
                                 f"(theory {h_th * w:.5f}/omega_max)")
+    growth: dict = {}  # one run per (method, theta), shared by the rows and the figure
+
+    def g(meth, th):
+        if (meth, th) not in growth:
+            growth[meth, th] = B.measured_growth(m, meth, th, modes=modes)[0]
+        return growth[meth, th]
+
     for th in (1e-3, 0.1, 0.5, 1.0):
-        g, _ = B.measured_growth(m, "euler", th, modes=modes)
-        g_th = math.sqrt(1 + th * th)
-        res.rows.append(row(s, "euler", f"growth_per_step(theta={th:g})", g, g_th,
-                            abs((g - 1) / (g_th - 1) - 1) <= 1e-6,
+        gm, g_th = g("euler", th), math.sqrt(1 + th * th)
+        res.rows.append(row(s, "boundary", "euler", "growth_per_step", gm, g_th,
+                            abs((gm - 1) / (g_th - 1) - 1) <= 1e-6, theta=th,
                             note="fastest mode, integrated run; passed: (g-1) within 1e-6 relative"))
-    # growth figure data
-    thetas = ctx.params["growth_theta"]
-    measured = {}
-    for meth in ("rk4", "euler", "symplectic-euler"):
-        pts = [B.measured_growth(m, meth, th, modes=modes)[0] for th in thetas]
-        measured[meth] = (thetas, pts)
+    thetas = [float(t) for t in ctx.params["growth_theta"]]
+    meths = ("rk4", "euler", "symplectic-euler")
     line = np.linspace(1e-3, max(thetas) * 1.05, 400)
-    theory = {meth: B.theory_growth(meth, line) for meth in measured}
-    res.figures.append(plots.growth_figure(ctx.out_dir, s, line, theory, measured))
+    res.plots.append({"kind": "growth", "scene": s, "study": "boundary", "name": "growth", "data": {
+        "theta_line": line, "theory": {meth: np.asarray(B.theory_growth(meth, line), float) for meth in meths},
+        "theta": np.array(thetas), "measured": {meth: np.array([g(meth, th) for th in thetas]) for meth in meths},
+        "boundary": {"rk4": 2 * math.sqrt(2), "symplectic-euler": 2.0}}})
     # deliberate blow-ups: rows with status unstable and the time
     for meth, h, n in (("rk4", 1.2 * B.theory_boundary("rk4", w), 3000), ("euler", 1.0 / w, 6000)):
         r = B.blowup_run(m, meth, h, n)
         blew = r.status == -1 and r.t_fail is not None and math.isfinite(r.t_fail)
-        g = float(B.theory_growth(meth, h * w))
-        res.rows.append(row(s, meth, f"blowup_time_s(theta={h * w:.3g})",
-                            r.t_fail if blew else math.nan, math.nan, blew,
-                            status="unstable" if blew else "ok",
-                            note=f"{r.message}; theory growth {g:.4g} per step"))
+        gth = float(B.theory_growth(meth, h * w))
+        res.rows.append(row(s, "boundary", meth, "blowup_time_s", r.t_fail if blew else math.nan, math.nan, blew,
+                            status="unstable" if blew else "ok", theta=h * w,
+                            note=f"{r.message}; theory growth {gth:.4g} per step"))
     return res
 
 
-def long_horizon(ctx: Context) -> StudyResult:
+# -- long horizon -----------------------------------------------------------------------------
+def _omegas(model):
+    omega = model.modes()[0]
+    return float(omega[-1]), float(omega[omega > 0][0])
+
+
+def _long(ctx: Context, part) -> StudyResult:
     if (skip := _needs_linear(ctx, "long_horizon")) is not None:
         return skip
+    if part not in _LONG_PARTS:
+        raise ValueError(f"`unit` long_horizon:{part}: the parts are {', '.join(_LONG_PARTS)}")
+    return {"drift": _long_drift, "rk4": _long_rk4}.get(part, _long_reference)(ctx, part)
+
+
+def _long_drift(ctx, part):
     res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
-    omega = m.modes()[0]
-    w_hi, w_lo = float(omega[-1]), float(omega[omega > 0][0])
+    w_hi, _ = _omegas(m)
     pts = {"theta": [], "energy_loss": [], "phase_lag": []}
     for th in p["drift_theta"]:
         d = LH.measure_drift_and_phase(m, ctx.y0, th / w_hi, 2000)
-        th_m = d["theta"][-1]
+        th_m = float(d["theta"][-1])
         e_th = float(LH.rk4_energy_loss_per_step(th_m))
         p_th = float(LH.rk4_phase_lag_per_step(th_m))
         e_lead, p_lead = th_m**6 / 72, th_m**5 / 120
         checked = th_m <= 0.5
-        res.rows.append(row(s, "rk4", f"energy_loss_per_step(theta={th_m:.3g})", d["energy_loss"][-1], e_th,
-                            abs(d["energy_loss"][-1] / e_th - 1) <= REL_DRIFT if checked else None,
-                            note=f"theory 1-|R(i theta)|^2; leading order theta^6/72 = {e_lead:.6g}"))
-        res.rows.append(row(s, "rk4", f"phase_lag_per_step(theta={th_m:.3g})", d["phase_lag"][-1], p_th,
-                            abs(d["phase_lag"][-1] / p_th - 1) <= REL_DRIFT if checked else None,
-                            note=f"theory theta - arg R(i theta); leading order theta^5/120 = {p_lead:.6g}"))
-        for key in pts:
-            pts[key].append(d[key][-1] if key != "theta" else th_m)
-    # the long run
-    periods = pick(p, "long_periods", ctx.quick)
-    h = p["long_theta"] / w_hi
-    t_end = periods * 2 * math.pi / w_lo
-    n = int(math.ceil(t_end / h))
-    ctx.say(f"long RK4 run: {periods:g} periods, {n} steps")
-    d = LH.measure_drift_and_phase(m, ctx.y0, h, n, record_every=max(1, n // 20000))
-    if d["path"] != "fast" and n > 2_000_000:
-        res.rows.append(row(s, "rk4", "long_run", math.nan, status="skipped", note="no compiled path"))
-    series = {"rk4": (d["t"], d["rel_energy_error"])}
-    for j, th in enumerate(d["theta"]):
-        e_th, p_th = float(LH.rk4_energy_loss_per_step(th)), float(LH.rk4_phase_lag_per_step(th))
-        res.rows.append(row(s, "rk4", f"long_energy_loss_per_step(mode={j + 1},theta={th:.3g})",
-                            d["energy_loss"][j], e_th, abs(d["energy_loss"][j] / e_th - 1) <= REL_DRIFT,
-                            note=f"{periods:g} periods of the slowest mode, {n} steps; fitted over steps "
-                                 f"0..{d['steps_fitted'][j]:.0f} (while the mode is above 1e-6 of its start)"))
-        res.rows.append(row(s, "rk4", f"long_phase_lag_per_step(mode={j + 1},theta={th:.3g})",
-                            d["phase_lag"][j], p_th, abs(d["phase_lag"][j] / p_th - 1) <= REL_DRIFT,
-                            note=f"{periods:g} periods, {n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
-    final = float(d["rel_energy_error"][-1])
-    res.findings.append(f"{s}: RK4 at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
-                        f"relative energy change {final:.3g} (RK4 dissipates: theta^6/72 per step per mode)")
-    ref_periods = min(periods, pick(p, "reference_periods", ctx.quick))
-    for solver, rtol in (("heyoka", 1e-12), ("cvode-bdf", 1e-10)):
-        per = periods if solver == "heyoka" else ref_periods
-        ctx.say(f"{solver} drift over {per:g} periods")
-        run, t, err = LH.reference_drift(solver, m, ctx.y0, per * 2 * math.pi / w_lo, rtol)
-        if run is None:
-            res.rows.append(row(s, solver, "energy_drift_per_period", math.nan, status="skipped",
-                                note="references.solvers not installed"))
-            continue
-        ok = run.ok
-        res.rows.append(row(s, solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
-                            status="ok" if ok else run.status.value, passed=None, note=(
-                                f"rtol {rtol:g}, {per:g} periods (RK4: {periods:g}), |E_end-E0|/E0 = "
-                                f"{err[-1]:.3g}, wall {run.wall_s:.3g} s; {run.message}")))
-        if ok:
-            series[f"{solver} (rtol {rtol:g}, {per:g} periods)"] = (t, err)
-    line = np.logspace(np.log10(min(pts["theta"]) / 2), np.log10(0.6), 100)
-    res.figures.append(plots.drift_figure(ctx.out_dir, s, line, LH.rk4_energy_loss_per_step(line),
-                                          LH.rk4_phase_lag_per_step(line),
-                                          {k: np.array(v) for k, v in pts.items()}, series))
+        e, ph = float(d["energy_loss"][-1]), float(d["phase_lag"][-1])
+        res.rows.append(row(s, "long_horizon", "rk4", "energy_loss_per_step", e, e_th,
+                            abs(e / e_th - 1) <= REL_DRIFT if checked else None, theta=th_m,
+                            note=f"2000 steps; theory 1-|R(i theta)|^2; leading order theta^6/72 = {e_lead:.6g}"))
+        res.rows.append(row(s, "long_horizon", "rk4", "phase_lag_per_step", ph, p_th,
+                            abs(ph / p_th - 1) <= REL_DRIFT if checked else None, theta=th_m,
+                            note=f"2000 steps; theory theta - arg R(i theta); leading order theta^5/120 = "
+                                 f"{p_lead:.6g}"))
+        pts["theta"].append(th_m)
+        pts["energy_loss"].append(e)
+        pts["phase_lag"].append(ph)
+    res.plots.append({"kind": "drift_points", "scene": s, "study": "long_horizon", "name": "drift", "part": True,
+                      "data": {k: np.array(v, float) for k, v in pts.items()}})
     return res
 
 
-def roundoff(ctx: Context) -> StudyResult:
+def _long_rk4(ctx, part):
+    from rk4core import fast
+
+    res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
+    w_hi, w_lo = _omegas(m)
+    periods = pick(p, "long_periods", ctx.quick)
+    h = p["long_theta"] / w_hi
+    n = int(math.ceil(periods * 2 * math.pi / w_lo / h))
+    if n > 2_000_000 and not fast.supports(m):
+        res.rows.append(row(s, "long_horizon", "rk4", "long_run", math.nan, status="skipped", periods=periods,
+                            note=f"{n} steps and no compiled path for {m.name} (rk4core.fast.supports)"))
+        return res
+    t0 = time.perf_counter()
+    d = LH.measure_drift_and_phase(m, ctx.y0, h, n, record_every=max(1, n // 20000))
+    wall = time.perf_counter() - t0
+    for j, th in enumerate(d["theta"]):
+        th = float(th)
+        e_th, p_th = float(LH.rk4_energy_loss_per_step(th)), float(LH.rk4_phase_lag_per_step(th))
+        e, ph = float(d["energy_loss"][j]), float(d["phase_lag"][j])
+        res.rows.append(row(s, "long_horizon", "rk4", "long_energy_loss_per_step", e, e_th,
+                            abs(e / e_th - 1) <= REL_DRIFT, mode=j + 1, theta=th, periods=periods,
+                            note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f} (while the mode is "
+                                 f"above 1e-6 of its start)"))
+        res.rows.append(row(s, "long_horizon", "rk4", "long_phase_lag_per_step", ph, p_th,
+                            abs(ph / p_th - 1) <= REL_DRIFT, mode=j + 1, theta=th, periods=periods,
+                            note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
+    err = np.asarray(d["rel_energy_error"], float)
+    res.rows.append(row(s, "long_horizon", "rk4", "energy_drift_per_period", err[-1] / periods, periods=periods,
+                        theta=p["long_theta"], wall_s=wall, note=f"|E_end-E0|/E0 = {err[-1]:.3g} after {n} steps"))
+    res.findings.append(f"{s}: RK4 at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
+                        f"relative energy change {err[-1]:.3g} (RK4 dissipates: theta^6/72 per step per mode)")
+    res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy", "part": True,
+                      "data": {"label": f"rk4 (omega_max h = {p['long_theta']:g}, {periods:g} periods)",
+        "t": np.asarray(d["t"], float), "err": err}})
+    return res
+
+
+def long_reference_max_steps(model, periods: float) -> int:
+    """heyoka's step cap on the long horizon: :data:`LONG_STEP_MARGIN` times the
+    calibrated estimate, at least the references' default, at most
+    :data:`LONG_MAX_STEPS`."""
+    from .estimate import frequency_range, heyoka_steps
+
+    w_lo, w_hi = frequency_range(model)
+    p_fast = periods * w_hi / w_lo
+    return int(min(max(LONG_MIN_STEPS, math.ceil(LONG_STEP_MARGIN * heyoka_steps(p_fast, p_fast))),
+                   LONG_MAX_STEPS))
+
+
+def _long_reference(ctx, solver):
+    res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
+    _, w_lo = _omegas(m)
+    rtol = dict(LONG_REFERENCES)[solver]
+    periods = pick(p, "long_periods", ctx.quick)
+    per = periods if solver == "heyoka" else min(periods, pick(p, "reference_periods", ctx.quick))
+    cap = long_reference_max_steps(m, per) if solver == "heyoka" else None
+    run, t, err = LH.reference_drift(solver, m, ctx.y0, per * 2 * math.pi / w_lo, rtol, max_steps=cap)
+    ok = run.ok
+    res.rows.append(row(s, "long_horizon", solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
+                        status="ok" if ok else run.status.value, periods=per, wall_s=run.wall_s, note=(
+                            f"rtol {rtol:g}, {per:g} periods (RK4: {periods:g}), {run.n_steps} steps, |E_end-E0|/E0 "
+                            f"= {err[-1]:.3g}; {run.message}")))
+    if ok:
+        res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy",
+                          "part": True, "data": {"label": f"{solver} (rtol {rtol:g}, {per:g} periods)",
+                                                 "t": np.asarray(t, float), "err": np.asarray(err, float)}})
+    return res
+
+
+def _assemble_long(scene, quick, res: StudyResult) -> None:
+    parts = [pl for pl in res.plots if pl.get("part") and pl["kind"] in ("drift_points", "energy_series")]
+    res.plots[:] = [pl for pl in res.plots if not any(pl is q for q in parts)]
+    pts = [pl["data"] for pl in parts if pl["kind"] == "drift_points"]
+    if pts:
+        d = pts[0]
+        th = d["theta"][np.isfinite(d["theta"]) & (d["theta"] > 0)]
+        lo = float(th.min()) / 2 if th.size else 1e-2
+        line = np.logspace(np.log10(lo), np.log10(0.6), 100)
+        res.plots.append({"kind": "drift", "scene": scene, "study": "long_horizon", "name": "drift", "data": {
+            "theta_line": line, "loss_theory": np.asarray(LH.rk4_energy_loss_per_step(line), float),
+            "lag_theory": np.asarray(LH.rk4_phase_lag_per_step(line), float),
+            "theta": d["theta"], "energy_loss": d["energy_loss"], "phase_lag": d["phase_lag"]}})
+    series = [pl["data"] for pl in parts if pl["kind"] == "energy_series"]
+    if series:
+        res.plots.append({"kind": "long_energy", "scene": scene, "study": "long_horizon", "name": "long_energy",
+                          "data": {"series": {sd["label"]: {"t": sd["t"], "err": sd["err"]} for sd in series}}})
+
+
+# -- round-off --------------------------------------------------------------------------------
+def _roundoff(ctx: Context, part) -> StudyResult:
     if (skip := _needs_linear(ctx, "roundoff")) is not None:
         return skip
     res, s, m = StudyResult(), ctx.scene, ctx.model
-    omega = m.modes()[0]
-    w_hi, w_lo = float(omega[-1]), float(omega[omega > 0][0])
+    w_hi, w_lo = _omegas(m)
     thetas = pick(ctx.params, "roundoff_theta", ctx.quick)
     t_end = 2 * math.pi / w_lo
     h, err, paths = LH.roundoff_sweep(m, ctx.y0, t_end, [th / w_hi for th in thetas])
+    for hi, ei in zip(h, err):
+        res.rows.append(row(s, "roundoff", "rk4", "error_at_t_end", ei, theta=hi * w_hi,
+                            note=f"h = {hi:.6g} s; one slow period; max |q - q_exact| / max |q0|"))
     i = int(np.nanargmin(err))
-    turned = i < len(err) - 1 and err[-1] > err[i]
-    res.rows.append(row(s, "rk4", "best_h_s", h[i], math.nan, None, note=(
+    turned = bool(i < len(err) - 1 and err[-1] > err[i])
+    res.rows.append(row(s, "roundoff", "rk4", "best_h_s", h[i], math.nan, None, theta=h[i] * w_hi, note=(
         f"error {err[i]:.3g} at omega_max h = {h[i] * w_hi:.3g}; one slow period; paths {sorted(set(paths))}")))
-    res.rows.append(row(s, "rk4", "roundoff_floor_error", err[i], math.nan, None))
-    res.rows.append(row(s, "rk4", "error_turns_up_below_best_h", float(turned), 1.0, turned,
+    res.rows.append(row(s, "roundoff", "rk4", "roundoff_floor_error", err[i], math.nan, None, theta=h[i] * w_hi))
+    res.rows.append(row(s, "roundoff", "rk4", "error_turns_up_below_best_h", float(turned), 1.0, turned,
                         note=f"error at smallest h ({h[-1]:.3g} s): {err[-1]:.3g}"))
-    res.figures.append(plots.roundoff_figure(ctx.out_dir, s, h, err, h[i]))
+    res.plots.append({"kind": "roundoff", "scene": s, "study": "roundoff", "name": "roundoff",
+                      "data": {"h": np.asarray(h, float), "error": np.asarray(err, float), "h_best": float(h[i]),
+                               "omega_max": w_hi}})
     res.findings.append(f"{s}: RK4 best step {h[i]:.3g} s (omega_max h = {h[i] * w_hi:.3g}) gives error "
                         f"{err[i]:.3g}; smaller steps lose to round-off" if turned else
                         f"{s}: RK4 error still falling at the smallest h probed ({h[-1]:.3g} s)")
     return res
 
 
-def _cost_sweep(ctx, xs, build, xlabel, what):
+# -- cost sweeps ------------------------------------------------------------------------------
+_SWEEPS = {"stiffness": ("ratio", ST.stiff_chain, "spring ratio k_mid/k"),
+           "mass_ratio": ("mu", ST.mass_ratio_chain, "mass ratio mu = m2/m1")}
+
+
+def _cost_point(ctx: Context, study: str, x: float) -> StudyResult:
+    what, build, _ = _SWEEPS[study]
     res, s = StudyResult(), ctx.scene
-    solvers = ["rk4", "dop853", "cvode-bdf", "heyoka"]
-    curves = {sv: ([], [], []) for sv in solvers}
     target = ctx.params["target_error"]
-    for x in xs:
-        model, y0 = build(x)
-        w = model.modes()[0]
-        big = w[-1] / w[w > 0][0] > (1e3 if ctx.quick else 1e4)
-        ctx.say(f"{what} {x:g}")
-        recs = ST.cost_at_target(model, y0, target, solvers,
-                                 skip=lambda sv, big=big: sv == "dop853" and big and what == "ratio",
-                                 rtol_ladder=ST.RTOL_LADDER_QUICK if ctx.quick else ST.RTOL_LADDER)
-        for r in recs:
-            res.rows.append(row(s, r["solver"], f"nfev_at_error_{target:g}({what}={x:g})", r["nfev"],
-                                math.nan, r["status"] == "ok" if r["status"] != "skipped" else None,
-                                status=r["status"], note=(
-                                    f"stiffness ratio {r['stiffness_ratio']:.3g}; setting {r['setting']:.3g}; "
-                                    f"error {r['error']:.3g}; steps {r['n_steps']}; wall {r['wall_s']:.3g} s; "
-                                    f"{r['note']}")))
-            c = curves[r["solver"]]
-            c[0].append(r["stiffness_ratio"])
-            c[1].append(r["nfev"] if r["status"] == "ok" else math.nan)
-            c[2].append(r["wall_s"] if r["status"] == "ok" else math.nan)
-        rk = recs[0]
-        if rk["status"] == "ok" and what == "ratio":
-            h_stab = 2 * math.sqrt(2) / rk["omega_max"]
-            res.rows.append(row(s, "rk4", f"h_at_target_over_h_stab({what}={x:g})", rk["setting"] / h_stab,
-                                math.nan, None, note="1 (x0.99) = step forced by stability, not accuracy"))
-    curves = {k: tuple(np.array(v, float) for v in c) for k, c in curves.items()}
-    res.figures.append(plots.cost_figure(ctx.out_dir, f"{s}_{what}", curves, "stiffness ratio omega_max/omega_min"))
-    rk, bdf = curves["rk4"], curves["cvode-bdf"]
-    res.findings.append(f"{s}: at stiffness ratio {rk[0][-1]:.3g} RK4 needs {rk[1][-1]:.3g} RHS evaluations "
-                        f"({rk[2][-1]:.3g} s) to reach {target:g}, CVODE-BDF {bdf[1][-1]:.3g} ({bdf[2][-1]:.3g} s)")
+    model, y0 = build(x)
+    ratio, exc = ST.excited_ratio(model, y0)
+    recs = ST.cost_at_target(model, y0, target, COST_SOLVERS,
+                             skip=lambda sv: ST.skip_reason(sv, what, ratio, exc, ctx.quick),
+                             rtol_ladder=ST.RTOL_LADDER_QUICK if ctx.quick else ST.RTOL_LADDER)
+    for r in recs:
+        res.rows.append(row(s, study, r["solver"], "nfev_at_error", r["nfev"], math.nan,
+                            r["status"] == "ok" if r["status"] != "skipped" else None, status=r["status"],
+                            target_error=target, wall_s=r["wall_s"], **{what: x}, note=(
+                                f"stiffness ratio {r['stiffness_ratio']:.3g}; setting {r['setting']:.3g}; "
+                                f"error {r['error']:.3g}; steps {r['n_steps']}; {r['note']}")))
+    rk = recs[0]
+    if rk["status"] == "ok" and what == "ratio":
+        h_stab = 2 * math.sqrt(2) / rk["omega_max"]
+        res.rows.append(row(s, study, "rk4", "h_at_target_over_h_stab", rk["setting"] / h_stab, math.nan, None,
+                            target_error=target, **{what: x},
+                            note="1 (x0.99) = step forced by stability, not accuracy"))
+    ok = [r["status"] == "ok" for r in recs]
+    res.plots.append({"kind": "cost_point", "scene": s, "study": study, "name": f"cost_{what}", "part": True, "data": {
+        "what": what, "x": float(x), "stiffness_ratio": float(ratio), "target_error": float(target),
+        "solvers": [r["solver"] for r in recs],
+        "nfev": np.array([r["nfev"] if k else math.nan for r, k in zip(recs, ok)], float),
+        "wall_s": np.array([r["wall_s"] if k else math.nan for r, k in zip(recs, ok)], float),
+        "status": [r["status"] for r in recs]}})
     return res
 
 
-def stiffness(ctx: Context) -> StudyResult:
-    return _cost_sweep(ctx, pick(ctx.params, "stiffness_ratios", ctx.quick), ST.stiff_chain,
-                       "spring ratio", "ratio")
+def _assemble_cost(scene, study, res: StudyResult) -> None:
+    what, _, xlabel = _SWEEPS[study]
+    parts = [pl for pl in res.plots if pl.get("part") and pl["kind"] == "cost_point"
+             and pl["data"]["what"] == what]
+    res.plots[:] = [pl for pl in res.plots if not any(pl is q for q in parts)]
+    if not parts:
+        return
+    solvers = list(dict.fromkeys(sv for pl in parts for sv in pl["data"]["solvers"]))
+
+    def column(key, sv):
+        return np.array([pl["data"][key][pl["data"]["solvers"].index(sv)] if sv in pl["data"]["solvers"]
+                         else math.nan for pl in parts], float)
+
+    data = {"what": what, "xlabel": xlabel, "x": np.array([pl["data"]["x"] for pl in parts], float),
+            "stiffness_ratio": np.array([pl["data"]["stiffness_ratio"] for pl in parts], float),
+            "target_error": float(parts[0]["data"]["target_error"]),
+            "nfev": {sv: column("nfev", sv) for sv in solvers}, "wall_s": {sv: column("wall_s", sv) for sv in solvers}}
+    res.plots.append({"kind": "cost", "scene": scene, "study": study, "name": f"cost_{what}", "data": data})
+    k = int(np.argmax(data["stiffness_ratio"][::-1]))
+    k = len(parts) - 1 - k  # the last point of the largest stiffness ratio
+    pl = parts[k]["data"]
+
+    def say(sv):
+        if sv not in pl["solvers"]:
+            return f"{sv} not run"
+        st = pl["status"][pl["solvers"].index(sv)]
+        v = pl["nfev"][pl["solvers"].index(sv)]
+        return f"{sv} {v:.3g}" if st == "ok" else f"{sv} {st}"
+
+    res.findings.append(f"{scene}: RHS evaluations to reach {data['target_error']:g} at stiffness ratio "
+                        f"{pl['stiffness_ratio']:.3g} ({what} = {pl['x']:g}): "
+                        + ", ".join(say(sv) for sv in solvers) + " (heyoka: Taylor steps x order)")
 
 
-def mass_ratio(ctx: Context) -> StudyResult:
+def _sweep_unit(ctx: Context, study, part, params) -> StudyResult:
+    what = _SWEEPS[study][0]
+    if study == "mass_ratio" and part == "closed_form":
+        return _closed_form(ctx)
+    if what not in params:
+        raise ValueError(f"`unit` {study}:{part}: expected {study}:{what}=<number>"
+                         + (" or mass_ratio:closed_form" if study == "mass_ratio" else ""))
+    return _cost_point(ctx, study, params[what])
+
+
+def _closed_form(ctx: Context) -> StudyResult:
     res, s = StudyResult(), ctx.scene
     eps = np.finfo(float).eps
     for mu in (1e-6, 1e-3, 1.0, 1e3, 1e6):
         cf, dec, eig = MR.closed_form_sq(1.0, 1.0, mu), MR.omega_sq_decimal(1.0, 1.0, mu), MR.omega_sq_eig(1.0, 1.0, mu)
         for i, name in enumerate(("low", "high")):
-            res.rows.append(row(s, "closed-form", f"omega_{name}^2_vs_50_digits(mu={mu:g})", cf[i], dec[i],
-                                abs(cf[i] / dec[i] - 1) <= 4 * eps, note="eq. 2.31, relative error <= 4 eps"))
+            res.rows.append(row(s, "mass_ratio", "closed-form", f"omega_{name}^2_vs_50_digits", cf[i], dec[i],
+                                abs(cf[i] / dec[i] - 1) <= 4 * eps, mu=mu, note="eq. 2.31, relative error <= 4 eps"))
             tol = 8 * eps * eig[1] / eig[0]  # eigenvalue error bound eps ||M^-1/2 K M^-1/2|| / lam
-            res.rows.append(row(s, "closed-form", f"omega_{name}^2_vs_eig(mu={mu:g})", cf[i], eig[i],
-                                abs(cf[i] / eig[i] - 1) <= tol, note=f"tolerance {tol:.2g} (eigh's bound)"))
+            res.rows.append(row(s, "mass_ratio", "closed-form", f"omega_{name}^2_vs_eig", cf[i], eig[i],
+                                abs(cf[i] / eig[i] - 1) <= tol, mu=mu, note=f"tolerance {tol:.2g} (eigh's bound)"))
             if mu != 1.0:
                 lim = MR.omega_sq_limits(1.0, 1.0, mu)
                 x = min(mu, 1 / mu)
-                res.rows.append(row(s, "closed-form", f"omega_{name}^2_vs_limit(mu={mu:g})", cf[i], lim[i],
-                                    abs(cf[i] / lim[i] - 1) <= x * x,
+                res.rows.append(row(s, "mass_ratio", "closed-form", f"omega_{name}^2_vs_limit", cf[i], lim[i],
+                                    abs(cf[i] / lim[i] - 1) <= x * x, mu=mu,
                                     note="two-term expansion, remainder O(mu^2) (or O(mu^-2))"))
     try:
         from references.closed_forms import two_dof_equal_k
@@ -249,61 +486,76 @@ def mass_ratio(ctx: Context) -> StudyResult:
         refused, msg = False, "mu = 0 accepted"
     except ValueError as e:
         refused, msg = True, str(e)
-    res.rows.append(row(s, "closed-form", "mu_le_0_refused", float(refused), 1.0, refused, note=msg))
-    res.extend(_cost_sweep(ctx, pick(ctx.params, "mu", ctx.quick), ST.mass_ratio_chain, "mass ratio", "mu"))
+    res.rows.append(row(s, "mass_ratio", "closed-form", "mu_le_0_refused", float(refused), 1.0, refused, mu=0.0,
+                        note=msg))
     return res
 
 
-def large_n(ctx: Context) -> StudyResult:
+# -- large N ----------------------------------------------------------------------------------
+#: Steps and repeats of the timed RK4 runs of the large-N study (full, quick).
+LARGE_N_TIMING = {False: (500, 3), True: (200, 3)}
+
+
+def _large_n(ctx: Context, part) -> StudyResult:
     res, s = StudyResult(), ctx.scene
     Ns = [int(v) for v in pick(ctx.params, "n_values", ctx.quick)]
-    t_rk, b_rk, t_cv, calls = [], [], [], []
+    n_steps, repeats = LARGE_N_TIMING[ctx.quick]
+    t_rk, b_rk, t_cv, calls, cv_steps = [], [], [], [], []
     for N in Ns:
-        ctx.say(f"large N = {N}")
-        t, per_step, _ = LN.rk4_cost(N, n_steps=500, repeats=3)
+        t, per_step, _ = LN.rk4_cost(N, n_steps=n_steps, repeats=repeats)
         t_rk.append(t)
         calls.append(per_step)
         b_rk.append(LN.rk4_peak_bytes(N))
-        t_cv.append(LN.cvode_band_cost(N)["wall_per_step"])
+        cv = LN.cvode_band_cost(N)
+        t_cv.append(cv["wall_per_step"])
+        cv_steps.append(cv["n_steps"])
     fits = {"rk4_time": LN.fit_exponent(Ns, t_rk), "rk4_bytes": LN.fit_exponent(Ns, b_rk),
             "cvode_time": LN.fit_exponent(Ns, t_cv)}
+    for N, b, t, tc, k in zip(Ns, b_rk, t_rk, t_cv, cv_steps):
+        res.rows.append(row(s, "large_n", "rk4", "peak_bytes", b, n=N, note="tracemalloc peak of 3 generic-path steps"))
+        res.rows.append(row(s, "large_n", "rk4", "wall_per_step_s", math.nan, n=N, measured_timed=t,
+                            note=f"timing: min of {repeats} repeats of {n_steps} compiled-path steps"))
+        res.rows.append(row(s, "large_n", "cvode-bdf", "steps", k, n=N,
+                            note="one period of the lowest mode, rtol 1e-6, banded"))
+        res.rows.append(row(s, "large_n", "cvode-bdf", "wall_per_step_s", math.nan, n=N, measured_timed=tc,
+                            note="timing: one run"))
     timing = "timing on a shared machine: reported, not asserted (tests/test_stability.py checks it, slow)"
-    res.rows.append(row(s, "rk4", "rhs_calls_per_step", max(calls), 4.0, all(c == 4 for c in calls),
+    res.rows.append(row(s, "large_n", "rk4", "rhs_calls_per_step", max(calls), 4.0, all(c == 4 for c in calls),
                         note=f"each call O(N); N = {Ns}"))
-    res.rows.append(row(s, "rk4", "peak_memory_exponent", fits["rk4_bytes"], 1.0,
+    res.rows.append(row(s, "large_n", "rk4", "peak_memory_exponent", fits["rk4_bytes"], 1.0,
                         abs(fits["rk4_bytes"] - 1) <= 0.1, note=f"tracemalloc peak, N = {Ns}"))
-    res.rows.append(row(s, "rk4", "cost_per_step_exponent", fits["rk4_time"], 1.0, None,
-                        note=f"wall per step, min of 3 repeats of 500 steps, N = {Ns}; {timing}"))
-    res.rows.append(row(s, "cvode-bdf", "cost_per_step_exponent", fits["cvode_time"], 1.0, None,
+    res.rows.append(row(s, "large_n", "rk4", "cost_per_step_exponent", math.nan, 1.0, None,
+                        measured_timed=fits["rk4_time"],
+                        note=f"wall per step, min of {repeats} repeats of {n_steps} steps, N = {Ns}; {timing}"))
+    res.rows.append(row(s, "large_n", "cvode-bdf", "cost_per_step_exponent", math.nan, 1.0, None,
+                        measured_timed=fits["cvode_time"],
                         note=f"banded solver, difference-quotient band Jacobian; {timing}"))
-    res.figures.append(plots.large_n_figure(ctx.out_dir, s, np.array(Ns), np.array(t_rk), np.array(b_rk),
-                                            np.array(t_cv), fits))
+    res.plots.append({"kind": "large_n", "scene": s, "study": "large_n", "name": "large_n", "data": {
+        "n": np.array(Ns, float), "rk4_wall_per_step": np.array(t_rk, float), "rk4_peak_bytes": np.array(b_rk, float),
+        "cvode_wall_per_step": np.array(t_cv, float), "fits": {k: float(v) for k, v in fits.items()}}})
     res.findings.append(f"{s}: up to N = {Ns[-1]}, RK4 time per step ~ N^{fits['rk4_time']:.2f}, memory ~ "
                         f"N^{fits['rk4_bytes']:.2f}; CVODE-BDF (band) ~ N^{fits['cvode_time']:.2f}")
     return res
 
 
-def _planar_params(ctx):
-    """``{"m", "k", "l"}`` when the scene's model is drawn as the four-spring
-    mass (:func:`geometry.four_spring_params`), else None."""
-    return G.four_spring_params(ctx.model)
-
-
-def amplitude(ctx: Context) -> StudyResult:
+# -- planar geometry --------------------------------------------------------------------------
+def _amplitude(ctx: Context, part) -> StudyResult:
     res, s = StudyResult(), ctx.scene
-    p = _planar_params(ctx)
+    p = G.four_spring_params(ctx.model)
     if p is None:
-        res.rows.append(row(s, "-", "amplitude", math.nan, status="skipped", note=f"amplitude {G.FOUR_SPRING_NEEDS}"))
+        res.rows.append(row(s, "amplitude", "-", "amplitude", math.nan, status="skipped",
+                            note=f"amplitude {G.FOUR_SPRING_NEEDS}"))
         return res
-    a = np.array(ctx.params["amplitudes"])
+    a = np.array(ctx.params["amplitudes"], float)
     err = G.linearization_error(p, a)
     slope = G.amplitude_exponent(a[a >= 1e-5], err[a >= 1e-5])
     for ai, ei in zip(a, err):
-        res.rows.append(row(s, "rk4", f"linearization_error(a/l={ai:g})", ei, math.nan, None,
+        res.rows.append(row(s, "amplitude", "rk4", "linearization_error", ei, math.nan, None, a_over_l=ai,
                             note="max over 5 periods of |q_nl - q_lin| / r0"))
-    res.rows.append(row(s, "rk4", "linearization_error_exponent", slope, 2.0, abs(slope - 2) <= 0.1,
+    res.rows.append(row(s, "amplitude", "rk4", "linearization_error_exponent", slope, 2.0, abs(slope - 2) <= 0.1,
                         note="fit over 1e-5 <= a/l <= 1e-2; cubic terms of V cancel by symmetry"))
-    res.figures.append(plots.amplitude_figure(ctx.out_dir, s, a, err, slope))
+    res.plots.append({"kind": "amplitude", "scene": s, "study": "amplitude", "name": "amplitude",
+                      "data": {"a_over_l": a, "error": np.asarray(err, float), "slope": float(slope)}})
     for tol in (1e-3, 1e-2):
         ok = a[err <= tol]
         res.findings.append(f"{s}: the linear model stays within {tol:g} of the exact geometry up to "
@@ -311,29 +563,83 @@ def amplitude(ctx: Context) -> StudyResult:
     return res
 
 
-def singular(ctx: Context) -> StudyResult:
+def _singular(ctx: Context, part) -> StudyResult:
     res, s = StudyResult(), ctx.scene
-    p = _planar_params(ctx)
+    p = G.four_spring_params(ctx.model)
     if p is None:
-        res.rows.append(row(s, "-", "singular", math.nan, status="skipped", note=f"singular {G.FOUR_SPRING_NEEDS}"))
+        res.rows.append(row(s, "singular", "-", "singular", math.nan, status="skipped",
+                            note=f"singular {G.FOUR_SPRING_NEEDS}"))
         return res
     T = 2 * math.pi / math.sqrt(2 * p["k"] / p["m"])
     h, t_end = T / 200, 2 * T
     off = ctx.params["singular_offset"]
     out = G.singular_pass(p, off, h, t_end)
-    res.rows.append(row(s, "rk4", f"closest_approach_m(offset={off:g})", out["d_min"], off,
-                        out["status"] in ("singular", "ok", "unstable"), status=out["status"],
+    res.rows.append(row(s, "singular", "rk4", "closest_approach_m", out["d_min"], off,
+                        out["status"] in ("singular", "ok", "unstable"), status=out["status"], offset=off,
                         note=out["message"]))
     res.findings.append(f"{s}: aimed at an anchor with offset {off:g} m: {out['message']}")
     out = G.singular_pass(p, 0.0, h, t_end, start_on_anchor=True)
     t_fail = out["result"].t_fail
-    res.rows.append(row(s, "rk4", "blowup_time_s(start_on_anchor)", t_fail if t_fail is not None else math.nan,
-                        math.nan, out["status"] == "unstable", status=out["status"], note=out["message"]))
+    res.rows.append(row(s, "singular", "rk4", "blowup_time_on_anchor_s", t_fail if t_fail is not None else math.nan,
+                        math.nan, out["status"] == "unstable", status=out["status"],
+                        note="started exactly on the anchor (l, 0); " + out["message"]))
     return res
 
 
-STUDY_FUNCTIONS = {"boundary": boundary, "stiffness": stiffness, "mass_ratio": mass_ratio,
-                   "long_horizon": long_horizon, "roundoff": roundoff, "large_n": large_n,
-                   "amplitude": amplitude, "singular": singular}
+# -- dispatch ---------------------------------------------------------------------------------
+_UNIT_FUNCTIONS = {"boundary": _boundary, "long_horizon": _long, "roundoff": _roundoff, "large_n": _large_n,
+                   "amplitude": _amplitude, "singular": _singular}
 
-_ = integrate_fixed  # re-exported helper used by callers of this module
+
+def run_unit(scene, unit: str, quick: bool) -> StudyResult:
+    """Compute one unit of ``scene``'s stability study (see :func:`units`):
+    rows, findings and plot descriptions; no file is written. Exceptions
+    propagate (the caller records the unit as failed, e.g. :func:`failed_unit`)."""
+    study, part, params = parse_unit(unit)
+    listed = units(scene, quick)
+    if unit not in listed:
+        raise ValueError(f"`unit` {unit!r} is not a unit of scene {scene.name!r} "
+                         f"({'quick' if quick else 'full'} mode: {', '.join(listed)})")
+    return run_unit_in(context(scene, quick), unit)
+
+
+def run_unit_in(ctx: Context, unit: str) -> StudyResult:
+    """:func:`run_unit` on a ready :class:`Context` (a model not built from a
+    scene file, in tests); the unit is not checked against the scene's list."""
+    study, part, params = parse_unit(unit)
+    with np.errstate(all="ignore"):  # blow-ups are reported by status, not warnings
+        if study in _SWEEPS:
+            return _sweep_unit(ctx, study, part, params)
+        return _UNIT_FUNCTIONS[study](ctx, part)
+
+
+def assemble(scene, quick: bool, results: dict) -> StudyResult:
+    """Merge the units' results of ``scene`` (``{unit: StudyResult}``, or
+    objects/dicts with ``rows``, ``findings``, ``plots``) into the scene's
+    rows, findings and plots, in the order of :func:`units`: the sweep points
+    become one cost plot and one finding per sweep, the long-horizon parts one
+    drift plot and one energy plot. Pure: integrates nothing. A unit without
+    a result becomes a ``failed`` row."""
+    p = validate_params(dict(scene.stability or {}))
+    all_units = units(scene, quick)
+    out = StudyResult()
+    for study in p["studies"]:
+        res = StudyResult()
+        for u in (u for u in all_units if parse_unit(u)[0] == study):
+            r = results.get(u)
+            if r is None:
+                res.extend(failed_unit(scene.name, u, "no result for this unit"))
+                continue
+            get = (lambda k: r.get(k, [])) if isinstance(r, dict) else (lambda k: getattr(r, k, []))
+            res.rows += list(get("rows"))
+            res.findings += list(get("findings"))
+            res.plots += list(get("plots"))
+        if study == "long_horizon":
+            _assemble_long(scene.name, quick, res)
+        elif study in _SWEEPS:
+            _assemble_cost(scene.name, study, res)
+        out.extend(res)
+    return out
+
+
+_ = integrate_fixed  # the study's one fixed-step entry point (validation.stability._common)

@@ -1,0 +1,119 @@
+"""Figures from figure jobs (:class:`validation.measure.FigureJob`): the
+report's only drawing entry. Each job's data came from records; nothing here
+integrates. A plotting fault is a failed check of the scene, never a lost run.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["draw", "sweep_jobs", "sweep_figure"]
+
+
+def draw(job, out_dir, scenes_by_name) -> list:
+    """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``."""
+    import pandas as pd
+
+    from . import figures as f
+
+    d, name = job.data, job.scene
+    if job.kind == "work_precision":
+        return [f.work_precision(out_dir, name, pd.DataFrame(d["rows"]))]
+    if job.kind == "energy_error":
+        return [f.energy_error(out_dir, name, d["series"])]
+    if job.kind == "convergence":
+        return [f.convergence(out_dir, name, pd.DataFrame(d["points"]), pd.DataFrame(d["fits"]))]
+    if job.kind == "modal_energy":
+        return [f.modal_energy(out_dir, name, d["t"], d["series"], d["omega"])]
+    if job.kind == "dispersion":
+        return [f.dispersion(out_dir, d["m"], d["k"], d["d"], d["n"], d["finite"], d["packets"], scene_name=name)]
+    if job.kind == "state":
+        model = scenes_by_name[name].build_model()
+        return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"])
+    if job.kind == "stability":
+        from . import stability
+
+        return [stability.draw(d["plot"], out_dir)]
+    if job.kind == "sweep":
+        return [sweep_figure(out_dir, **d)]
+    raise ValueError(f"unknown figure kind {job.kind!r}")
+
+
+#: Quantities drawn against a swept parameter: (table, column, per-curve keys, y label, log y).
+SWEEP_QUANTITIES = (
+    ("accuracy", "error_rel", ("solver", "setting"), "max error / max |y_ref|", True),
+    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / |E0|", True),
+    ("accuracy", "nfev", ("solver", "setting"), "RHS evaluations", True),
+    ("convergence", "observed_order", ("solver", "quantity"), "observed order", False),
+    ("modes", "omega_rad_s", ("mode",), "omega (rad/s)", True),
+    ("linearization", "error_rel_q", (), "linear model error / amplitude", True),
+)
+
+
+def sweep_jobs(scenes, results) -> list:
+    """One figure job per (swept scene, swept parameter, measured quantity):
+    the quantity against the parameter, one curve per solver and setting,
+    read from the measured tables of the sweep's points."""
+    from .measure import FigureJob
+
+    groups = {}
+    for scene, res in zip(scenes, results):
+        sweep = dict(getattr(scene, "sweep", None) or {})
+        if sweep:
+            groups.setdefault(getattr(scene, "base", scene.name), []).append((sweep, res))
+    jobs = []
+    for base, points in groups.items():
+        if len(points) < 2:
+            continue
+        for param in points[0][0]:
+            if not all(isinstance(sw.get(param), (int, float)) for sw, _ in points):
+                continue
+            for table, col, keys, ylabel, logy in SWEEP_QUANTITIES:
+                curves = {}
+                for sw, res in points:
+                    others = ", ".join(f"{k}={v:g}" for k, v in sw.items() if k != param)
+                    for row in res.tables.get(table, []):
+                        y = row.get(col)
+                        if not isinstance(y, (int, float)) or not math.isfinite(y):
+                            continue
+                        label = ", ".join(f"{row[k]:g}" if isinstance(row[k], float) else str(row[k])
+                                          for k in keys) or col
+                        if others:
+                            label += f" ({others})"
+                        curves.setdefault(label, []).append((float(sw[param]), float(y)))
+                if curves:
+                    jobs.append(FigureJob(base, "sweep", {"base": base, "param": param, "quantity": col,
+                                                          "ylabel": ylabel, "logy": logy,
+                                                          "curves": {k: sorted(v) for k, v in curves.items()}}))
+    return jobs
+
+
+def sweep_figure(out_dir, base, param, quantity, ylabel, logy, curves):
+    """A measured quantity against a swept parameter (log x when the values
+    span more than a decade), one line per curve."""
+    from . import figures as f
+
+    fig = f._new_figure(f.SIZE)
+    f._suptitle(fig, f"{base}: {quantity} against {param}")
+    ax = fig.subplots()
+    xs_all = []
+    for label, pts in curves.items():
+        x, y = np.array(pts, float).T
+        xs_all += list(x)
+        color, marker = f.solver_style(label.split(",")[0])
+        ax.plot(x, y, marker=marker, color=color if color != "#7f7f7f" else None, lw=1.2, ms=4, label=label)
+    xs = np.array(xs_all)
+    if xs.size and np.all(xs > 0) and xs.max() / xs.min() > 10:
+        ax.set_xscale("log")
+    if logy and all(np.all(np.array(p)[:, 1] > 0) for p in curves.values()):
+        ax.set_yscale("log")
+    ax.set_xlabel(param)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    if len(curves) <= 12:
+        ax.legend(fontsize=7, loc="best", framealpha=0.8)
+    path = f._save(fig, out_dir, f"{f.slug(base)}_sweep_{f.slug(param)}_{f.slug(quantity)}")
+    sentence = (f"{quantity} against the swept parameter {param} over the points of the sweep {base}: "
+                f"one line per {'solver and setting' if len(curves) > 1 else 'quantity'}.")
+    return path, sentence

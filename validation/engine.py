@@ -1,0 +1,277 @@
+"""Executing a plan: in this process, on a local process pool, or on a Dask cluster.
+
+:func:`run_plan` takes ``(scene, spec)`` pairs (:func:`validation.plan.plan_all`)
+and returns their records, key -> :class:`~validation.records.RunRecord`.
+Records already in the store (``--resume``) are not run again; every new
+record is written to the store as soon as it arrives, so an interrupted run
+loses at most the runs in flight.
+
+Order: the references (``truth`` specs) run first, so that the runs that
+measure against them find them in the truth cache instead of computing them
+in two workers at once; then every untimed spec, on all workers, longest
+estimated first; then the timed specs.
+
+Timing
+------
+Timed specs (:attr:`RunSpec.timed`: the solver runs whose wall times feed the
+work-precision tables and verdicts) run last, one at a time, in one worker
+process (the *timing lane*) while the other workers are idle: no timed run
+shares the machine with work of this tool. Running them beside the untimed
+work instead was measured (``benchmarks/bench_timing_lane.py``) to inflate
+their wall times by a median factor of about 1.2 to 1.6 on this 2-core
+machine: a bias, not noise, so the timings wait for an idle machine.
+``--workers 1`` runs everything in this process, in the same order.
+
+On a Dask cluster (``--scheduler ADDRESS``) the same three stages run in
+order; timed specs ask for the worker resource ``timing`` when a worker
+offers it (start one worker with ``--resources timing=1 --nthreads 1``,
+alone on its machine); without such a worker they run wherever Dask puts them
+and the report says that its timings came from a shared cluster.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+
+from .records import failed_record
+
+__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools"]
+
+
+def default_workers() -> int:
+    """The cores this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+class PlanStats:
+    """What :func:`run_plan` did: specs ``planned``, ``resumed`` (read from the
+    store), ``executed``; ``timing`` says how timed runs were placed."""
+
+    def __init__(self):
+        self.planned = self.resumed = self.executed = 0
+        self.timing = "one at a time in the main process (--workers 1)"
+        self.phases = {}
+
+    def __repr__(self):
+        return (f"PlanStats(planned={self.planned}, resumed={self.resumed}, executed={self.executed}, "
+                f"timing={self.timing!r})")
+
+
+def _worker_init():
+    # Ctrl-C reaches the whole process group: the parent decides, workers stay quiet.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _execute(scene, spec, quick):
+    from validation.execute import execute
+
+    return execute(scene, spec, quick)
+
+
+def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progress=None, cost=None,
+             stats=None, records=None, pools=None):
+    """Execute ``jobs`` (``[(scene, spec), ...]``); see the module docstring.
+
+    Parameters
+    ----------
+    jobs : list of (Scene, RunSpec)
+    quick : bool
+        Passed to each execution (the stability units' quick settings).
+    workers : int
+        Local processes (1: in this process). Ignored with ``scheduler``.
+    scheduler : str or None
+        Address of a Dask distributed scheduler (``tcp://host:port``).
+    store : RecordStore or None
+        Where records are read (resume) and written.
+    progress : callable(str) or None
+        Called once per spec, resumed ones included.
+    cost : callable(scene, spec) -> float or None
+        Estimated cost, to start the longest runs first.
+    stats : PlanStats or None
+        Filled with the counts.
+    records : dict or None
+        Filled in place as records arrive (and returned).
+    pools : LocalPools or None
+        Worker processes to use (and keep); default: started and stopped here.
+    """
+    stats = stats if stats is not None else PlanStats()
+    stats.planned = len(jobs)
+    tick = progress or (lambda msg: None)
+    records = records if records is not None else {}
+    todo = []
+    have = store.keys() if store is not None else set()
+    for scene, spec in jobs:
+        rec = store.get(spec.key) if spec.key in have else None
+        if rec is not None:
+            records[spec.key] = rec
+            stats.resumed += 1
+            tick(f"{spec.label()} (resumed)")
+        else:
+            todo.append((scene, spec))
+    stages = [[j for j in todo if j[1].purpose == "truth"],
+              [j for j in todo if j[1].purpose != "truth" and not j[1].timed],
+              [j for j in todo if j[1].purpose != "truth" and j[1].timed]]
+    if cost is not None:
+        stages = [sorted(s, key=lambda j: -cost(*j)) for s in stages]
+
+    def done(spec, rec):
+        if store is not None:
+            store.put(rec)
+        records[spec.key] = rec
+        stats.executed += 1
+        tick(spec.label())
+
+    if scheduler:
+        _dask(stages, quick, scheduler, done, stats)
+    elif workers <= 1:
+        from .execute import execute
+
+        for stage in stages:
+            for scene, spec in stage:
+                done(spec, execute(scene, spec, quick))
+    else:
+        own = pools is None
+        pools = pools or LocalPools(workers)
+        try:
+            _pool(stages, quick, pools, done, stats)
+        finally:
+            if own:
+                pools.close()
+    return records
+
+
+class LocalPools:
+    """Worker processes kept for a whole report: the timing lane (one process)
+    and ``workers - 1`` general processes, started on first use (``spawn``:
+    no fork of a process holding LLVM/numba threads). Used for the plan and
+    then for drawing the figures."""
+
+    def __init__(self, workers: int):
+        self.workers = int(workers)
+        self.general = self.lane = None
+
+    def start(self):
+        if self.general is None:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            ctx = mp.get_context("spawn")
+            self.general = ProcessPoolExecutor(max_workers=max(1, self.workers - 1), mp_context=ctx,
+                                               initializer=_worker_init)
+            self.lane = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_worker_init)
+        return self
+
+    def map(self, fn, items):
+        """``[fn(*item) ...]`` over both pools, in order; an exception is
+        returned in place of its result."""
+        self.start()
+        futs = [(self.general if i % self.workers else self.lane).submit(fn, *item)
+                for i, item in enumerate(items)]
+        out = []
+        try:
+            for f in futs:
+                try:
+                    out.append(f.result())
+                except Exception as e:  # noqa: BLE001 - the caller reports it
+                    out.append(e)
+        except BaseException:
+            self.close(kill=True)
+            raise
+        return out
+
+    def close(self, kill=False):
+        """Stop the workers: at once (``kill``: an interrupt or a fault), or
+        after their current work."""
+        for pool in (self.general, self.lane):
+            if pool is None:
+                continue
+            if kill:
+                for proc in list((getattr(pool, "_processes", None) or {}).values()):
+                    try:
+                        proc.kill()
+                    except (OSError, AttributeError):
+                        pass
+            pool.shutdown(wait=not kill, cancel_futures=True)
+        self.general = self.lane = None
+
+
+def _pool(stages, quick, pools, done, stats):
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pools.start()
+    stats.timing = (f"one at a time after the untimed work, in one process with the other "
+                    f"{pools.workers - 1} worker(s) idle (--workers {pools.workers})")
+    try:
+        for stage in stages:
+            queue = list(stage)
+            free = {"lane": 1, "general": max(1, pools.workers - 1)}
+            pending = {}
+            while queue or pending:
+                # keep every process busy with one spec (untimed work on every process;
+                # timed runs only in the lane, alone)
+                while queue:
+                    timed = queue[0][1].timed
+                    name = "lane" if free["lane"] and (timed or not free["general"]) else \
+                        ("general" if free["general"] and not timed else None)
+                    if name is None:
+                        break
+                    scene, spec = queue.pop(0)
+                    free[name] -= 1
+                    pool = pools.lane if name == "lane" else pools.general
+                    pending[pool.submit(_execute, scene, spec, quick)] = (spec, name)
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    spec, name = pending.pop(fut)
+                    free[name] += 1
+                    try:
+                        rec = fut.result()
+                    except Exception as e:  # noqa: BLE001 - a worker that died is a failed record
+                        rec = failed_record(spec.key, e)
+                    done(spec, rec)
+    except BaseException:
+        pools.close(kill=True)
+        raise
+
+
+def _dask(stages, quick, address, done, stats):
+    try:
+        from distributed import Client, as_completed
+    except ImportError:  # pragma: no cover - a dependency of the project
+        raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
+    try:
+        client = Client(address, timeout="20s")
+    except OSError as e:
+        import errno
+
+        from .atomic import EnvironmentRefused
+
+        raise EnvironmentRefused(errno.ECONNREFUSED, f"cannot reach the Dask scheduler at {address} "
+                                 f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+    try:
+        info = client.scheduler_info()
+        timing_worker = any("timing" in (w.get("resources") or {}) for w in info.get("workers", {}).values())
+        stats.timing = ("Dask: timed runs on the worker with the `timing` resource" if timing_worker
+                        else "Dask: timed runs wherever the scheduler put them (no worker offers `timing`)")
+        for stage in stages:
+            futures = {}
+            for scene, spec in stage:
+                kw = {"resources": {"timing": 1}} if spec.timed and timing_worker else {}
+                fut = client.submit(_execute, scene, spec, quick, key=f"rk4h-{spec.key}", pure=False, **kw)
+                futures[fut] = spec
+            for fut in as_completed(list(futures)):
+                spec = futures[fut]
+                try:
+                    rec = fut.result()
+                except Exception as e:  # noqa: BLE001
+                    rec = failed_record(spec.key, e)
+                done(spec, rec)
+    finally:
+        try:
+            client.close(timeout=5)
+        except Exception:  # noqa: BLE001 - closing a dead connection
+            print("run_all: the Dask client did not close cleanly", file=sys.stderr)
+

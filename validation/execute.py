@@ -1,0 +1,326 @@
+"""``execute(scene, spec) -> RunRecord``: one run of the plan, measured.
+
+Every integration of the report happens here (and in the stability units it
+calls); everything after it reads records. The record holds the run's
+deterministic scalars (errors against the truth, energy drift, nfev, steps,
+status), its timings apart, and the arrays a figure needs. A fault inside a
+solver or a unit becomes a record with status ``failed`` and the message,
+never an exception (except the environment refusing, and interrupts).
+
+Timing (``run`` specs): the first run gives every accuracy number; runs
+shorter than :data:`REPEAT_BELOW_S` are repeated ``spec.repeats`` times and
+the median wall time is reported with the minimum and maximum of the repeats
+(``timing["wall_min"]``, ``["wall_max"]``). Compile time is apart
+(``compile_s``).
+
+Models are built once per process and scene (:func:`problem`), as heyoka's
+JIT and the compiled loops are: a worker that runs many specs of one scene
+pays them once.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from . import metrics
+from .plan import FIGURE_POINTS, RunSpec
+from .records import RunRecord, failed_record
+
+__all__ = ["execute", "problem", "grid", "REPEAT_BELOW_S", "MODAL_MODES", "modal_energies",
+           "convergence_horizon"]
+
+#: Runs longer than this (s) are timed once (the median of repeats guards the short runs,
+#: where a scheduler tick is a large fraction of the time).
+REPEAT_BELOW_S = 0.1
+#: The lowest linear modes followed by the modal-energy output.
+MODAL_MODES = 4
+
+_PROBLEMS: dict = {}
+
+
+def problem(scene):
+    """``(model, y0)`` of ``scene``, built once per process."""
+    from .plan import scene_digest
+
+    key = scene_digest(scene)
+    if key not in _PROBLEMS:
+        if len(_PROBLEMS) > 64:
+            _PROBLEMS.clear()
+        _PROBLEMS[key] = (scene.build_model(), np.asarray(scene.y0(), float))
+    return _PROBLEMS[key]
+
+
+def convergence_horizon(scene, model) -> float:
+    """Horizon (s) of the convergence sweeps: ``[convergence] t_end`` or one
+    period of the fastest (linearized) mode, at most the scene's ``t_end``."""
+    omega_max = float(np.max(model.modes()[0]))
+    return min(scene.convergence.get("t_end", 2.0 * math.pi / omega_max), scene.t_end)
+
+
+def grid(scene, model, spec: RunSpec) -> np.ndarray:
+    """The output times (s) of ``spec``: the scene's grid, the convergence
+    grid of the sweep (``n0 = ceil(T omega_max / theta_0)`` intervals of one
+    period), or the figure grid."""
+    if spec.grid == "scene":
+        return scene.t_eval()
+    if spec.grid == "order":
+        T = convergence_horizon(scene, model)
+        omega_max = float(np.max(model.modes()[0]))
+        n0 = max(1, math.ceil(T * omega_max / spec.param("theta0")))
+        return np.linspace(0.0, T, n0 + 1)
+    if spec.grid == "figure":
+        if spec.solver:  # on the step grid of the finest h, at most FIGURE_POINTS points
+            h = spec.setting
+            n = round(scene.t_end / h)
+            stride = max(1, math.ceil(n / FIGURE_POINTS))
+            t = h * np.arange(0, n + 1, stride)
+            t[-1] = min(t[-1], scene.t_end)
+            return t
+        return np.linspace(0.0, scene.t_end, FIGURE_POINTS + 1)
+    raise ValueError(f"unknown grid {spec.grid!r}")
+
+
+def _truth(model, y0, t):
+    from references.truth import reference_solution
+
+    return reference_solution(model, y0, t)
+
+
+def _status(run) -> str:
+    s = run.status
+    return getattr(s, "value", str(s))
+
+
+def _first_line(text) -> str:
+    return str(text).splitlines()[0] if text else ""
+
+
+def _timed(solver, model, y0, t, setting, repeats):
+    """The first run, and the wall times of up to ``repeats`` runs."""
+    from references.solvers import integrate
+
+    walls, first = [], None
+    for _ in range(max(1, repeats)):
+        run = integrate(solver, model, y0, t, setting)
+        first = first or run
+        walls.append(run.wall_s)
+        if _status(run) != "ok" or run.wall_s > REPEAT_BELOW_S:
+            break
+    return first, walls
+
+
+def execute(scene, spec: RunSpec, quick: bool = False) -> RunRecord:
+    """Run ``spec`` (a spec of ``scene``) and return its record."""
+    from . import interrupt
+    from .atomic import is_environment_error
+
+    t0 = time.perf_counter()
+    try:
+        with np.errstate(all="ignore"):
+            rec = _PURPOSE[spec.purpose](scene, spec, quick)
+    except Exception as e:  # noqa: BLE001 - a fault in one run is a failed record
+        if is_environment_error(e) or interrupt.pending():
+            raise
+        rec = failed_record(spec.key, e)
+    rec.key = spec.key
+    rec.seconds = time.perf_counter() - t0
+    return rec
+
+
+def _truth_spec(scene, spec, quick):
+    model, y0 = problem(scene)
+    t = grid(scene, model, spec)
+    truth = _truth(model, y0, t)
+    y = np.asarray(truth.y, float)
+    arrays = {"t": t, "y": y} if "trajectory" in spec.keep else {}
+    return RunRecord(spec.key, values={"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))},
+                     arrays=arrays)
+
+
+def _run_spec(scene, spec, quick):
+    model, y0 = problem(scene)
+    t = grid(scene, model, spec)
+    truth = _truth(model, y0, t)
+    y_ref = np.asarray(truth.y, float)
+    scale = float(np.max(np.abs(y_ref)))
+    run, walls = _timed(spec.solver, model, y0, t, spec.setting, spec.repeats)
+    status = _status(run)
+    e_max = metrics.error_max(run.y, y_ref)
+    ok = status == "ok"
+    values = {"truth_kind": truth.kind, "error_max": e_max, "error_rel": e_max / scale,
+              "error_final": metrics.error_final(run.y, y_ref),
+              "energy_drift_max": metrics.energy_drift_max(model, run.y),
+              "drift_per_time": metrics.drift_per_time(model, t, run.y) if ok else math.nan,
+              "theory_drift_per_time": math.nan, "nfev": int(run.nfev), "n_steps": int(run.n_steps),
+              "taylor_order": int(run.taylor_order or 0), "duration": float(t[-1] - t[0])}
+    if spec.solver == "rk4" and model.linear and ok:
+        from references.exact import modal_solution
+
+        ms = modal_solution(model, y0)
+        duration = values["duration"]
+        values["theory_drift_per_time"] = metrics.rk4_drift_theory(
+            ms.omega, ms.eta0, ms.deta0, duration / run.n_steps, run.n_steps, duration)
+    arrays = {}
+    if "energy" in spec.keep and ok:
+        arrays["energy_t"] = t
+        arrays["energy_rel"] = np.abs(metrics.relative_energy_error(model, run.y))
+    timing = {"wall_s": float(np.median(walls)), "wall_min": float(min(walls)), "wall_max": float(max(walls)),
+              "repeats": len(walls), "compile_s": float(run.compile_s)}
+    return RunRecord(spec.key, status=status, message=_first_line(run.message), values=values, timing=timing,
+                     arrays=arrays)
+
+
+def _figure_spec(scene, spec, quick):
+    from references.solvers import integrate
+
+    model, y0 = problem(scene)
+    t = grid(scene, model, spec)
+    run = integrate(spec.solver, model, y0, t, spec.setting)
+    status = _status(run)
+    arrays = {"t": np.asarray(run.t, float), "y": np.asarray(run.y, float)} if status == "ok" else {}
+    return RunRecord(spec.key, status=status, message=_first_line(run.message), arrays=arrays)
+
+
+def _order_spec(scene, spec, quick):
+    from references.solvers import integrate
+
+    model, y0 = problem(scene)
+    t = grid(scene, model, spec)
+    y_ref = np.asarray(_truth(model, y0, t).y, float)
+    n0 = t.shape[0] - 1
+    h = float(t[-1]) / (n0 * max(1, round(spec.param("theta0") / spec.setting)))
+    run = integrate(spec.solver, model, y0, t, h)
+    status = _status(run)
+    err = metrics.error_max(run.y, y_ref) if status == "ok" else math.nan
+    return RunRecord(spec.key, status=status, message=_first_line(run.message),
+                     values={"h": h, "error_max": err, "scale": float(np.max(np.abs(y_ref))),
+                             "t_end": float(t[-1])})
+
+
+def modal_energies(model, y, omega, phi):
+    """Energy (J) in each linear mode, shape (modes, m), of states ``y`` (2n, m):
+    ``E_k = (adot_k^2 + omega_k^2 a_k^2) / 2`` with modal coordinates
+    ``a = phi^T M q`` (``phi`` mass-normalised)."""
+    n = model.n_dof
+    Mphi = phi * model.mass[:, None]
+    a, adot = Mphi.T @ y[:n], Mphi.T @ y[n:]
+    return 0.5 * (adot * adot + (omega[:, None] * a) ** 2)
+
+
+def _modal_spec(scene, spec, quick):
+    from references.solvers import integrate
+
+    model, y0 = problem(scene)
+    omega, phi = model.modes()
+    k = min(MODAL_MODES, model.n_dof)
+    order = np.argsort(omega)[:k]
+    omega, phi = omega[order], phi[:, order]
+    t = grid(scene, model, spec)
+    run = integrate(spec.solver, model, y0, t, spec.setting)
+    E0 = float(np.asarray(model.energy(y0)))
+    frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E0
+    return RunRecord(spec.key, status=_status(run), message=_first_line(run.message),
+                     arrays={"t": t, "fraction": frac, "omega": omega})
+
+
+def _modes_spec(scene, spec, quick):
+    model, _ = problem(scene)
+    omega, _ = model.modes()
+    return RunRecord(spec.key, values={"omega": [float(w) for w in omega], "linear": bool(model.linear)})
+
+
+def _uniform_chain(model):
+    """``(m, k)`` (kg, N/m) when ``model`` is drawn as masses on a line and its
+    linearization is that of equal masses ``m`` on equal springs ``k`` between
+    two walls: stiffness matrix ``k tridiag(-1, 2, -1)`` (to 1e-12). Else None.
+    Read from the drawing and the mechanics, never from the model's name."""
+    import scipy.sparse as sp
+
+    if model.drawing().layout != "line":
+        return None
+    mass = np.asarray(model.mass, dtype=float)
+    if mass.size == 0 or np.any(mass != mass[0]):
+        return None
+    try:
+        try:
+            K = model.stiffness_matrix(sparse=True)
+        except TypeError:
+            K = model.stiffness_matrix()
+    except NotImplementedError:
+        return None
+    K = sp.csr_matrix(K, dtype=float)
+    diag, up, low = K.diagonal(), K.diagonal(1), K.diagonal(-1)
+    outside = float(abs(K).sum() - np.abs(diag).sum() - np.abs(up).sum() - np.abs(low).sum())
+    k = float(diag[0]) / 2.0
+    tol = 1e-12 * abs(k)
+    uniform = (k > 0 and bool(np.all(np.abs(diag - 2 * k) <= tol)) and bool(np.all(np.abs(up + k) <= tol))
+               and bool(np.all(np.abs(low + k) <= tol)) and abs(outside) <= tol * mass.size)
+    return (float(mass[0]), k) if uniform else None
+
+
+def _dispersion_spec(scene, spec, quick):
+    from references import dispersion
+
+    model, _ = problem(scene)
+    mk = _uniform_chain(model)
+    if mk is None:
+        return RunRecord(spec.key, status="failed", message="the dispersion output needs a uniform chain "
+                                                             "between walls")
+    m, k = mk
+    d = dispersion.THESIS_LATTICE["d"]
+    N = model.n_dof
+    finite = np.asarray(model.modes()[0], float)
+    theory = np.asarray(dispersion.finite_chain_frequencies(N, m, k), float)
+    kp_n = np.asarray(dispersion.finite_chain_wavenumbers(N, d), float)
+    return RunRecord(spec.key, values={"m": m, "k": k, "d": d, "n": N},
+                     arrays={"finite": finite, "theory": theory, "kp": kp_n})
+
+
+def _packet_spec(scene, spec, quick):
+    from references import dispersion
+
+    from . import wavepacket
+
+    model, _ = problem(scene)
+    mk = _uniform_chain(model)
+    if mk is None:
+        return RunRecord(spec.key, status="failed", message="the dispersion output needs a uniform chain "
+                                                             "between walls")
+    m, k = mk
+    d = dispersion.THESIS_LATTICE["d"]
+    kp0 = spec.setting * math.pi / d
+    p = wavepacket.measure_group_velocity(kp0, m=m, k=k, d=d)
+    return RunRecord(spec.key, status="ok" if p.success else "failed", values={
+        "kp0": kp0, "v_measured": float(p.v_measured), "v_theory": float(p.v_theory),
+        "rel_error": float(p.rel_error), "success": bool(p.success)})
+
+
+def _linearization_spec(scene, spec, quick):
+    """The linearized model's exact modal solution against the nonlinear truth."""
+    from references.exact import modal_solution
+
+    model, y0 = problem(scene)
+    t = grid(scene, model, spec)
+    y_ref = np.asarray(_truth(model, y0, t).y, float)
+    y_lin = np.asarray(modal_solution(model, y0)(t), float)
+    n = model.n_dof
+    scale_q = float(np.max(np.abs(y_ref[:n])))
+    err_q = float(np.max(np.abs(y_lin[:n] - y_ref[:n])))
+    arrays = {"t": t, "y_linear": y_lin, "y": y_ref} if "trajectory" in spec.keep else {}
+    return RunRecord(spec.key, values={"error_max_q": err_q, "error_rel_q": err_q / scale_q if scale_q else math.nan,
+                                       "amplitude_q": scale_q}, arrays=arrays)
+
+
+def _stability_spec(scene, spec, quick):
+    from . import stability
+
+    r = stability.run_unit(scene, spec.unit, quick)
+    return RunRecord(spec.key, result={"rows": list(r.rows), "findings": list(r.findings),
+                                       "plots": list(r.plots)})
+
+
+_PURPOSE = {"truth": _truth_spec, "run": _run_spec, "figure": _figure_spec, "order": _order_spec,
+            "modal": _modal_spec, "modes": _modes_spec, "dispersion": _dispersion_spec,
+            "packet": _packet_spec, "linearization": _linearization_spec, "stability": _stability_spec}

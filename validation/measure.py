@@ -1,0 +1,420 @@
+"""Tables, checks and figure data from records: pure functions, no integration.
+
+:func:`measure` turns one scene's plan and records into table rows (the CSV
+files of the report), :class:`Check` records (a failed check is a failure
+line in ``index.md``; nothing else fails a run), one-line findings, and
+:class:`FigureJob` data that :mod:`validation.draw` turns into PNGs.
+
+Rows of a swept scene (``scene.sweep``) carry the swept parameters as columns.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import metrics
+from .plan import EXPECTED_ORDER, ORDER_TOL, TARGETS, RunSpec
+
+__all__ = ["Check", "FigureJob", "SceneTables", "measure", "ENERGY_RTOL", "ENERGY_ROUNDOFF_PER_STEP",
+           "TOLERANCE_SLACK", "PACKET_RTOL"]
+
+#: RK4 energy drift: measured vs theory, relative slack and round-off per step.
+ENERGY_RTOL = 1e-6
+ENERGY_ROUNDOFF_PER_STEP = 10 * np.finfo(float).eps
+#: Adaptive solvers: tightening the tolerance may not raise the error more than this.
+TOLERANCE_SLACK = 10.0
+#: Wave packets: accepted relative error of the group velocity.
+PACKET_RTOL = 0.02
+#: Finite chain against the dispersion relation: accepted relative error.
+DISPERSION_RTOL = 1e-10
+
+
+@dataclass(frozen=True)
+class Check:
+    """One expectation: ``passed`` is whether ``measured`` met ``expected``
+    within ``tolerance``; ``message`` is the failure line (scene first)."""
+
+    scene: str
+    name: str
+    measured: float = math.nan
+    expected: float = math.nan
+    tolerance: float = math.nan
+    passed: bool = True
+    message: str = ""
+
+
+@dataclass
+class FigureJob:
+    """A figure to draw: ``kind`` names a function of :mod:`validation.draw`,
+    ``data`` its arguments (arrays, rows)."""
+
+    scene: str
+    kind: str
+    data: dict
+
+
+@dataclass
+class SceneTables:
+    scene: str
+    tables: dict = field(default_factory=dict)
+    checks: list = field(default_factory=list)
+    findings: list = field(default_factory=list)
+    figures: list = field(default_factory=list)
+    truth_kind: str = ""
+    seconds: float = 0.0
+    drawn: list = field(default_factory=list)
+
+    def add(self, table, row):
+        self.tables.setdefault(table, []).append(row)
+
+    def check(self, name, passed, message="", measured=math.nan, expected=math.nan, tolerance=math.nan):
+        self.checks.append(Check(self.scene, name, float(measured), float(expected), float(tolerance),
+                                 bool(passed), message if not passed else ""))
+
+    @property
+    def failures(self) -> list:
+        return [c.message for c in self.checks if not c.passed]
+
+
+def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=True) -> SceneTables:
+    """Everything ``scene`` reports, from its ``specs`` and their ``records``
+    (key -> :class:`~validation.records.RunRecord`)."""
+    res = SceneTables(scene.name)
+    by = {}
+    for s in specs:
+        by.setdefault(s.purpose, []).append(s)
+    res.seconds = float(sum(records[s.key].seconds for s in specs if s.key in records))
+    draw = figures and "figures" in scene.outputs
+    for s in by.get("truth", []):
+        if s.grid == "scene":
+            res.truth_kind = records[s.key].values.get("truth_kind", "")
+    _runs(scene, by.get("run", []), records, res, draw)
+    _state_figure(scene, by.get("figure", []) + [s for s in by.get("truth", []) if s.grid == "figure"],
+                  records, res)
+    _linearization(scene, by.get("linearization", []), records, res)
+    if by.get("order"):
+        _convergence(scene, by["order"], records, res, draw)
+    _modes(scene, by.get("modes", []), records, res)
+    _dispersion(scene, by.get("dispersion", []), by.get("packet", []), records, res, draw)
+    _modal(scene, by.get("modal", []), records, res, draw)
+    if by.get("stability"):
+        _stability(scene, by["stability"], records, res, quick)
+    if scene_sweep(scene):
+        cols = scene_sweep(scene)
+        for rows in res.tables.values():
+            for i, r in enumerate(rows):
+                rows[i] = {"scene": r["scene"], **cols, **{k: v for k, v in r.items() if k != "scene"}}
+    return res
+
+
+def scene_sweep(scene) -> dict:
+    return dict(getattr(scene, "sweep", None) or {})
+
+
+def _failed(res, spec, rec):
+    what = f"{spec.scene}: {spec.solver} at {spec.setting:g}" if spec.solver else f"{spec.scene}: {spec.purpose}"
+    res.check(f"{spec.purpose} completes", False, f"{what} failed: {rec.message or 'no message'}")
+
+
+# -- accuracy, energy, work-precision --------------------------------------------------
+def _runs(scene, specs, records, res, draw):
+    series = {}
+    for spec in specs:
+        rec = records[spec.key]
+        v, tm = rec.values, rec.timing
+        row = {"scene": scene.name, "solver": spec.solver, "setting": float(spec.setting)}
+        if not v:  # the execution itself failed
+            _failed(res, spec, rec)
+            res.add("accuracy", {**row, "error_max": math.nan, "error_rel": math.nan, "error_final": math.nan,
+                                 "energy_drift_max": math.nan, "nfev": 0, "n_steps": 0, "wall_s": math.nan,
+                                 "compile_s": math.nan, "status": "failed", "message": rec.message})
+            continue
+        status = rec.status
+        if status == "failed":
+            _failed(res, spec, rec)
+        elif status == "unstable":
+            res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} became unstable: "
+                                f"{rec.message or 'non-finite state'}")
+        res.add("accuracy", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
+                             "error_final": v["error_final"], "energy_drift_max": v["energy_drift_max"],
+                             "nfev": v["nfev"], "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
+                             "compile_s": tm["compile_s"], "status": status, "message": rec.message})
+        if "work_precision" in scene.outputs:
+            res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
+                                       "wall_s": tm["wall_s"], "nfev": v["nfev"], "n_steps": v["n_steps"],
+                                       "taylor_order": v["taylor_order"], "status": status})
+        if "energy" in scene.outputs:
+            res.add("energy", _energy_row(scene, spec, rec, row, res))
+            if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
+                label = f"{spec.solver} {'h' if spec.solver in EXPECTED_ORDER else 'rtol'}={spec.setting:g}"
+                series[spec.solver] = (label, rec.arrays["energy_t"], rec.arrays["energy_rel"])
+    if "work_precision" in scene.outputs and specs:
+        _cheapest(scene, res)
+        if draw:
+            wp = [r for r in res.tables.get("work_precision", []) if r["error_rel"] <= 10.0]
+            res.figures.append(FigureJob(scene.name, "work_precision", {"rows": wp}))
+    if "convergence" in scene.outputs:
+        _tolerance_checks(scene, res)
+    if draw and series:
+        res.figures.append(FigureJob(scene.name, "energy_error",
+                                     {"series": {lab: (t, e) for lab, t, e in series.values()}}))
+
+
+def _energy_row(scene, spec, rec, row, res):
+    v = rec.values
+    ok = rec.status == "ok"
+    out = {**row, "drift_per_time": v["drift_per_time"] if ok else math.nan,
+           "theory_drift_per_time": v["theory_drift_per_time"],
+           "energy_drift_max": v["energy_drift_max"] if ok else math.nan, "passed": "", "status": rec.status}
+    theory = v["theory_drift_per_time"]
+    if spec.solver == "rk4" and ok and math.isfinite(theory):
+        measured, duration = v["drift_per_time"], v["duration"]
+        slack = ENERGY_RTOL * abs(theory) + ENERGY_ROUNDOFF_PER_STEP * v["n_steps"] / duration
+        passed = bool(abs(measured - theory) <= slack)
+        out["passed"] = passed
+        res.check("rk4 energy drift theory", passed,
+                  f"{scene.name}: RK4 energy drift per time at h={spec.setting:g} is {measured:.6e} 1/s, "
+                  f"theory {theory:.6e} 1/s", measured, theory, slack)
+    return out
+
+
+def _cheapest(scene, res):
+    rows = res.tables.get("work_precision", [])
+    best = metrics.cheapest(rows, TARGETS, cost="wall_s")
+    crossover = None
+    for b in best:
+        if crossover is None and not (b["rk4_setting"] is not None and b["solver"] == "rk4"):
+            crossover = b["target_error"]
+        res.add("cheapest", {"scene": scene.name, "target_error": b["target_error"],
+                             "solver": b["solver"] or "", "setting": b["setting"], "wall_s": b["cost"],
+                             "rk4_h": b["rk4_setting"], "rk4_wall_s": b["rk4_cost"],
+                             "rk4_is_cheapest": bool(b["solver"] == "rk4")})
+    if "rk4" not in scene.solvers:
+        return
+    first = best[0]
+    if crossover is None:
+        res.findings.append(f"{scene.name}: RK4 is the cheapest solver for every target error down to "
+                            f"{TARGETS[-1]:g}.")
+    elif first["solver"] is None:
+        res.findings.append(f"{scene.name}: no solver reaches a relative error of {TARGETS[0]:g}.")
+    elif crossover == TARGETS[0]:
+        rk4 = (f"RK4 needs {first['rk4_cost'] / first['cost']:.3g}x its wall time (h = {first['rk4_setting']:g} s)"
+               if first["rk4_cost"] is not None and first["cost"] else "RK4 does not reach it")
+        res.findings.append(f"{scene.name}: RK4 is not the cheapest solver for any target; at "
+                            f"{TARGETS[0]:g} the cheapest is {first['solver']} (rtol {first['setting']:g}, "
+                            f"compile time excluded); {rk4}.")
+    else:
+        res.findings.append(f"{scene.name}: RK4 is the cheapest solver down to a relative error of "
+                            f"{TARGETS[TARGETS.index(crossover) - 1]:g} and stops being it at {crossover:g}.")
+
+
+def _tolerance_checks(scene, res):
+    """Adaptive solvers: the error must fall as the tolerance tightens."""
+    rows = res.tables.get("accuracy", [])
+    for solver in scene.adaptive_solvers:
+        mine = sorted((r for r in rows if r["solver"] == solver), key=lambda r: -r["setting"])
+        if len(mine) < 2:
+            continue
+        tol = np.array([r["setting"] for r in mine])
+        err = np.array([r["error_rel"] for r in mine], float)
+        ok = np.isfinite(err)
+        monotone = bool(ok.all() and np.all(err[1:] <= TOLERANCE_SLACK * err[:-1]) and err[-1] < err[0])
+        above = ok & (err > metrics.ROUNDOFF_REL)
+        slope = float(np.polyfit(np.log(tol[above]), np.log(err[above]), 1)[0]) if above.sum() >= 2 else math.nan
+        res.add("convergence", {"scene": scene.name, "solver": solver, "quantity": "error vs tolerance",
+                                "observed_order": slope, "expected_order": math.nan, "passed": monotone,
+                                "h_min": float(tol.min()), "h_max": float(tol.max()),
+                                "n_points": int(above.sum()), "t_end": scene.t_end})
+        res.check(f"{solver} error falls with tolerance", monotone,
+                  f"{scene.name}: {solver}'s error does not decrease with the tolerance "
+                  f"(relative errors {', '.join(f'{e:.2g}' for e in err)})")
+
+
+# -- convergence -----------------------------------------------------------------------------
+def _convergence(scene, specs, records, res, draw):
+    points = []
+    methods = list(dict.fromkeys(s.solver for s in specs))
+    conv_rows = []
+    for method in methods:
+        mine = [s for s in specs if s.solver == method]
+        hs, errs, scale, T = [], [], math.nan, math.nan
+        for s in mine:
+            v = records[s.key].values
+            if not v:
+                _failed(res, s, records[s.key])
+                hs.append(math.nan)
+                errs.append(math.nan)
+                continue
+            hs.append(v["h"])
+            errs.append(v["error_max"])
+            scale, T = v["scale"], v["t_end"]
+        fit = metrics.fit_order(hs, errs, scale)
+        points += [{"solver": method, "h": h, "error_max": e} for h, e in zip(hs, errs)]
+        expected = EXPECTED_ORDER[method]
+        passed = fit.passed(expected, ORDER_TOL)
+        row = {"scene": scene.name, "solver": method, "quantity": "order in h", "observed_order": fit.order,
+               "expected_order": expected, "passed": passed, "h_min": fit.h_min, "h_max": fit.h_max,
+               "n_points": fit.n_points, "t_end": T}
+        conv_rows.append(row)
+        res.check(f"{method} order", passed,
+                  f"{scene.name}: {method} observed order {fit.order:.3f}, expected {expected:g} +- "
+                  f"{ORDER_TOL:g} (h in [{fit.h_min:.3g}, {fit.h_max:.3g}], {fit.n_points} points)",
+                  fit.order, expected, ORDER_TOL)
+    # order rows first, then the tolerance rows already added from the accuracy table
+    res.tables["convergence"] = conv_rows + res.tables.get("convergence", [])
+    if draw:
+        res.figures.append(FigureJob(scene.name, "convergence", {"points": points, "fits": conv_rows}))
+
+
+# -- modes, dispersion, modal energy, linearization, state figures ------------------------------
+def _modes(scene, specs, records, res):
+    for s in specs:
+        rec = records[s.key]
+        if not rec.values:
+            _failed(res, s, rec)
+            continue
+        for j, w in enumerate(rec.values["omega"], start=1):
+            res.add("modes", {"scene": scene.name, "mode": j, "omega_rad_s": w, "freq_hz": w / (2 * math.pi),
+                              "linearized": not rec.values["linear"]})
+
+
+def _dispersion(scene, specs, packets, records, res, draw):
+    if not specs:
+        return
+    rec = records[specs[0].key]
+    if rec.status != "ok":
+        res.check("dispersion", False, f"{scene.name}: {rec.message}")
+        return
+    finite, theory, kp = rec.arrays["finite"], rec.arrays["theory"], rec.arrays["kp"]
+    rel = np.abs(finite - theory) / theory
+    worst = float(rel.max())
+    for n in range(finite.size):
+        res.add("dispersion", {"scene": scene.name, "quantity": "finite-chain omega", "index": n + 1,
+                               "kp_rad_m": float(kp[n]), "measured": float(finite[n]), "theory": float(theory[n]),
+                               "rel_error": float(rel[n]), "passed": bool(rel[n] <= DISPERSION_RTOL)})
+    res.check("finite chain vs dispersion relation", worst <= DISPERSION_RTOL,
+              f"{scene.name}: finite-chain frequencies differ from the dispersion relation by {worst:.2e} "
+              f"(relative)", worst, 0.0, DISPERSION_RTOL)
+    drawn = []
+    for s in packets:
+        p = records[s.key]
+        if not p.values:
+            _failed(res, s, p)
+            continue
+        v = p.values
+        ok = bool(v["success"] and abs(v["rel_error"]) <= PACKET_RTOL)
+        res.add("dispersion", {"scene": scene.name, "quantity": "wave-packet group velocity", "index": s.setting,
+                               "kp_rad_m": v["kp0"], "measured": v["v_measured"], "theory": v["v_theory"],
+                               "rel_error": v["rel_error"], "passed": ok})
+        drawn.append((v["kp0"], v["v_measured"]))
+        res.check("wave-packet group velocity", ok,
+                  f"{scene.name}: wave packet at kp0 = {s.setting:g} pi/d moves at {v['v_measured']:.5g} m/s, "
+                  f"v_g = {v['v_theory']:.5g} m/s", v["rel_error"], 0.0, PACKET_RTOL)
+        if ok:
+            res.findings.append(f"{scene.name}: a wave packet at kp0 = {s.setting:g} pi/d integrated by RK4 moves "
+                                f"at {v['v_measured']:.5g} m/s vs v_g = {v['v_theory']:.5g} m/s "
+                                f"({100 * v['rel_error']:+.2f}%).")
+    if draw:
+        v = rec.values
+        res.figures.append(FigureJob(scene.name, "dispersion", {"m": v["m"], "k": v["k"], "d": v["d"],
+                                                                "n": v["n"], "finite": finite,
+                                                                "packets": drawn}))
+
+
+def _modal(scene, specs, records, res, draw):
+    series, t_all, omega_all = {}, None, None
+    for s in specs:
+        rec = records[s.key]
+        if "fraction" not in rec.arrays:
+            _failed(res, s, rec)
+            continue
+        t, frac, omega = rec.arrays["t"], rec.arrays["fraction"], rec.arrays["omega"]
+        t_all, omega_all = t, omega
+        label = f"{s.solver} {'h' if s.solver in EXPECTED_ORDER else 'rtol'}={s.setting:g}"
+        series[label] = frac
+        for j in range(frac.shape[0]):
+            f = frac[j]
+            i_min = int(np.nanargmin(f)) if np.isfinite(f).any() else 0
+            row = {"scene": scene.name, "solver": s.solver, "setting": float(s.setting), "mode": j + 1,
+                   "omega_rad_s": float(omega[j]), "fraction_start": float(f[0]), "fraction_min": float(f[i_min]),
+                   "t_min": float(t[i_min]), "status": rec.status}
+            if j > 0 and np.isfinite(f).any():  # a mode that starts empty: its largest share
+                i_pk = int(np.nanargmax(f))
+                row.update(fraction_peak=float(f[i_pk]), t_peak=float(t[i_pk]))
+            elif i_min < f.size - 1 and np.isfinite(f[i_min:]).any():
+                i_ret = i_min + int(np.nanargmax(f[i_min:]))
+                row.update(fraction_peak=float(f[i_ret]), t_peak=float(t[i_ret]))
+                res.findings.append(
+                    f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
+                    f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
+                    f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
+            else:
+                row.update(fraction_peak=math.nan, t_peak=math.nan)
+            res.add("modal_energy", row)
+    if draw and series:
+        res.figures.append(FigureJob(scene.name, "modal_energy", {"t": t_all, "series": series, "omega": omega_all}))
+
+
+def _linearization(scene, specs, records, res):
+    for s in specs:
+        rec = records[s.key]
+        if not rec.values:
+            _failed(res, s, rec)
+            continue
+        v = rec.values
+        res.add("linearization", {"scene": scene.name, "amplitude_q": v["amplitude_q"],
+                                  "error_max_q": v["error_max_q"], "error_rel_q": v["error_rel_q"]})
+
+
+def _state_figure(scene, specs, records, res):
+    draw = "figures" in scene.outputs
+    for s in specs:
+        rec = records[s.key]
+        if "y" not in rec.arrays:
+            if s.purpose == "figure":
+                continue  # an unstable RK4 run: no figure, its status is in the accuracy table
+            _failed(res, s, rec)
+            continue
+        title = (f"{scene.name}: RK4, h = {s.setting:g} s" if s.purpose == "figure"
+                 else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
+        if draw:
+            res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
+                                                               "title": title}))
+        return
+
+
+# -- stability ------------------------------------------------------------------------------
+def _stability(scene, specs, records, res, quick):
+    from . import stability
+
+    results = {}
+    for s in specs:
+        rec = records[s.key]
+        if rec.result is None:
+            results[s.unit] = stability.failed_unit(scene, s.unit, rec.message)
+        else:
+            results[s.unit] = stability.StudyResult(rows=list(rec.result["rows"]),
+                                                    findings=list(rec.result["findings"]),
+                                                    plots=list(rec.result["plots"]))
+    study = stability.assemble(scene, quick, results)
+    for row in study.rows:
+        res.add("stability", row)
+        passed = row.get("passed")
+        if isinstance(passed, (bool, np.bool_)):
+            res.check(f"stability {row.get('quantity')}", bool(passed),
+                      f"{scene.name}: stability {row.get('solver')} {row.get('quantity')}"
+                      f"{_params_text(row)}: measured {row.get('measured')}, theory {row.get('theory')}",
+                      row.get("measured", math.nan), row.get("theory", math.nan))
+    res.findings.extend(study.findings)
+    for p in study.plots:
+        res.figures.append(FigureJob(scene.name, "stability", {"plot": p}))
+
+
+def _params_text(row) -> str:
+    from . import stability
+
+    bits = [f"{c}={row[c]:g}" for c in stability.PARAM_COLUMNS
+            if isinstance(row.get(c), (int, float)) and math.isfinite(row[c])]
+    return f" ({', '.join(bits)})" if bits else ""

@@ -1,0 +1,230 @@
+"""The work a scene needs, as data: ``plan(scene) -> [RunSpec]``.
+
+A :class:`RunSpec` is frozen, hashable and serializable: the scene it belongs
+to (its name and a digest of its content and of the code), the purpose of the
+run, the method and its setting, and the few parameters the purpose needs. Its
+:attr:`RunSpec.key` (SHA-256) names its record (:mod:`validation.records`): an
+interrupted run resumes from the records it has, a cluster can run any subset,
+and two specs with one key are one run.
+
+Purposes (``RunSpec.purpose``):
+
+``truth``
+    the reference on a grid (``grid = "scene"``: the scene's output grid;
+    ``"order"``: the convergence grid of a sweep starting at ``theta0``;
+    ``"figure"``: the state figures' grid). Fills the truth cache before the runs
+    that measure against it, so parallel workers do not compute it twice.
+``run``
+    one solver at one setting over ``[0, t_end]`` on the output grid, timed
+    (``repeats``): accuracy, energy, work-precision rows.
+``order``
+    one fixed-step run of a convergence sweep: ``h = T / (n0 r)`` with
+    ``r = theta_0 / theta`` (nested grids; ``theta = omega_max h``).
+``figure``
+    RK4 at the scene's finest step on a grid of at most ``FIGURE_POINTS``
+    points (the output grid is often too coarse to draw): the trajectory of
+    the state figures, kept in the record.
+``modal``
+    the energy in the lowest linear modes over time (FPUT recurrence), per
+    solver at its finest setting.
+``modes``, ``dispersion``, ``packet``
+    the natural frequencies; the finite chain against the dispersion
+    relation; one RK4 wave packet against the group velocity.
+``linearization``
+    the linearized model's exact solution against the truth of the nonlinear
+    one (how much a cheaper model costs in accuracy at this amplitude).
+``stability``
+    one unit of the stability study (:func:`validation.stability.units`).
+
+The order of the plan is the order of the report; execution order is the
+engine's business (:mod:`validation.engine`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+__all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS", "EXPECTED_ORDER",
+           "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "ORDER_METHODS", "settings_of", "PURPOSES",
+           "TIMED_UNITS"]
+
+#: Target relative errors of the cheapest-solver table.
+TARGETS = (1e-3, 1e-6, 1e-9, 1e-12)
+#: Classical orders of the fixed-step methods, and the accepted deviation of a fit.
+EXPECTED_ORDER = {"rk4": 4.0, "euler": 1.0, "symplectic-euler": 1.0}
+ORDER_TOL = 0.1
+#: Default omega_max * h of the convergence sweeps (halving: nested step grids).
+RK4_THETAS = (0.2, 0.1, 0.05, 0.025)
+EULER_THETAS = (0.01, 0.005, 0.0025, 0.00125)
+#: The methods of the convergence sweeps and the scene key of their thetas.
+ORDER_METHODS = (("rk4", "theta", RK4_THETAS), ("euler", "theta_euler", EULER_THETAS),
+                 ("symplectic-euler", "theta_euler", EULER_THETAS))
+#: Wave packets of the dispersion output (carrier in units of pi/d).
+PACKET_KP = (0.3, 0.6)
+PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "packet", "linearization", "stability")
+#: Points of the trajectory drawn in the state figures (at most).
+FIGURE_POINTS = 4000
+#: Stability units whose rows hold timings (they run in the timing lane).
+TIMED_UNITS = ("large_n",)
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of the plan; see the module docstring.
+
+    ``setting`` is ``h`` (s) for a fixed-step solver, ``rtol`` for an adaptive
+    one, ``theta = omega_max h`` for an ``order`` run, ``kp0 d / pi`` for a
+    ``packet``; ``params`` holds what else the purpose needs, as sorted
+    ``(name, value)`` pairs.
+    """
+
+    scene: str
+    digest: str
+    purpose: str
+    solver: str = ""
+    setting: float = 0.0
+    grid: str = ""
+    unit: str = ""
+    repeats: int = 1
+    keep: tuple = ()
+    params: tuple = ()
+
+    @property
+    def key(self) -> str:
+        """SHA-256 (hex, 24 characters) of the spec's canonical JSON."""
+        return _key(self)
+
+    @property
+    def timed(self) -> bool:
+        """Whether the record holds a wall time that a verdict reads."""
+        return self.purpose == "run" or (self.purpose == "stability" and self.unit.split(":")[0] in TIMED_UNITS)
+
+    def param(self, name, default=None):
+        return dict(self.params).get(name, default)
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self) | {"keep": list(self.keep), "params": [list(p) for p in self.params]}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "RunSpec":
+        return cls(**{**d, "keep": tuple(d["keep"]), "params": tuple(tuple(p) for p in d["params"])})
+
+    def label(self) -> str:
+        """A short description for the progress line."""
+        what = {"run": f"{self.solver} {self.setting:g}", "order": f"{self.solver} order theta={self.setting:g}",
+                "truth": f"reference ({self.grid} grid)", "stability": f"stability {self.unit}",
+                "modal": f"modal energy {self.solver}", "packet": f"wave packet {self.setting:g} pi/d"}
+        return f"{self.scene}: {what.get(self.purpose, self.purpose)}"
+
+
+@lru_cache(maxsize=4096)
+def _key(spec: RunSpec) -> str:
+    text = json.dumps(spec.to_json(), sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+@lru_cache(maxsize=1)
+def code_digest() -> str:
+    """SHA-256 over the sources of the packages a record depends on
+    (``rk4core``, ``references``, ``validation``): a record made by other
+    code is never resumed."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for pkg in ("rk4core", "references", "validation"):
+        for p in sorted((root / pkg).rglob("*.py")):
+            h.update(str(p.relative_to(root)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def scene_digest(scene) -> str:
+    """Digest of everything in ``scene`` that a run depends on (not its file
+    path or description) and of the code."""
+    d = dataclasses.asdict(scene)
+    for k in ("path", "description"):
+        d.pop(k, None)
+    text = json.dumps(d, sort_keys=True, default=str)
+    return hashlib.sha256((code_digest() + text).encode()).hexdigest()[:16]
+
+
+def settings_of(scene, solver) -> list:
+    """The settings a scene runs ``solver`` at: its steps or its tolerances."""
+    return list(scene.h if solver in EXPECTED_ORDER else scene.tolerances)
+
+
+def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) -> list[RunSpec]:
+    """Every run ``scene`` needs, in report order (see the module docstring).
+
+    ``figures`` adds what the figures keep (energy series, the trajectory of
+    the state figures); ``repeats`` is the timing repeats of ``run`` specs."""
+    dig = scene_digest(scene)
+    want = set(scene.outputs)
+    draw = figures and "figures" in want
+    spec = lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw)  # noqa: E731
+    out = []
+    trajectories = bool({"state", "energy", "work_precision"} & want)
+    nonlinear = _nonlinear(scene)
+    if trajectories or "linearization" in want:
+        out.append(spec("truth", grid="scene"))
+    if trajectories:
+        for solver in scene.solvers:
+            for s in settings_of(scene, solver):
+                out.append(spec("run", solver=solver, setting=float(s), grid="scene", repeats=int(repeats),
+                                keep=("energy",) if draw and "energy" in want else ()))
+    if draw:  # the thesis' state figures: RK4 at the finest step, or the reference
+        if scene.h and "rk4" in scene.solvers:
+            out.append(spec("figure", solver="rk4", setting=float(min(scene.h)), grid="figure",
+                            keep=("trajectory",)))
+        else:
+            out.append(spec("truth", grid="figure", keep=("trajectory",)))
+    if "linearization" in want and nonlinear:
+        out.append(spec("linearization", grid="scene", keep=("trajectory",) if draw else ()))
+    if "convergence" in want:
+        for method, key, default in ORDER_METHODS:
+            thetas = tuple(sorted(scene.convergence.get(key, default), reverse=True))
+            out.append(spec("truth", grid="order", params=(("theta0", float(thetas[0])),)))
+            for th in thetas:
+                out.append(spec("order", solver=method, setting=float(th), grid="order",
+                                params=(("theta0", float(thetas[0])),)))
+    if "modes" in want:
+        out.append(spec("modes"))
+    if "dispersion" in want:
+        out.append(spec("dispersion"))
+        out += [spec("packet", solver="rk4", setting=float(kp)) for kp in PACKET_KP]
+    if "modal_energy" in want:
+        for solver in scene.solvers:
+            out.append(spec("modal", solver=solver, setting=float(min(settings_of(scene, solver))),
+                            grid="scene", keep=("modal",)))
+    if "stability" in want:
+        from . import stability
+
+        out += [spec("stability", unit=u) for u in stability.units(scene, quick)]
+    seen = set()  # one run per key (two sweeps on one grid share their reference)
+    return [s for s in out if not (s.key in seen or seen.add(s.key))]
+
+
+def _nonlinear(scene) -> bool:
+    try:
+        return not scene.build_model().linear
+    except Exception:  # noqa: BLE001 - a scene that cannot build fails at execution, with its message
+        return False
+
+
+def plan_all(scenes, **kw) -> list[tuple[object, RunSpec]]:
+    """``(scene, spec)`` for every spec of every scene, duplicates (one key) once."""
+    seen, out = set(), []
+    for scene in scenes:
+        for s in plan(scene, **kw):
+            if s.key not in seen:
+                seen.add(s.key)
+                out.append((scene, s))
+    return out
+
+
+def nan_if_none(x):
+    return math.nan if x is None else x
