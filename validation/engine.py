@@ -128,7 +128,9 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
     if scheduler:
         _dask(stages, quick, scheduler, done, stats)
     elif workers <= 1:
-        from .execute import execute
+        from .execute import clear_problems, execute
+
+        clear_problems()  # models built by an earlier run in this process are not reused
 
         for stage in stages:
             for scene, spec in stage:

@@ -40,6 +40,11 @@ MODAL_MODES = 4
 _PROBLEMS: dict = {}
 
 
+def clear_problems() -> None:
+    """Forget the models built so far (a new run starts from its scenes)."""
+    _PROBLEMS.clear()
+
+
 def problem(scene):
     """``(model, y0)`` of ``scene``, built once per process."""
     from .plan import scene_digest

@@ -114,8 +114,10 @@ def scene_sweep(scene) -> dict:
 
 
 def _failed(res, spec, rec):
+    """A failed run: ``raised`` when its execution raised (no values), else ``failed``."""
     what = f"{spec.scene}: {spec.solver} at {spec.setting:g}" if spec.solver else f"{spec.scene}: {spec.purpose}"
-    res.check(f"{spec.purpose} completes", False, f"{what} failed: {rec.message or 'no message'}")
+    verb = "failed:" if rec.values else "raised"
+    res.check(f"{spec.purpose} completes", False, f"{what} {verb} {rec.message or 'no message'}")
 
 
 # -- accuracy, energy, work-precision --------------------------------------------------

@@ -242,7 +242,19 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     t0 = time.perf_counter()
     run.completed = []
     user_progress = progress
-    jobs = plan.plan_all(scenes, quick=quick, figures=figures, repeats=repeats)
+    broken = {}
+    for scene in scenes:  # a scene whose model cannot be built is one failure line, not one per run
+        try:
+            scene.build_model()
+        except Exception as e:  # noqa: BLE001
+            from validation.atomic import is_environment_error
+
+            if is_environment_error(e) or interrupt.pending():
+                raise
+            broken[scene.name] = f"{scene.name}: the scene raised {type(e).__name__}: " \
+                                 f"{str(e).splitlines()[0] if str(e) else ''}"
+    jobs = plan.plan_all([s for s in scenes if s.name not in broken], quick=quick, figures=figures,
+                         repeats=repeats)
     keys_of = {}
     for scene, spec in jobs:
         keys_of.setdefault(scene.name, set()).add(spec.key)
@@ -272,14 +284,14 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     pools = engine.LocalPools(workers) if workers > 1 else None
     try:
         return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
-                    tick, completed, t0)
+                    tick, completed, t0, broken)
     finally:
         if pools is not None:
             pools.close()
 
 
 def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
-         completed, t0):
+         completed, t0, broken):
     from validation import atomic, budget, draw, engine, interrupt, measure, report
 
     t_run = time.perf_counter()
@@ -291,6 +303,11 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     results, tables, failures, findings = [], {}, [], []
     for scene in scenes:
         specs = [s for sc, s in jobs if sc is scene]
+        if scene.name in broken:
+            r = measure.SceneTables(scene.name)
+            r.check("scene", False, broken[scene.name])
+            results.append(r)
+            continue
         try:
             r = measure.measure(scene, specs, records, quick=quick, figures=figures)
         except Exception as e:  # noqa: BLE001 - one scene's fault does not stop the run
@@ -573,7 +590,9 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
             sig.held = True  # cleanup is not interrupted either
             if not swapped:
                 shutil.rmtree(tmp, ignore_errors=True)
-                if not store.keys():  # nothing to resume from: leave no empty store behind
+                # records stay only for --resume after an interrupt; a run that the
+                # environment stopped (disk full, ...) leaves nothing behind
+                if not isinstance(sys.exc_info()[1], KeyboardInterrupt) or not store.keys():
                     store.remove()
         sig.release()
     except KeyboardInterrupt as e:
