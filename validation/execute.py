@@ -265,7 +265,10 @@ def _uniform_chain(model):
     return (float(mass[0]), k) if uniform else None
 
 
-def _dispersion_spec(scene, spec, quick):
+def _lattice(scene, spec):
+    """``(model, m, k, d)`` of a scene whose model is a uniform chain between
+    walls (:func:`_uniform_chain`; ``d`` the thesis' lattice spacing), or the
+    failed record of ``spec`` saying why not."""
     from references import dispersion
 
     model, _ = problem(scene)
@@ -273,8 +276,16 @@ def _dispersion_spec(scene, spec, quick):
     if mk is None:
         return RunRecord(spec.key, status="failed", message="the dispersion output needs a uniform chain "
                                                              "between walls")
-    m, k = mk
-    d = dispersion.THESIS_LATTICE["d"]
+    return model, *mk, dispersion.THESIS_LATTICE["d"]
+
+
+def _dispersion_spec(scene, spec, quick):
+    from references import dispersion
+
+    lattice = _lattice(scene, spec)
+    if isinstance(lattice, RunRecord):
+        return lattice
+    model, m, k, d = lattice
     N = model.n_dof
     finite = np.asarray(model.modes()[0], float)
     theory = np.asarray(dispersion.finite_chain_frequencies(N, m, k), float)
@@ -284,17 +295,12 @@ def _dispersion_spec(scene, spec, quick):
 
 
 def _packet_spec(scene, spec, quick):
-    from references import dispersion
-
     from . import wavepacket
 
-    model, _ = problem(scene)
-    mk = _uniform_chain(model)
-    if mk is None:
-        return RunRecord(spec.key, status="failed", message="the dispersion output needs a uniform chain "
-                                                             "between walls")
-    m, k = mk
-    d = dispersion.THESIS_LATTICE["d"]
+    lattice = _lattice(scene, spec)
+    if isinstance(lattice, RunRecord):
+        return lattice
+    _, m, k, d = lattice
     kp0 = spec.setting * math.pi / d
     p = wavepacket.measure_group_velocity(kp0, m=m, k=k, d=d)
     return RunRecord(spec.key, status="ok" if p.success else "failed", values={

@@ -690,7 +690,7 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
 
 
 # -- energy error ---------------------------------------------------------------
-def energy_error(out_dir, scene_name, series) -> tuple[Path, str]:
+def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence=None) -> tuple[Path, str]:
     """Relative energy error ``|E(t) - E0| / |E0|`` of several runs on log-log axes.
 
     Parameters
@@ -701,6 +701,10 @@ def energy_error(out_dir, scene_name, series) -> tuple[Path, str]:
         ``label -> (t, rel_energy_error)``, arrays of equal length; ``t`` in s.
         A label starting with a solver name (``"rk4 h=0.01"``) takes that
         solver's colour; labels of the same solver get different line styles.
+    title, stem, sentence : str, optional
+        The figure's title, file stem and reading (defaults: the scene's
+        energy-error figure); the stability study's long-horizon figure
+        passes its own.
 
     Returns
     -------
@@ -716,7 +720,7 @@ def energy_error(out_dir, scene_name, series) -> tuple[Path, str]:
     if not isinstance(series, dict):
         raise ValueError(f"`series` must be a dict label -> (t, error), got {type(series).__name__}")
     fig = _new_figure()
-    _suptitle(fig, f"{scene_name}: relative energy error")
+    _suptitle(fig, title or f"{scene_name}: relative energy error")
     ax = fig.subplots()
     seen: dict[str, int] = {}
     floor = np.inf
@@ -750,10 +754,10 @@ def energy_error(out_dir, scene_name, series) -> tuple[Path, str]:
     if series:
         fig.legend(loc="outside lower center", fontsize=8, ncol=min(4, len(series)), frameon=False,
                    title="thick: running maximum, thin: instantaneous value", title_fontsize=7)
-    path = _save(fig, out_dir, f"{slug(scene_name)}_energy_error")
-    sentence = ("Relative energy error against time, log-log (thick: running maximum, thin: instantaneous): "
-                "a line of slope 1 is a steady drift (RK4 loses energy at a rate set by (omega h)^6/72 per step), "
-                "a flat band a bounded error (symplectic methods).")
+    path = _save(fig, out_dir, stem or f"{slug(scene_name)}_energy_error")
+    sentence = sentence or ("Relative energy error against time, log-log (thick: running maximum, thin: "
+                            "instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set "
+                            "by (omega h)^6/72 per step), a flat band a bounded error (symplectic methods).")
     return path, sentence
 
 

@@ -92,31 +92,13 @@ def _drift(plot, out_dir):
 
 
 def _long_energy(plot, out_dir):
-    series = plot["data"]["series"]
-    fig = F._new_figure()
-    F._suptitle(fig, f"{plot['scene']}: relative energy error over the long horizon, RK4 and references")
-    ax = fig.subplots()
-    floor = math.inf
-    for label, sd in series.items():
-        t, err = np.asarray(sd["t"], float), np.abs(np.asarray(sd["err"], float))
-        color, _ = F.solver_style(label)
-        show = (t > 0) & np.isfinite(err)
-        env = np.fmax.accumulate(np.where(np.isfinite(err), err, np.nan)) if err.size else err
-        env = np.where(env > 0, env, np.nan)
-        ax.plot(t[show], np.where(err > 0, err, np.nan)[show], color=color, lw=0.4, alpha=0.25)
-        ax.plot(t[show], env[show], color=color, lw=1.6, label=str(label))
-        if np.isfinite(env[show]).any():
-            floor = min(floor, float(np.nanmin(env[show])))
-    _log_axes(ax)
-    if math.isfinite(floor):
-        ax.set_ylim(bottom=max(floor / 10.0, 1e-18))
-    ax.set_xlabel("time t (s)")
-    ax.set_ylabel("|E(t) - E0| / |E0|")
-    ax.legend(fontsize=7, loc="upper left", title="thick: running maximum, thin: instantaneous", title_fontsize=7)
-    path = F._save(fig, out_dir, _stem(plot))
-    return path, ("Relative energy error over the long horizon, log-log: RK4 dissipates steadily (slope 1: "
+    series = {label: (sd["t"], sd["err"]) for label, sd in plot["data"]["series"].items()}
+    return F.energy_error(
+        out_dir, plot["scene"], series, stem=_stem(plot),
+        title=f"{plot['scene']}: relative energy error over the long horizon, RK4 and references",
+        sentence=("Relative energy error over the long horizon, log-log: RK4 dissipates steadily (slope 1: "
                   "theta^6/72 per step per mode until the fast mode is gone), heyoka stays near its tolerance, "
-                  "CVODE-BDF (a shorter run, for cost) drifts at its own rate.")
+                  "CVODE-BDF (a shorter run, for cost) drifts at its own rate."))
 
 
 def _roundoff(plot, out_dir):
