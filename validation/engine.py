@@ -64,6 +64,18 @@ class PlanStats:
 def _worker_init():
     # Ctrl-C reaches the whole process group: the parent decides, workers stay quiet.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # A worker dies with its parent (kill -9 of run_all): an orphan would go on
+    # computing and hold the parent's stdout and stderr open.
+    try:
+        import ctypes
+        import multiprocessing
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG (Linux)
+        parent = multiprocessing.parent_process()
+        if parent is not None and os.getppid() != parent.pid:  # the parent died before prctl
+            os._exit(1)
+    except (OSError, AttributeError):
+        pass
 
 
 def _execute(scene, spec, quick):
