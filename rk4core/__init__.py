@@ -1,9 +1,15 @@
 """rk4core: the system under test -- the thesis' fixed-step classical RK4 (with
-explicit and semi-implicit Euler as contrasts) and the seed's models."""
-from .methods import EULER, METHODS, RK4, SYMPLECTIC_EULER, Tableau, get_method, rk_step
+explicit and semi-implicit Euler as contrasts), further explicit Runge-Kutta
+methods as data (``methods``: tableaux with computed order, cost and
+stability, ``order_conditions``, ``stability_function``) and the seed's
+models."""
+from . import order_conditions, stability_function
+from .methods import (EULER, HEUN3, METHODS, RALSTON, RK4, RK38, STORMER_VERLET, SYMPLECTIC_EULER, Tableau,
+                      get_method, make_tableau, rk_step)
 from .models import MODELS, Defined, Drawing, Model, Network, PotentialModel, make_model, register_model
-from .solver import FixedStepResult, solve, step_count
+from .solver import FixedStepResult, nfev_count, solve, step_count
 
-__all__ = ["solve", "FixedStepResult", "step_count", "Tableau", "RK4", "EULER", "SYMPLECTIC_EULER",
-           "METHODS", "get_method", "rk_step", "MODELS", "Model", "Defined", "Drawing", "Network", "PotentialModel",
-           "make_model", "register_model"]
+__all__ = ["solve", "FixedStepResult", "step_count", "nfev_count", "Tableau", "make_tableau", "RK4", "RK38",
+           "HEUN3", "RALSTON", "EULER", "SYMPLECTIC_EULER", "STORMER_VERLET", "METHODS", "get_method", "rk_step",
+           "order_conditions", "stability_function", "MODELS", "Model", "Defined", "Drawing", "Network",
+           "PotentialModel", "make_model", "register_model"]

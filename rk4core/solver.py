@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .methods import Tableau, get_method, rk_step
+from .methods import Tableau, end_slope, get_method, rk_step, start_slope
 from .validate import (check_max_growth, check_output_size, check_step_args, check_t_eval, check_t_span,
                        check_y0, check_y_scale)
 
 __all__ = ["solve", "FixedStepResult", "step_count", "grid_time", "grid_times", "growth_bound",
-           "unstable_message", "check_fun_value"]
+           "unstable_message", "check_fun_value", "nfev_count"]
 
 _SLACK = 1e-12  # relative slack when rounding (t1 - t0) / h up to a whole count
 _DBL_MAX = float(np.finfo(np.float64).max)  # bound of the instability test when growth is not tested
@@ -39,9 +39,11 @@ class FixedStepResult:
         States at ``t`` (float64, or complex128 for a complex ``y0``); on
         failure, only the times reached before the run stopped.
     nfev : int
-        Right-hand-side evaluations: ``n_stages`` per step (the step that
-        failed included), plus one per step that holds off-grid ``t_eval``
-        points (the Hermite end slope).
+        Right-hand-side evaluations, :func:`nfev_count`: ``nfev_first_step +
+        (N - 1) nfev_per_step`` of the method (:class:`~rk4core.methods.Tableau`)
+        for ``N`` steps attempted (the step that failed included), plus the
+        dense-output slopes no stage provided (one per step holding off-grid
+        ``t_eval`` points for a method that is not FSAL).
     h : float
         Step actually used, ``(t1 - t0) / n_steps``.
     n_steps : int
@@ -80,6 +82,21 @@ class FixedStepResult:
     dense: str = "grid"
     method: str = "rk4"
     reason: str = "ok"
+
+
+def nfev_count(tab: Tableau, n_attempted: int) -> int:
+    """Right-hand-side evaluations of ``n_attempted`` steps of ``tab``
+    (dense output apart): ``tab.nfev_first_step + (n_attempted - 1) *
+    tab.nfev_per_step``, 0 for no step.
+
+    The first step evaluates every stage the method uses
+    (``tab.stage_evaluated``); each later step of a first-same-as-last
+    method reuses the previous step's last evaluation for its first stage
+    (``tab.fsal_stages``). RK4 ``4 N``, Euler ``N``, symplectic Euler ``N``
+    (its second stage's acceleration is unused), Stormer-Verlet ``N + 1``."""
+    if n_attempted <= 0:
+        return 0
+    return tab.nfev_first_step + (n_attempted - 1) * tab.nfev_per_step
 
 
 def step_count(t_span, h: float) -> int:
@@ -258,8 +275,16 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
         exactly; other points by cubic Hermite interpolation of the step
         endpoints (third order, uses the method's own slopes; ``result.dense``
         says which). Default: every step.
-    method : {"rk4", "euler", "symplectic-euler"} or Tableau
-        ``"symplectic-euler"`` needs ``y = [q, v]`` with ``dq/dt = v``.
+    method : str or Tableau
+        A name of ``rk4core.METHODS`` (``"rk4"``, ``"euler"``, ``"rk38"``,
+        ``"heun3"``, ``"ralston"``, ``"symplectic-euler"``,
+        ``"stormer-verlet"``) or a :class:`~rk4core.methods.Tableau`
+        (:func:`~rk4core.methods.make_tableau`). A partitioned method
+        (``"symplectic-euler"``, ``"stormer-verlet"``) needs ``y = [q, v]``
+        (equal halves) of a separable second-order system ``dq/dt = v``,
+        ``dv/dt = a(q, t)``: it uses only the velocity half of ``fun``'s
+        value, at the stages whose acceleration it needs, and takes a stage's
+        position slope to be its velocity.
     max_growth : float or None, keyword-only
         Growth factor (>= 1, dimensionless) past which the run is stopped as
         unstable; default 1e8. None keeps only the non-finite test.
@@ -273,6 +298,19 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
 
     Notes
     -----
+    Cost. ``result.nfev`` is the number of calls of ``fun``:
+    ``nfev_count(tab, N) = tab.nfev_first_step + (N - 1) tab.nfev_per_step``
+    for ``N`` steps attempted (``N = n_steps``, plus one when a step failed),
+    plus, with off-grid ``t_eval`` points, the dense-output slopes no stage
+    gave: the end slope ``f(t_{n+1}, y_{n+1})`` once per step holding such
+    points unless the method is first-same-as-last (FSAL: its last stage is
+    that slope), and the start slope only for a method without
+    ``tab.start_stage``. A FSAL method reuses its last stage's evaluation as
+    the next step's first (so RK4: ``4 N``, Stormer-Verlet: ``N + 1``); the
+    reused value was evaluated at ``t_n + h``, which for a ``t``-dependent
+    ``fun`` may differ from the grid time ``t_{n+1}`` by an ulp.
+
+
     Instability. The run stops, with ``success=False``, ``status=-1``,
     ``t_fail`` and a one-line message, at the first step whose new state has
     a component with ``NOT(|y_i| <= bound_i)`` -- one comparison that also
@@ -307,7 +345,6 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
     scale_from = "given" if y_scale is not None else "initial"
 
     k = np.empty((tab.n_stages, n_comp), dtype=dtype)
-    nfev_per_step = tab.n_stages
     if grid_out:
         ys = np.empty((n + 1, n_comp), dtype=dtype)
         ys[0] = y
@@ -320,8 +357,9 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
         theta[on_grid] = 0.0
         dense = "grid" if on_grid.all() else "hermite"
         ys = np.empty((t_eval.shape[0], n_comp), dtype=dtype)
-        out_ptr, _ = _emit(ys, 0, idx, theta, 0, y, None, step, fun, t0, t1, n, None)
+        out_ptr, _ = _emit(ys, 0, idx, theta, 0, y, None, step, fun, t0, t1, n, None, tab)
     nfev = 0
+    reuse = False  # from the second step on, a FSAL method reuses its last stage
     status, reason, t_fail = 0, "ok", None
     message = "The solver successfully reached the end of the integration interval."
     # A blow-up is reported through status/message, so the floating-point
@@ -330,8 +368,9 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for i in range(n):
             t = grid_time(t0, t1, step, i, n)
-            y_new = rk_step(fun, t, y, step, tab, k, t_max=t1)
-            nfev += nfev_per_step
+            y_new = rk_step(fun, t, y, step, tab, k, t_max=t1, reuse=reuse)
+            nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
+            reuse = tab.fsal
             a = np.abs(y_new)
             if not (a <= bound).all():  # NOT(|y_i| <= bound_i): also inf and NaN
                 status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
@@ -346,7 +385,7 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
             if grid_out:
                 ys[i + 1] = y_new
             else:
-                out_ptr, extra = _emit(ys, out_ptr, idx, theta, i + 1, y_new, y, step, fun, t0, t1, n, k)
+                out_ptr, extra = _emit(ys, out_ptr, idx, theta, i + 1, y_new, y, step, fun, t0, t1, n, k, tab)
                 nfev += extra
             y = y_new
         else:
@@ -364,33 +403,41 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
     )
 
 
-def _emit(ys, ptr, idx, theta, i_step, y_new, y_old, step, fun, t0, t1, n, k):
+def _emit(ys, ptr, idx, theta, i_step, y_new, y_old, step, fun, t0, t1, n, k, tab):
     """Write every output point that falls at grid point ``i_step`` or inside
     step ``i_step - 1`` (cubic Hermite on [y_old, y_new]) into ``ys``.
 
-    Returns the next output index and the number of extra ``fun`` calls (the
-    end slope, evaluated at most once per step and only for off-grid points).
+    The slopes at the step's ends come from its stages when the method has
+    them (:func:`~rk4core.methods.start_slope`: the first stage of every
+    built-in method; :func:`~rk4core.methods.end_slope`: the last stage of a
+    FSAL method), else from one call of ``fun`` each, made at most once per
+    step and only for off-grid points.
+
+    Returns the next output index and the number of extra ``fun`` calls.
     """
     m = idx.shape[0]
-    f1 = None
+    f0 = f1 = None
     extra = 0
     while ptr < m:
         j = idx[ptr]
         if j == i_step and theta[ptr] == 0.0:
             ys[ptr] = y_new
         elif j == i_step - 1 and theta[ptr] > 0.0:
-            # Cubic Hermite on the step with the slopes at both ends. The start
-            # slope is the method's first stage (k[0] = f(t_n, y_n)) for every
-            # tableau here; the end slope costs one evaluation.
             th = theta[ptr]
             if f1 is None:
-                f1 = fun(grid_time(t0, t1, step, i_step, n), y_new)
-                extra += 1
+                f0 = start_slope(tab, y_old, k)
+                if f0 is None:
+                    f0 = fun(grid_time(t0, t1, step, i_step - 1, n), y_old)
+                    extra += 1
+                f1 = end_slope(tab, y_new, k)
+                if f1 is None:
+                    f1 = fun(grid_time(t0, t1, step, i_step, n), y_new)
+                    extra += 1
             h00 = (1 + 2 * th) * (1 - th) ** 2
             h10 = th * (1 - th) ** 2
             h01 = th * th * (3 - 2 * th)
             h11 = th * th * (th - 1)
-            ys[ptr] = h00 * y_old + h10 * step * k[0] + h01 * y_new + h11 * step * f1
+            ys[ptr] = h00 * y_old + h10 * step * f0 + h01 * y_new + h11 * step * f1
         else:
             break
         ptr += 1

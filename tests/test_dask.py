@@ -60,9 +60,10 @@ def cluster(tmp_path):
             p.terminate()
         for p in procs:
             try:
-                p.wait(timeout=20)
+                p.wait(timeout=3)  # a worker's graceful close waits for its nanny: not what is tested
             except subprocess.TimeoutExpired:
                 p.kill()
+                p.wait(timeout=20)
         for f in logs:
             f.close()
 
@@ -105,7 +106,7 @@ def test_unreachable_scheduler_is_one_line_exit_3(tmp_path):
     port = _free_port()
     r = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(p), "--out", str(tmp_path / "o"),
                         "--scheduler", f"tcp://127.0.0.1:{port}"], cwd=REPO, capture_output=True, text=True,
-                       timeout=120)
+                       timeout=120, env={**os.environ, "RK4H_SCHEDULER_TIMEOUT": "2"})
     assert r.returncode == 3, r.stderr
     assert r.stderr.count("\n") == 1 and "Dask scheduler" in r.stderr
     assert not (tmp_path / "o").exists()

@@ -16,6 +16,11 @@ from validation import report
 from _scenes import one_mass
 
 REPO = Path(__file__).resolve().parent.parent
+# Two full runs in fresh processes with fresh references (about 15 s): in the
+# slow set. The default set checks rerun identity through the resume test
+# (tests/test_pipeline.py: a resumed run against an uninterrupted one), the Dask
+# test (a cluster run against a local one) and tests/test_stability_units.py.
+pytestmark = pytest.mark.slow
 
 SCENES = {
     "det-a": one_mass("det-a", solvers='["rk4", "dop853", "cvode-bdf", "heyoka"]',
@@ -54,7 +59,8 @@ def two_runs(tmp_path_factory):
         out = d / f"run{seed}"
         args = [a for p in paths for a in ("--scene", str(p))]
         procs.append(subprocess.Popen(
-            [sys.executable, "validation/run_all.py", *args, "--out", str(out), "--repeats", "1", "--no-figures"],
+            [sys.executable, "validation/run_all.py", *args, "--out", str(out), "--repeats", "1", "--no-figures",
+             "--workers", "1"],
             cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             # each run computes its own reference (no shared truth cache)
             env={**os.environ, "PYTHONHASHSEED": seed, "MPLBACKEND": "Agg", "RK4H_CACHE": str(d / f"cache{seed}")}))

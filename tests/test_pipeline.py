@@ -154,3 +154,14 @@ def test_resume_after_kill_runs_only_the_missing_specs(tmp_path):
     assert a.keys() == b.keys() and "accuracy" in a
     for name in a:
         pd.testing.assert_frame_equal(a[name], b[name], check_exact=True, obj=name)
+
+
+@pytest.mark.parametrize("value", ["0", "two"])
+def test_a_bad_workers_environment_variable_is_exit_2_naming_it(tmp_path, value):
+    p = tmp_path / "s.toml"
+    p.write_text(one_mass("env-workers"))
+    env = {**os.environ, "MPLBACKEND": "Agg", "RK4H_WORKERS": value}
+    r = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(p), "--out", str(tmp_path / "o")],
+                       cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.startswith("run_all: RK4H_WORKERS: must be an integer")
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "o").exists()

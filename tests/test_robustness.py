@@ -45,7 +45,7 @@ def _raise_for(solver_name, exc):
     real = solvers.integrate
 
     def integrate(solver, *args, **kw):
-        if solver == solver_name:
+        if getattr(solver, "name", solver) == solver_name:  # a name or a registry Method
             raise exc
         return real(solver, *args, **kw)
     return integrate

@@ -212,7 +212,9 @@ def test_step_count_just_beyond_slack_adds_a_step():
     assert res.n_steps == 11
 
 
-@pytest.mark.parametrize("method, stages", [("rk4", 4), ("euler", 1), ("symplectic-euler", 2)])
+# Symplectic Euler's second stage only supplies the velocity v_{n+1}: its
+# acceleration is used by nothing and is not evaluated (one call per step).
+@pytest.mark.parametrize("method, stages", [("rk4", 4), ("euler", 1), ("symplectic-euler", 1)])
 def test_nfev_counts_every_call(method, stages):
     calls = []
 

@@ -215,7 +215,7 @@ def test_assembled_boundary_equals_the_former_single_run(name):
     rows = S.assemble(scene, True, {u: S.run_unit(scene, u, True) for u in units}).rows
     rows = [r for r in rows if r["study"] == "boundary"]
     old = _old_report_rows(name, {"largest_stable_h_s", "growth_per_step", "blowup_time_s"})
-    assert len(rows) == len(old) == 9
+    assert len(rows) == len(old) == 10  # rk4, symplectic Euler, Stormer-Verlet, Euler: boundary, growth, blow-up
     for r in rows:
         key = (r["solver"], r["quantity"], f"{r['theta']:.3g}" if math.isfinite(r["theta"]) else "")
         o = old[key]

@@ -43,7 +43,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from references.solvers.base import FIXED_STEP
 
 from .scenes import Scene, SceneError
 
@@ -128,7 +127,7 @@ def spec_steps(scene, spec, model, w, quick=False) -> tuple[float, float]:
             return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
         return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
     if p in ("run", "figure", "modal"):
-        if spec.solver in FIXED_STEP:
+        if scene.method(spec.solver).fixed_step:
             return float(_steps(scene.t_end, spec.setting)), 0.0
         return ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end), 0.0
     if p == "order":

@@ -12,7 +12,17 @@ __all__ = ["draw", "sweep_jobs", "sweep_figure"]
 
 
 def draw(job, out_dir, scenes_by_name) -> list:
-    """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``."""
+    """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``.
+    The scene's own methods (``[methods.NAME]``) are drawn in their registry styles."""
+    from . import figures as f
+
+    scene = scenes_by_name.get(job.scene) if scenes_by_name else None
+    local = getattr(scene, "registry", {}) if scene is not None else {}
+    with f.scene_methods(local):
+        return _draw(job, out_dir, scenes_by_name)
+
+
+def _draw(job, out_dir, scenes_by_name) -> list:
     import pandas as pd
 
     from . import figures as f

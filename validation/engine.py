@@ -30,6 +30,8 @@ and the report says that its timings came from a shared cluster.
 """
 from __future__ import annotations
 
+import math
+
 import os
 import signal
 import sys
@@ -251,13 +253,34 @@ def _pool(stages, quick, pools, done, stats):
         raise
 
 
+#: Seconds to wait for a Dask scheduler before the run ends with exit 3;
+#: the environment variable ``RK4H_SCHEDULER_TIMEOUT`` replaces it.
+SCHEDULER_TIMEOUT_S = 20.0
+
+
+def scheduler_timeout() -> float:
+    """:data:`SCHEDULER_TIMEOUT_S`, or ``RK4H_SCHEDULER_TIMEOUT`` (seconds, > 0) when set."""
+    import os
+
+    text = os.environ.get("RK4H_SCHEDULER_TIMEOUT")
+    if text is None:
+        return SCHEDULER_TIMEOUT_S
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"`RK4H_SCHEDULER_TIMEOUT` must be a number of seconds > 0, got {text!r}")
+    return value
+
+
 def _dask(stages, quick, address, done, stats):
     try:
         from distributed import Client, as_completed
     except ImportError:  # pragma: no cover - a dependency of the project
         raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
     try:
-        client = Client(address, timeout="20s")
+        client = Client(address, timeout=f"{scheduler_timeout():g}s")
     except OSError as e:
         import errno
 

@@ -24,6 +24,8 @@ import time
 
 import numpy as np
 
+from references.registry import Kind
+
 from . import metrics
 from .plan import FIGURE_POINTS, RunSpec
 from .records import RunRecord, failed_record
@@ -150,7 +152,8 @@ def _run_spec(scene, spec, quick):
     truth = _truth(model, y0, t)
     y_ref = np.asarray(truth.y, float)
     scale = float(np.max(np.abs(y_ref)))
-    run, walls = _timed(spec.solver, model, y0, t, spec.setting, spec.repeats)
+    method = scene.method(spec.solver)
+    run, walls = _timed(method, model, y0, t, spec.setting, spec.repeats)
     status = _status(run)
     e_max = metrics.error_max(run.y, y_ref)
     ok = status == "ok"
@@ -160,13 +163,13 @@ def _run_spec(scene, spec, quick):
               "drift_per_time": metrics.drift_per_time(model, t, run.y) if ok else math.nan,
               "theory_drift_per_time": math.nan, "nfev": int(run.nfev), "n_steps": int(run.n_steps),
               "taylor_order": int(run.taylor_order or 0), "duration": float(t[-1] - t[0])}
-    if spec.solver == "rk4" and model.linear and ok:
+    if method.kind is Kind.TABLEAU and model.linear and ok:
         from references.exact import modal_solution
 
         ms = modal_solution(model, y0)
         duration = values["duration"]
-        values["theory_drift_per_time"] = metrics.rk4_drift_theory(
-            ms.omega, ms.eta0, ms.deta0, duration / run.n_steps, run.n_steps, duration)
+        values["theory_drift_per_time"] = metrics.drift_theory(
+            method.tableau, ms.omega, ms.eta0, ms.deta0, duration / run.n_steps, run.n_steps, duration)
     arrays = {}
     if "energy" in spec.keep and ok:
         arrays["energy_t"] = t
@@ -182,7 +185,7 @@ def _figure_spec(scene, spec, quick):
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    run = integrate(spec.solver, model, y0, t, spec.setting)
+    run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
     status = _status(run)
     arrays = {"t": np.asarray(run.t, float), "y": np.asarray(run.y, float)} if status == "ok" else {}
     return RunRecord(spec.key, status=status, message=_first_line(run.message), arrays=arrays)
@@ -196,7 +199,7 @@ def _order_spec(scene, spec, quick):
     y_ref = np.asarray(_truth(model, y0, t).y, float)
     n0 = t.shape[0] - 1
     h = float(t[-1]) / (n0 * max(1, round(spec.param("theta0") / spec.setting)))
-    run = integrate(spec.solver, model, y0, t, h)
+    run = integrate(scene.method(spec.solver), model, y0, t, h)
     status = _status(run)
     err = metrics.error_max(run.y, y_ref) if status == "ok" else math.nan
     return RunRecord(spec.key, status=status, message=_first_line(run.message),
@@ -223,7 +226,7 @@ def _modal_spec(scene, spec, quick):
     order = np.argsort(omega)[:k]
     omega, phi = omega[order], phi[:, order]
     t = grid(scene, model, spec)
-    run = integrate(spec.solver, model, y0, t, spec.setting)
+    run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
     E0 = float(np.asarray(model.energy(y0)))
     frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E0
     return RunRecord(spec.key, status=_status(run), message=_first_line(run.message),
@@ -332,6 +335,14 @@ def _stability_spec(scene, spec, quick):
                                        "plots": list(r.plots)})
 
 
+def _thesis_code_spec(scene, spec, quick):
+    from references import thesis_code
+
+    rows = thesis_code.compare()
+    return RunRecord(spec.key, values={"rows": rows, "errata": thesis_code.errata(rows)})
+
+
 _PURPOSE = {"truth": _truth_spec, "run": _run_spec, "figure": _figure_spec, "order": _order_spec,
             "modal": _modal_spec, "modes": _modes_spec, "dispersion": _dispersion_spec,
-            "packet": _packet_spec, "linearization": _linearization_spec, "stability": _stability_spec}
+            "packet": _packet_spec, "linearization": _linearization_spec, "stability": _stability_spec,
+            "thesis_code": _thesis_code_spec}

@@ -29,6 +29,7 @@ the corrected physics listed in DESIGN.md's errata.
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import math
 import re
@@ -40,6 +41,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from PIL import Image
 
+from references.registry import BUILTIN, UNDER_TEST, resolve
+
 __all__ = ["scene_figures", "work_precision", "convergence", "energy_error", "dispersion",
            "crossover", "slug", "SOLVER_STYLE", "SIZE", "SIZE_TALL", "DPI"]
 
@@ -47,23 +50,19 @@ SIZE = (7.0, 4.5)        # inches
 SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
 DPI = 120
 
-#: colour and marker of each solver, the same in every figure
-SOLVER_STYLE = {
-    "rk4": ("#d62728", "o"),
-    "euler": ("#ff7f0e", "v"),
-    "symplectic-euler": ("#8c564b", "^"),
-    "dop853": ("#1f77b4", "s"),
-    "cvode-adams": ("#2ca02c", "D"),
-    "cvode-bdf": ("#17becf", "P"),
-    "heyoka": ("#9467bd", "*"),
-    "exact": ("#000000", "."),
-    "reference": ("#000000", "."),
-}
+#: colour and marker of each built-in method (``references.registry``), the
+#: same in every figure; a scene's own methods get theirs from the registry
+#: while :func:`scene_methods` is in effect.
+SOLVER_STYLE = {name: (m.style.color, m.style.marker) for name, m in BUILTIN.items()}
+SOLVER_STYLE.update({"exact": ("#000000", "."), "reference": ("#000000", ".")})
+#: the methods of the scene being drawn (set by :func:`scene_methods`)
+_LOCAL: dict = {}
 _UNKNOWN_STYLE = ("#7f7f7f", "x")
 # Per-coordinate colours in state plots (mass 1 red, mass 2 blue as in the thesis).
 _COORD_COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd",
                  "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
 _LINESTYLES = ["-", "--", ":", "-."]
+_GUIDE_STYLES = ["--", ":", "-.", (0, (5, 1, 1, 1))]
 LONG_CHAIN = 10          # chains with more masses get a space-time image
 _ZOOM_PERIODS = 3        # the zoom panel shows this many slowest periods
 
@@ -80,21 +79,43 @@ def slug(name: str) -> str:
     return s
 
 
+@contextlib.contextmanager
+def scene_methods(local):
+    """Draw with the styles and orders of a scene's own methods (name ->
+    ``references.registry.Method``) besides the built-ins."""
+    global _LOCAL
+    saved, _LOCAL = _LOCAL, dict(local or {})
+    try:
+        yield
+    finally:
+        _LOCAL = saved
+
+
+def _all_styles() -> dict:
+    return {**SOLVER_STYLE, **{n: (m.style.color, m.style.marker) for n, m in _LOCAL.items()}}
+
+
 def solver_style(label: str):
     """``(colour, marker)`` of the solver ``label`` names (its longest known prefix)."""
-    lab = str(label).lower()
-    for name in sorted(SOLVER_STYLE, key=len, reverse=True):
-        if lab == name or lab.startswith(name + " ") or lab.startswith(name + ","):
-            return SOLVER_STYLE[name]
-    return SOLVER_STYLE.get(lab, _UNKNOWN_STYLE)
+    styles = _all_styles()
+    name = _solver_of(label)
+    return styles.get(name, _UNKNOWN_STYLE)
 
 
 def _solver_of(label: str) -> str:
     lab = str(label).lower()
-    for name in sorted(SOLVER_STYLE, key=len, reverse=True):
+    for name in sorted(_all_styles(), key=len, reverse=True):
         if lab == name or lab.startswith(name + " ") or lab.startswith(name + ","):
             return name
     return lab
+
+
+def _order_of(solver):
+    """Expected order of ``solver`` (built-in or the drawn scene's), None if unknown."""
+    try:
+        return resolve(solver, _LOCAL).order
+    except ValueError:
+        return None
 
 
 def _new_figure(size=SIZE, **kw) -> Figure:
@@ -525,9 +546,9 @@ def _ok_rows(df, cols):
 
 
 def _in_palette_order(solvers):
-    """Solvers in the order of :data:`SOLVER_STYLE` (unknown ones last), so
-    legends list them the same way in every figure."""
-    known = list(SOLVER_STYLE)
+    """Solvers in the order of :data:`SOLVER_STYLE` (then the scene's own
+    methods, then unknown ones), so legends list them the same way in every figure."""
+    known = list(_all_styles())
     return sorted(solvers, key=lambda s: (known.index(s) if s in known else len(known), str(s)))
 
 
@@ -661,11 +682,17 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
         ax.plot(h, e, "-", color=color, lw=1.0, label=label)
         ax.plot(h[inside], e[inside], marker, color=color, ms=6, ls="none")
         ax.plot(h[~inside], e[~inside], marker, mfc="none", color=color, ms=6, ls="none")
-    for slope, solvers, style in ((4, ("rk4",), "--"), (1, ("euler", "symplectic-euler"), ":")):
+    by_order = {}  # expected order -> its solvers, highest order first
+    for solver in _in_palette_order(p["solver"].unique()):
+        order = _order_of(solver)
+        if order is not None:
+            by_order.setdefault(int(order), []).append(solver)
+    if not by_order and not p.empty:
+        by_order = {4: list(p["solver"].unique()[:1])}
+    for i, (slope, solvers) in enumerate(sorted(by_order.items(), reverse=True)):
+        style = _GUIDE_STYLES[i % len(_GUIDE_STYLES)]
         sel = p[p["solver"].isin(solvers)]
-        if sel.empty and (slope == 1 or p.empty):
-            continue
-        sel = p if sel.empty else sel[sel["solver"] == sel["solver"].iloc[0]]
+        sel = sel[sel["solver"] == sel["solver"].iloc[0]]
         h_range = (sel["h"].min(), sel["h"].max())  # the guide spans its solver's steps only
         f = fit_of.get(sel["solver"].iloc[0])
         if f is not None:
@@ -683,8 +710,9 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
     ax.legend(loc="lower right", fontsize=8)  # large h with small error: empty for any consistent method
     path = _save(fig, out_dir, f"{slug(scene_name)}_convergence")
     got = "; observed orders: " + ", ".join(orders) if orders else ""
-    sentence = (f"Max error against step size h, log-log, with slope guides: parallel to the slope-4 guide means "
-                f"fourth order (RK4), slope 1 first order (Euler); filled points are the fitted range, hollow "
+    guides = ", ".join(f"slope {o} ({'/'.join(m)})" for o, m in sorted(by_order.items(), reverse=True))
+    sentence = (f"Max error against step size h, log-log, with slope guides ({guides}): a method parallel to its "
+                f"guide has that order; filled points are the fitted range, hollow "
                 f"ones lie outside it (pre-asymptotic or at the round-off floor){got}.")
     return path, sentence
 
@@ -890,7 +918,7 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
                      ms=4 if n_fin <= 30 else (2.5 if n_fin <= 60 else 1.8), ls="none",
                      label=f"finite chain, N = {n_fin}: eigenfrequencies at $k_n = n\\pi/((N+1)d)$")
     if len(pk):
-        color, _ = solver_style("rk4")
+        color, _ = solver_style(UNDER_TEST)
         axes[2].plot(pk[:, 0], pk[:, 1], "o", color=color, ms=7, mfc="none", mew=1.5, ls="none",
                      label="wave packet integrated by RK4: measured group velocity")
     axes[-1].set_xticks(np.arange(-2, 3) * kz, [r"$-2\pi/d$", r"$-\pi/d$", "0", r"$\pi/d$", r"$2\pi/d$"])

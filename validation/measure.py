@@ -14,8 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from references.registry import UNDER_TEST
+
 from . import metrics
-from .plan import EXPECTED_ORDER, ORDER_TOL, TARGETS, RunSpec
+from .plan import ORDER_TOL, TARGETS, RunSpec, under_test
 
 __all__ = ["Check", "FigureJob", "SceneTables", "measure", "ENERGY_RTOL", "ENERGY_ROUNDOFF_PER_STEP",
            "TOLERANCE_SLACK", "PACKET_RTOL"]
@@ -101,6 +103,7 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     _modal(scene, by.get("modal", []), records, res, draw)
     if by.get("stability"):
         _stability(scene, by["stability"], records, res, quick)
+    _thesis_code(scene, by.get("thesis_code", []), records, res)
     if scene_sweep(scene):
         cols = scene_sweep(scene)
         for rows in res.tables.values():
@@ -150,7 +153,7 @@ def _runs(scene, specs, records, res, draw):
         if "energy" in scene.outputs:
             res.add("energy", _energy_row(scene, spec, rec, row, res))
             if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
-                label = f"{spec.solver} {'h' if spec.solver in EXPECTED_ORDER else 'rtol'}={spec.setting:g}"
+                label = f"{spec.solver} {scene.method(spec.solver).setting_name}={spec.setting:g}"
                 series[spec.solver] = (label, rec.arrays["energy_t"], rec.arrays["energy_rel"])
     if "work_precision" in scene.outputs and specs:
         _cheapest(scene, res)
@@ -171,44 +174,48 @@ def _energy_row(scene, spec, rec, row, res):
            "theory_drift_per_time": v["theory_drift_per_time"],
            "energy_drift_max": v["energy_drift_max"] if ok else math.nan, "passed": "", "status": rec.status}
     theory = v["theory_drift_per_time"]
-    if spec.solver == "rk4" and ok and math.isfinite(theory):
+    if ok and math.isfinite(theory):  # a tableau method on a linear model (validation.execute)
         measured, duration = v["drift_per_time"], v["duration"]
         slack = ENERGY_RTOL * abs(theory) + ENERGY_ROUNDOFF_PER_STEP * v["n_steps"] / duration
         passed = bool(abs(measured - theory) <= slack)
         out["passed"] = passed
-        res.check("rk4 energy drift theory", passed,
-                  f"{scene.name}: RK4 energy drift per time at h={spec.setting:g} is {measured:.6e} 1/s, "
+        res.check(f"{spec.solver} energy drift theory", passed,
+                  f"{scene.name}: {spec.solver} energy drift per time at h={spec.setting:g} is {measured:.6e} 1/s, "
                   f"theory {theory:.6e} 1/s", measured, theory, slack)
     return out
 
 
 def _cheapest(scene, res):
     rows = res.tables.get("work_precision", [])
-    best = metrics.cheapest(rows, TARGETS, cost="wall_s")
+    under = under_test(scene)
+    best = metrics.cheapest(rows, TARGETS, cost="wall_s", under_test=under)
     crossover = None
     for b in best:
-        if crossover is None and not (b["rk4_setting"] is not None and b["solver"] == "rk4"):
+        if crossover is None and not (b["rk4_setting"] is not None and b["solver"] == under):
             crossover = b["target_error"]
         res.add("cheapest", {"scene": scene.name, "target_error": b["target_error"],
                              "solver": b["solver"] or "", "setting": b["setting"], "wall_s": b["cost"],
                              "rk4_h": b["rk4_setting"], "rk4_wall_s": b["rk4_cost"],
-                             "rk4_is_cheapest": bool(b["solver"] == "rk4")})
-    if "rk4" not in scene.solvers:
+                             "rk4_is_cheapest": bool(under is not None and b["solver"] == under)})
+    if under is None:
         return
+    who = "RK4" if under == UNDER_TEST else under
     first = best[0]
     if crossover is None:
-        res.findings.append(f"{scene.name}: RK4 is the cheapest solver for every target error down to "
+        res.findings.append(f"{scene.name}: {who} is the cheapest solver for every target error down to "
                             f"{TARGETS[-1]:g}.")
     elif first["solver"] is None:
         res.findings.append(f"{scene.name}: no solver reaches a relative error of {TARGETS[0]:g}.")
     elif crossover == TARGETS[0]:
-        rk4 = (f"RK4 needs {first['rk4_cost'] / first['cost']:.3g}x its wall time (h = {first['rk4_setting']:g} s)"
-               if first["rk4_cost"] is not None and first["cost"] else "RK4 does not reach it")
-        res.findings.append(f"{scene.name}: RK4 is not the cheapest solver for any target; at "
-                            f"{TARGETS[0]:g} the cheapest is {first['solver']} (rtol {first['setting']:g}, "
+        rk4 = (f"{who} needs {first['rk4_cost'] / first['cost']:.3g}x its wall time "
+               f"(h = {first['rk4_setting']:g} s)" if first["rk4_cost"] is not None and first["cost"]
+               else f"{who} does not reach it")
+        res.findings.append(f"{scene.name}: {who} is not the cheapest solver for any target; at "
+                            f"{TARGETS[0]:g} the cheapest is {first['solver']} "
+                            f"({scene.method(first['solver']).setting_name} {first['setting']:g}, "
                             f"compile time excluded); {rk4}.")
     else:
-        res.findings.append(f"{scene.name}: RK4 is the cheapest solver down to a relative error of "
+        res.findings.append(f"{scene.name}: {who} is the cheapest solver down to a relative error of "
                             f"{TARGETS[TARGETS.index(crossover) - 1]:g} and stops being it at {crossover:g}.")
 
 
@@ -254,7 +261,7 @@ def _convergence(scene, specs, records, res, draw):
             scale, T = v["scale"], v["t_end"]
         fit = metrics.fit_order(hs, errs, scale)
         points += [{"solver": method, "h": h, "error_max": e} for h, e in zip(hs, errs)]
-        expected = EXPECTED_ORDER[method]
+        expected = float(scene.method(method).order)
         passed = fit.passed(expected, ORDER_TOL)
         row = {"scene": scene.name, "solver": method, "quantity": "order in h", "observed_order": fit.order,
                "expected_order": expected, "passed": passed, "h_min": fit.h_min, "h_max": fit.h_max,
@@ -280,6 +287,33 @@ def _modes(scene, specs, records, res):
         for j, w in enumerate(rec.values["omega"], start=1):
             res.add("modes", {"scene": scene.name, "mode": j, "omega_rad_s": w, "freq_hz": w / (2 * math.pi),
                               "linearized": not rec.values["linear"]})
+
+
+def _thesis_code(scene, specs, records, res):
+    """The thesis' programs against rk4core and the truth: one check per
+    comparison that ran; programs that could not run (no ``octave-cli``)
+    are rows with status ``unavailable`` and one finding, not failures."""
+    for s in specs:
+        rec = records[s.key]
+        if not rec.values:
+            _failed(res, s, rec)
+            continue
+        rows = rec.values["rows"]
+        for r in rows:
+            res.add("thesis_code", {"scene": scene.name, **r})
+            if r["status"] == "ok" and r["passed"] in (True, False):
+                what = f"{r['program']} ({r['variant']}, {r['case']}) {r['quantity']}"
+                value, expected, tol = (math.nan if r[k] is None else float(r[k])
+                                        for k in ("value", "expected", "tolerance"))
+                res.check(f"thesis code {what}", bool(r["passed"]),
+                          f"{scene.name}: {what} = {value:.6g}, expected {expected:.6g} +- {tol:.3g}"
+                          + (f" ({r['message']})" if r.get("message") else ""), value, expected, tol)
+        missing = sorted({r["message"] for r in rows if r["status"] == "unavailable"})
+        if missing:
+            res.findings.append(f"{scene.name}: the thesis' programs did not run: {missing[0]} "
+                                f"({sum(r['status'] == 'unavailable' for r in rows)} rows unavailable).")
+        for e in rec.values["errata"]:
+            res.add("thesis_errata", {"scene": scene.name, **e})
 
 
 def _dispersion(scene, specs, packets, records, res, draw):
@@ -334,7 +368,7 @@ def _modal(scene, specs, records, res, draw):
             continue
         t, frac, omega = rec.arrays["t"], rec.arrays["fraction"], rec.arrays["omega"]
         t_all, omega_all = t, omega
-        label = f"{s.solver} {'h' if s.solver in EXPECTED_ORDER else 'rtol'}={s.setting:g}"
+        label = f"{s.solver} {scene.method(s.solver).setting_name}={s.setting:g}"
         series[label] = frac
         for j in range(frac.shape[0]):
             f = frac[j]

@@ -21,6 +21,7 @@ import numpy as np
 
 __all__ = ["error_max", "error_final", "relative_energy_error", "energy_drift_max",
            "drift_per_time", "rk4_energy_factor", "rk4_energy_loss", "rk4_energy_log_factor", "rk4_drift_theory",
+           "energy_loss", "energy_factor", "energy_log_factor", "drift_theory",
            "modal_energy_fractions", "fit_order", "OrderFit", "cheapest", "ROUNDOFF_REL", "PREASYMPTOTIC_REL"]
 
 #: Errors below this fraction of the state scale are round-off, not truncation.
@@ -62,51 +63,92 @@ def drift_per_time(model, t, y) -> float:
     return float(r[-1] / (t[-1] - t[0])) if not np.isnan(r[-1]) else float("nan")
 
 
-def rk4_energy_factor(theta):
-    """Per-step energy factor of classical RK4 on a harmonic mode,
-    ``|R(i theta)|^2 = 1 - theta^6/72 + theta^8/576`` with ``theta = omega h``.
+def _energy_loss_coefficients(tab) -> tuple[int, tuple[int, ...], int]:
+    """``(m, (n_m, n_m+1, ...), D)`` with ``1 - |R(i theta)|^2 =
+    theta^(2m) (n_m + n_m+1 theta^2 + ...) / D`` exactly (integers), from the
+    method's stability polynomial ``R(z) = sum a_k z^k``
+    (:func:`rk4core.stability_function.stability_polynomial`).
+
+    ``|R(iy)|^2 = sum_n y^n sum_{j+k=n} a_j a_k i^(j-k)``: odd powers cancel,
+    and the low even powers cancel exactly for a method of order ``p``
+    (``m >= p/2 + 1`` when ``p`` is even)."""
+    import math as _m
+    from fractions import Fraction
+
+    from rk4core.stability_function import stability_polynomial
+
+    a = [Fraction(x) for x in stability_polynomial(tab)]
+    deg = len(a) - 1
+    coef = []
+    for n in range(0, 2 * deg + 1, 2):
+        c = Fraction(0)
+        for j in range(max(0, n - deg), min(n, deg) + 1):
+            c += a[j] * a[n - j] * (1 if (j - (n - j)) % 4 == 0 else -1)
+        coef.append(-c)
+    coef[0] += 1  # 1 - |R|^2
+    m = next((i for i, c in enumerate(coef) if c != 0), len(coef))
+    coef = coef[m:] or [Fraction(0)]
+    den = _m.lcm(*(c.denominator for c in coef))
+    return m, tuple(int(c * den) for c in coef), den
+
+
+_LOSS_CACHE: dict = {}
+
+
+def energy_loss(tab, theta):
+    """``1 - |R(i theta)|^2`` (dimensionless, per step) of the tableau ``tab``
+    on a harmonic mode, ``theta = omega h``: the energy lost per step.
 
     For ``x'' = -omega^2 x`` in the complex variable ``z = omega x + i x'``,
-    ``z' = -i omega z`` and one RK4 step multiplies ``z`` by ``R(-i theta)``,
-    ``R(w) = 1 + w + w^2/2 + w^3/6 + w^4/24``; so the mode energy
-    ``|z|^2 / 2`` is multiplied by exactly this factor every step.
-    """
-    theta = np.asarray(theta, float)
-    return 1.0 - theta**6 / 72.0 + theta**8 / 576.0
+    ``z' = -i omega z`` and one step of an explicit Runge-Kutta method
+    multiplies ``z`` by ``R(-i theta)``, so the mode energy ``|z|^2 / 2`` is
+    multiplied by exactly ``|R(i theta)|^2`` every step. Evaluated from the
+    exact integer form of :func:`_energy_loss_coefficients` (for RK4
+    ``theta^6 (8 - theta^2) / 576``): no cancellation, exact in sign at the
+    imaginary-axis stability boundary (negative, a gain, beyond it)."""
+    key = (tab.name, tab.b.tobytes(), tab.A.tobytes())
+    if key not in _LOSS_CACHE:
+        _LOSS_CACHE[key] = _energy_loss_coefficients(tab)
+    m, ints, den = _LOSS_CACHE[key]
+    t2 = np.asarray(theta, float) ** 2
+    acc = np.zeros_like(t2) + float(ints[-1])
+    for c in ints[-2::-1]:
+        acc = acc * t2 + float(c)
+    return t2 ** m * acc / den
+
+
+def energy_factor(tab, theta):
+    """``|R(i theta)|^2``: the per-step energy factor of a harmonic mode."""
+    return 1.0 - energy_loss(tab, theta)
+
+
+def energy_log_factor(tab, theta):
+    """``log |R(i theta)|^2`` (per step) without cancellation: the small part
+    :func:`energy_loss` is formed on its own and passed to ``log1p`` (forming
+    ``1 - loss`` first would lose, for RK4 at ``theta = 0.05``, 2.5e-7
+    relative). Negative inside the stability interval (energy lost)."""
+    return np.log1p(-energy_loss(tab, theta))
+
+
+def _rk4():
+    from rk4core.methods import RK4
+
+    return RK4
+
+
+def rk4_energy_factor(theta):
+    """:func:`energy_factor` of classical RK4: ``1 - theta^6/72 + theta^8/576``."""
+    return energy_factor(_rk4(), theta)
 
 
 def rk4_energy_loss(theta):
-    """``1 - |R(i theta)|^2 = theta^6/72 - theta^8/576`` (dimensionless, per
-    step), evaluated as ``theta^6 (8 - theta^2) / 576``: no cancellation,
-    exact in sign at the RK4 boundary ``theta^2 = 8`` (negative, a gain,
-    beyond it)."""
-    theta = np.asarray(theta, float)
-    t2 = theta * theta
-    return t2 * t2 * t2 * (8.0 - t2) / 576.0
+    """:func:`energy_loss` of classical RK4: ``theta^6 (8 - theta^2) / 576``."""
+    return energy_loss(_rk4(), theta)
 
 
 def rk4_energy_log_factor(theta):
-    """``log |R(i theta)|^2 = log(1 - theta^6/72 + theta^8/576)`` (dimensionless,
-    per step), without cancellation.
-
-    Forming ``1 - theta^6/72 + theta^8/576`` first rounds away the small part:
-    at ``theta = 0.05`` (``theta^6/72 = 2.2e-10``) ``log`` of the rounded
-    factor is wrong by 2.5e-7 relative. Here the small part is formed on its
-    own, as ``-theta^6 (8 - theta^2) / 576`` (exact in sign at the RK4
-    boundary ``theta^2 = 8``), and passed to ``log1p``: a few ulp relative
-    for every ``theta``.
-
-    Parameters
-    ----------
-    theta : float or array_like
-        ``omega h`` (rad) of the mode.
-
-    Returns
-    -------
-    ndarray or float
-        Negative for ``0 < |theta| < 2 sqrt 2`` (RK4 loses energy), positive beyond.
-    """
-    return np.log1p(-rk4_energy_loss(theta))
+    """:func:`energy_log_factor` of classical RK4."""
+    return energy_log_factor(_rk4(), theta)
 
 
 def modal_energy_fractions(omega, eta0, deta0) -> np.ndarray:
@@ -116,16 +158,23 @@ def modal_energy_fractions(omega, eta0, deta0) -> np.ndarray:
     return e / e.sum()
 
 
-def rk4_drift_theory(omega, eta0, deta0, h, n_steps, duration) -> float:
-    """RK4's relative energy change per unit time after ``n_steps`` steps of ``h``:
-    ``sum_j f_j (g(omega_j h)^n - 1) / duration`` with ``f_j`` the modal energy
-    fractions and ``g`` :func:`rk4_energy_factor` (its log from
-    :func:`rk4_energy_log_factor`, without cancellation). Exact for linear
-    models (RK4 commutes with the modal decomposition), up to round-off."""
+def drift_theory(tab, omega, eta0, deta0, h, n_steps, duration) -> float:
+    """Relative energy change per unit time (1/s) of the explicit tableau
+    ``tab`` after ``n_steps`` steps of ``h`` on a linear model:
+    ``sum_j f_j (g(omega_j h)^n - 1) / duration`` with ``f_j`` the modal
+    energy fractions and ``g = |R(i omega_j h)|^2`` (:func:`energy_factor`,
+    its log from :func:`energy_log_factor`). Exact for linear models (a
+    Runge-Kutta step commutes with the modal decomposition), up to round-off.
+    Not for partitioned methods, whose step is no polynomial in ``h A``."""
     f = modal_energy_fractions(omega, eta0, deta0)
-    # g^n - 1 without cancellation: expm1(n log g), log g by log1p (rk4_energy_log_factor)
-    change = np.sum(f * np.expm1(n_steps * rk4_energy_log_factor(np.asarray(omega) * h)))
+    # g^n - 1 without cancellation: expm1(n log g), log g by log1p
+    change = np.sum(f * np.expm1(n_steps * energy_log_factor(tab, np.asarray(omega) * h)))
     return float(change / duration)
+
+
+def rk4_drift_theory(omega, eta0, deta0, h, n_steps, duration) -> float:
+    """:func:`drift_theory` of classical RK4."""
+    return drift_theory(_rk4(), omega, eta0, deta0, h, n_steps, duration)
 
 
 class OrderFit:
@@ -160,7 +209,7 @@ def fit_order(h, err, scale) -> OrderFit:
     return OrderFit(h, err, scale)
 
 
-def cheapest(rows, targets, *, cost="wall_s"):
+def cheapest(rows, targets, *, cost="wall_s", under_test="rk4"):
     """Cheapest solver per target relative error.
 
     Parameters
@@ -169,20 +218,25 @@ def cheapest(rows, targets, *, cost="wall_s"):
         One scene's runs with keys solver, setting, error_rel, status, and ``cost``.
     targets : sequence of float
         Target relative errors (e.g. 1e-3 ... 1e-12).
+    cost : str
+        The key of the cost column.
+    under_test : str or None
+        The method under test (``validation.plan.under_test``).
 
     Returns
     -------
     list of dict
         Per target: ``target_error``, ``solver``, ``setting``, ``cost`` of the
         cheapest run reaching it (None if none does), and ``rk4_setting``,
-        ``rk4_cost`` (RK4's cheapest run reaching it, None if none).
+        ``rk4_cost`` (the method under test's cheapest run reaching it, None
+        if none; named after the thesis' RK4, the default).
     """
     out = []
     ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
     for target in targets:
         good = [r for r in ok if r["error_rel"] <= target]
         best = min(good, key=lambda r: r[cost], default=None)
-        rk4 = min((r for r in good if r["solver"] == "rk4"), key=lambda r: r[cost], default=None)
+        rk4 = min((r for r in good if r["solver"] == under_test), key=lambda r: r[cost], default=None)
         out.append({
             "target_error": target,
             "solver": best["solver"] if best else None,

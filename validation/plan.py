@@ -35,6 +35,9 @@ Purposes (``RunSpec.purpose``):
     one (how much a cheaper model costs in accuracy at this amplitude).
 ``stability``
     one unit of the stability study (:func:`validation.stability.units`).
+``thesis_code``
+    the thesis' programs run in GNU Octave and compared with rk4core and the
+    truth (:func:`references.thesis_code.compare`), with their computed errata.
 
 The order of the plan is the order of the report; execution order is the
 engine's business (:mod:`validation.engine`).
@@ -49,24 +52,31 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS", "EXPECTED_ORDER",
-           "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "ORDER_METHODS", "settings_of", "PURPOSES",
+from references.registry import CONVERGENCE_ALWAYS, UNDER_TEST
+
+__all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS",
+           "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "ORDER_CONTRASTS", "order_methods", "settings_of", "PURPOSES",
            "TIMED_UNITS"]
 
 #: Target relative errors of the cheapest-solver table.
 TARGETS = (1e-3, 1e-6, 1e-9, 1e-12)
-#: Classical orders of the fixed-step methods, and the accepted deviation of a fit.
-EXPECTED_ORDER = {"rk4": 4.0, "euler": 1.0, "symplectic-euler": 1.0}
+#: Accepted deviation of a fitted order from the method's expected order
+#: (``references.registry.Method.order``: computed from the order conditions
+#: for a tableau, declared for python and command methods).
 ORDER_TOL = 0.1
-#: Default omega_max * h of the convergence sweeps (halving: nested step grids).
+#: Default omega_max * h of the convergence sweeps (halving: nested step grids):
+#: methods of order >= 3 (scene key ``convergence.theta``), and of order 1-2
+#: (``convergence.theta_euler``), whose error at 0.2 would leave the
+#: asymptotic range.
 RK4_THETAS = (0.2, 0.1, 0.05, 0.025)
 EULER_THETAS = (0.01, 0.005, 0.0025, 0.00125)
-#: The methods of the convergence sweeps and the scene key of their thetas.
-ORDER_METHODS = (("rk4", "theta", RK4_THETAS), ("euler", "theta_euler", EULER_THETAS),
-                 ("symplectic-euler", "theta_euler", EULER_THETAS))
+#: Methods whose convergence is measured in every scene with a convergence
+#: output, beside the scene's own fixed-step methods (``references.registry``).
+ORDER_CONTRASTS = CONVERGENCE_ALWAYS
 #: Wave packets of the dispersion output (carrier in units of pi/d).
 PACKET_KP = (0.3, 0.6)
-PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "packet", "linearization", "stability")
+PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "packet", "linearization", "stability",
+            "thesis_code")
 #: Points of the trajectory drawn in the state figures (at most).
 FIGURE_POINTS = 4000
 #: Stability units whose rows hold timings (they run in the timing lane).
@@ -154,7 +164,26 @@ def scene_digest(scene) -> str:
 
 def settings_of(scene, solver) -> list:
     """The settings a scene runs ``solver`` at: its steps or its tolerances."""
-    return list(scene.h if solver in EXPECTED_ORDER else scene.tolerances)
+    return list(scene.h if scene.method(solver).fixed_step else scene.tolerances)
+
+
+def order_methods(scene) -> list[tuple[str, str, tuple]]:
+    """``(method, scene key of its thetas, default thetas)`` of every
+    convergence sweep of ``scene``: :data:`ORDER_CONTRASTS` and the scene's
+    own fixed-step methods, in that order."""
+    out = []
+    for name in dict.fromkeys((*ORDER_CONTRASTS, *scene.fixed_solvers)):
+        high = (scene.method(name).order or 1) >= 3
+        out.append((name, "theta", RK4_THETAS) if high else (name, "theta_euler", EULER_THETAS))
+    return out
+
+
+def under_test(scene) -> str | None:
+    """The method under test of ``scene``: the first fixed-step method it
+    lists (the state figures, modal energies of the packets use it); None if
+    it lists none."""
+    fixed = scene.fixed_solvers
+    return fixed[0] if fixed else None
 
 
 def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) -> list[RunSpec]:
@@ -165,6 +194,7 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
     dig = scene_digest(scene)
     want = set(scene.outputs)
     draw = figures and "figures" in want
+    scene.registry  # noqa: B018 - a bad [methods] table fails here, before any spec
     spec = lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw)  # noqa: E731
     out = []
     trajectories = bool({"state", "energy", "work_precision"} & want)
@@ -177,15 +207,15 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
                 out.append(spec("run", solver=solver, setting=float(s), grid="scene", repeats=int(repeats),
                                 keep=("energy",) if draw and "energy" in want else ()))
     if draw:  # the thesis' state figures: RK4 at the finest step, or the reference
-        if scene.h and "rk4" in scene.solvers:
-            out.append(spec("figure", solver="rk4", setting=float(min(scene.h)), grid="figure",
+        if scene.h and under_test(scene):
+            out.append(spec("figure", solver=under_test(scene), setting=float(min(scene.h)), grid="figure",
                             keep=("trajectory",)))
         else:
             out.append(spec("truth", grid="figure", keep=("trajectory",)))
     if "linearization" in want and nonlinear:
         out.append(spec("linearization", grid="scene", keep=("trajectory",) if draw else ()))
     if "convergence" in want:
-        for method, key, default in ORDER_METHODS:
+        for method, key, default in order_methods(scene):
             thetas = tuple(sorted(scene.convergence.get(key, default), reverse=True))
             out.append(spec("truth", grid="order", params=(("theta0", float(thetas[0])),)))
             for th in thetas:
@@ -195,11 +225,14 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
         out.append(spec("modes"))
     if "dispersion" in want:
         out.append(spec("dispersion"))
-        out += [spec("packet", solver="rk4", setting=float(kp)) for kp in PACKET_KP]
+        packet_method = under_test(scene) or UNDER_TEST
+        out += [spec("packet", solver=packet_method, setting=float(kp)) for kp in PACKET_KP]
     if "modal_energy" in want:
         for solver in scene.solvers:
             out.append(spec("modal", solver=solver, setting=float(min(settings_of(scene, solver))),
                             grid="scene", keep=("modal",)))
+    if "thesis_code" in want:
+        out.append(spec("thesis_code"))
     if "stability" in want:
         from . import stability
 

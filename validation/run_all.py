@@ -125,7 +125,8 @@ def _parser():
                    help="let a --quick or --scene run replace a full report in --out")
     p.add_argument("--no-figures", action="store_true", help="tables and index.md only")
     p.add_argument("--workers", type=_int_at_least(1, 1024), default=None, metavar="N",
-                   help="local worker processes (default: the cores this process may use; 1: no pool)")
+                   help="local worker processes (default: $RK4H_WORKERS, else the cores this process may "
+                        "use; 1: no pool)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the plan on the Dask distributed scheduler at ADDRESS (tcp://host:port)")
     p.add_argument("--resume", action="store_true",
@@ -531,6 +532,11 @@ def _main(argv, sig) -> int:
             _check_scheduler(args.scheduler)
         except _BadInput as e:
             return _fail(str(e))
+    if args.workers is None and os.environ.get("RK4H_WORKERS"):
+        try:
+            args.workers = _int_at_least(1, 1024)(os.environ["RK4H_WORKERS"])
+        except argparse.ArgumentTypeError as e:
+            return _fail(f"RK4H_WORKERS: {e}")
     if not scenes:
         return _fail("no scenes to run" + (" (none is marked quick = true)" if args.quick else ""))
     repeats = args.repeats if args.repeats is not None else (REPEATS_QUICK if args.quick else REPEATS_FULL)
@@ -629,6 +635,12 @@ def _check_scheduler(address):
 
     if not re.fullmatch(r"(tcp|tls|inproc|ws|wss)://[^\s/]+|[^\s/:]+:\d+", address):
         raise _BadInput(f"--scheduler: must be an address like tcp://127.0.0.1:8786, got {address!r}")
+    from validation import engine
+
+    try:
+        engine.scheduler_timeout()
+    except ValueError as e:
+        raise _BadInput(str(e)) from None
 
 
 class _BadInput(ValueError):

@@ -16,7 +16,8 @@ A scene is a TOML file::
     t_end = 100.0                       # s
     h = [...]                           # fixed steps (s) for rk4 / euler / symplectic-euler
     tolerances = [...]                  # rtol of the adaptive solvers, in (0, 1)
-    solvers = [...]                     # references.solvers.base.SOLVER_NAMES
+    solvers = [...]                     # built-in methods (references.registry.BUILTIN)
+                                        # and the scene's own [methods.NAME]
     outputs = [...]                     # OUTPUTS below
     output_dt = 0.1                     # optional: spacing of the output grid (s)
     max_output_points = 100000          # optional: decimate the output grid to at most
@@ -25,6 +26,10 @@ A scene is a TOML file::
     t_end = 0.5
     theta = [0.4, 0.2, 0.1, 0.05]       # omega_max * h of the RK4 sweep
     theta_euler = [...]                 # ... of the Euler / symplectic Euler sweep
+    [methods.NAME]                      # optional: the scene's own method (references.registry):
+    A = [["0", "0"], ["1/2", "0"]]      #   a tableau (numbers or rational strings; c from the
+    b = ["0", "1"]                      #   row sums unless given; A_v/b_v: partitioned), or
+                                        #   python = "pkg.mod:step" / command = [argv], with order
     [stability]                         # optional, validated by validation.stability
     [sweep]                             # optional: one scene per point, see "Sweeps" below
     "params.masses[1]" = [0.5, 1.0, 3.099, 10.0]
@@ -129,7 +134,7 @@ from pathlib import Path
 
 import numpy as np
 
-from references.solvers.base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES
+from references.registry import MethodError, methods_from_tables, names, resolve
 from rk4core.solver import _SLACK as _STEP_SLACK
 
 __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scenes", "resolve_scene",
@@ -137,11 +142,11 @@ __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scene
            "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS"]
 
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
-           "stability", "dispersion", "modal_energy", "linearization")
+           "stability", "dispersion", "modal_energy", "linearization", "thesis_code")
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
 _TOP = {"name", "description", "model", "quick", "params", "initial", "run", "convergence",
-        "stability", "sweep"}
+        "stability", "sweep", "methods"}
 _INITIAL = {"x", "v", "mode", "amplitude"}
 _RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt", "max_output_points"}
 _CONVERGENCE = {"t_end", "theta", "theta_euler"}
@@ -209,6 +214,8 @@ class Scene:
     sweep: dict = field(default_factory=dict)
     #: the scene's name in its file (``name`` is ``BASE@...`` for a sweep point)
     base: str = ""
+    #: the scene's own methods: ``[methods.NAME]`` tables as written
+    methods: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.base:
@@ -254,12 +261,25 @@ class Scene:
         return n // k + 1 + (n % k != 0)
 
     @property
+    def registry(self) -> dict:
+        """The scene's own methods by name (:class:`references.registry.Method`),
+        built once per scene object."""
+        cached = self.__dict__.get("_registry")
+        if cached is None:
+            cached = self.__dict__["_registry"] = methods_from_tables(self.methods)
+        return cached
+
+    def method(self, name):
+        """The :class:`references.registry.Method` ``name`` names in this scene."""
+        return resolve(name, self.registry)
+
+    @property
     def fixed_solvers(self) -> list:
-        return [s for s in self.solvers if s in FIXED_STEP]
+        return [s for s in self.solvers if self.method(s).fixed_step]
 
     @property
     def adaptive_solvers(self) -> list:
-        return [s for s in self.solvers if s in ADAPTIVE]
+        return [s for s in self.solvers if not self.method(s).fixed_step]
 
 
 def output_stride(n_intervals: int, max_points: int | None) -> int:
@@ -482,10 +502,12 @@ def _scene_from_dict(doc: dict, path) -> Scene:
         if key not in run:
             raise SceneError(path, f"run.{key}", "is missing")
     t_end = _number(path, "run.t_end", run["t_end"], positive=True)
-    solvers = _strings(path, "run.solvers", run["solvers"], SOLVER_NAMES)
+    methods = _methods(path, doc.get("methods", {}))
+    solvers = _strings(path, "run.solvers", run["solvers"], names(methods))
     outputs = _strings(path, "run.outputs", run["outputs"], OUTPUTS)
+    fixed = [resolve(s, methods).fixed_step for s in solvers]
     h = []
-    if any(s in FIXED_STEP for s in solvers) or "h" in run:
+    if any(fixed) or "h" in run:
         if "h" not in run:
             raise SceneError(path, "run.h", "is missing (needed by the fixed-step solvers)")
         h = _numbers(path, "run.h", run["h"], positive=True)
@@ -493,7 +515,7 @@ def _scene_from_dict(doc: dict, path) -> Scene:
             if hi > t_end:
                 raise SceneError(path, f"run.h[{i}]", f"must be <= t_end = {t_end}", hi)
     tolerances = []
-    if any(s in ADAPTIVE for s in solvers) or "tolerances" in run:
+    if not all(fixed) or "tolerances" in run:
         if "tolerances" not in run:
             raise SceneError(path, "run.tolerances", "is missing (needed by the adaptive solvers)")
         tolerances = _numbers(path, "run.tolerances", run["tolerances"], open_unit=True)
@@ -524,11 +546,25 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     if "stability" in outputs or stability is not None:
         stability = _stability(path, stability if stability is not None else {})
 
-    return Scene(name=name, description=description, model=model_name, params=dict(params),
-                 initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
-                 h=h, tolerances=tolerances, solvers=solvers, outputs=outputs, quick=quick,
-                 stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence,
-                 max_output_points=max_points)
+    scene = Scene(name=name, description=description, model=model_name, params=dict(params),
+                  initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
+                  h=h, tolerances=tolerances, solvers=solvers, outputs=outputs, quick=quick,
+                  stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence,
+                  max_output_points=max_points, methods={k: dict(v) for k, v in doc.get("methods", {}).items()})
+    scene.__dict__["_registry"] = methods
+    return scene
+
+
+def _methods(path, tables) -> dict:
+    """The scene's ``[methods.NAME]`` tables as registry methods; a bad one is
+    one line naming ``methods.NAME.KEY``."""
+    if not isinstance(tables, dict):
+        raise SceneError(path, "methods", "must be a table of [methods.NAME] tables", tables)
+    try:
+        return methods_from_tables(tables)
+    except MethodError as e:
+        raise SceneError(path, f"methods.{e.name}.{e.field}" if e.field != "name" else f"methods.{e.name}",
+                         e.problem) from None
 
 
 def _model_keys(model_name):

@@ -2,9 +2,12 @@
 
 Solvers (``SOLVER_NAMES``)
 --------------------------
-``rk4``, ``euler``, ``symplectic-euler``
-    ``rk4core.solve`` on ``model.rhs`` (the compiled loop of ``rk4core.fast``
-    when the model has one); ``setting`` is the step ``h`` (s).
+Fixed-step methods (``rk4``, ``euler``, ``symplectic-euler``, ``stormer-verlet``, ``rk38``...; a scene's own tableaux)
+    ``rk4core.solve`` on ``model.rhs`` with the method's tableau (the compiled
+    loop of ``rk4core.fast`` when the model has one); ``setting`` is the step ``h`` (s).
+A scene's ``python`` and ``command`` methods
+    :mod:`references.solvers.stepper` and :mod:`references.solvers.command`;
+    ``setting`` is the step ``h`` (s).
 ``dop853``
     scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
     (``rk4core.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
@@ -53,12 +56,14 @@ from __future__ import annotations
 import numpy as np
 
 from rk4core.models.base import Model
-from rk4core.validate import check_model_y0, check_output_times, choice, positive
+from rk4core.validate import check_model_y0, check_output_times, positive
 
+from ..registry import Kind, resolve
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
 from .cvode import DEFAULT_MAX_STEPS, run_cvode
 from .dop853 import run_dop853
 from .fixed import run_fixed
+from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
@@ -66,17 +71,20 @@ __all__ = ["integrate", "check_setting", "check_model", "SOLVER_NAMES", "FIXED_S
            "SolverRun", "absolute_tolerance"]
 
 
-def check_setting(solver: str, setting) -> float:
-    """Validate ``setting`` for ``solver``: a finite step ``h > 0`` for the
+def check_setting(solver, setting, local=None) -> float:
+    """Validate ``setting`` for ``solver`` (a name, resolved in the scene's
+    methods ``local`` and then the built-ins, or a
+    :class:`references.registry.Method`): a finite step ``h > 0`` for the
     fixed-step methods, a relative tolerance in (0, 1) for adaptive ones.
 
     Raises ``ValueError`` naming the solver or the setting."""
-    choice("solver", solver, SOLVER_NAMES)
-    if solver in FIXED_STEP:
-        return positive(f"h ({solver})", setting)
-    rtol = positive(f"rtol ({solver})", setting)
+    method = resolve(solver, local)
+    name = method.name
+    if method.fixed_step:
+        return positive(f"h ({name})", setting)
+    rtol = positive(f"rtol ({name})", setting)
     if rtol >= 1.0:
-        raise ValueError(f"`rtol ({solver})` must be < 1, got {setting!r}")
+        raise ValueError(f"`rtol ({name})` must be < 1, got {setting!r}")
     return rtol
 
 
@@ -104,14 +112,15 @@ def _check_inputs(model, y0, t_eval, atol, max_steps):
     return y0, t, atol
 
 
-def integrate(solver: str, model, y0, t_eval, setting: float, *, atol=None,
-              max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
+def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
+              max_steps: int = DEFAULT_MAX_STEPS, local=None) -> SolverRun:
     """Integrate ``model`` from ``y0`` at ``t_eval[0]`` to ``t_eval[-1]`` with ``solver``.
 
     Parameters
     ----------
-    solver : str
-        One of ``SOLVER_NAMES``.
+    solver : str or references.registry.Method
+        A method name (``SOLVER_NAMES``, or one of the scene's methods
+        ``local``) or the method itself.
     model : rk4core.models.Model
     y0 : array_like, shape (2 n_dof,)
         Initial state ``[q, v]`` (SI units of the model's coordinates).
@@ -127,20 +136,30 @@ def integrate(solver: str, model, y0, t_eval, setting: float, *, atol=None,
         DOP853's accepted steps (and ``30 max_steps`` RHS evaluations),
         heyoka's Taylor steps; ignored by the fixed-step solvers, whose step
         count is ``ceil((t_eval[-1] - t_eval[0]) / h)``.
+    local : mapping of str to Method, optional
+        A scene's own methods (``[methods.NAME]``), looked up before the built-ins.
 
     Returns
     -------
     SolverRun
         ``y`` of shape (2 n_dof, m) at ``t_eval``.
     """
-    setting = check_setting(solver, setting)
+    method = resolve(solver, local)
+    setting = check_setting(method, setting)
     y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
-    if solver in FIXED_STEP:
-        return run_fixed(solver, model, y0, t, setting)
+    if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
+        return run_fixed(method.tableau, model, y0, t, setting)
+    if method.kind is Kind.PYTHON:
+        return run_python(method, model, y0, t, setting)
+    if method.kind is Kind.COMMAND:
+        from .command import run_command_method
+
+        return run_command_method(method.name, list(method.argv), model, y0, t, setting,
+                                  nfev_per_step=method.nfev_per_step)
     if atol is None:
         atol = absolute_tolerance(model, y0, setting)
-    if solver == "dop853":
+    if method.name == "dop853":
         return run_dop853(model, y0, t, setting, atol, int(max_steps))
-    if solver in ("cvode-adams", "cvode-bdf"):
-        return run_cvode(solver, model, y0, t, setting, atol, int(max_steps))
+    if method.name in ("cvode-adams", "cvode-bdf"):
+        return run_cvode(method.name, model, y0, t, setting, atol, int(max_steps))
     return run_heyoka(model, y0, t, setting, atol, int(max_steps))

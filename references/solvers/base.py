@@ -16,6 +16,8 @@ from enum import Enum
 
 import numpy as np
 
+from ..registry import BUILTIN, REFERENCES
+
 __all__ = ["Status", "SolverRun", "FIXED_STEP", "ADAPTIVE", "SOLVER_NAMES", "compiled_rhs"]
 
 
@@ -25,10 +27,13 @@ class Status(str, Enum):
     OK = "ok"
     FAILED = "failed"      # the solver gave up (error flag, step cap, exception inside)
     UNSTABLE = "unstable"  # the state became non-finite (a blow-up)
+    UNAVAILABLE = "unavailable"  # an external program (a command method) is not installed
 
 
-FIXED_STEP = ("rk4", "euler", "symplectic-euler")
-ADAPTIVE = ("dop853", "cvode-adams", "cvode-bdf", "heyoka")
+#: Built-in fixed-step methods and adaptive references, from the registry
+#: (a scene's own methods are resolved with ``references.registry.resolve``).
+FIXED_STEP = tuple(n for n, m in BUILTIN.items() if m.fixed_step)
+ADAPTIVE = REFERENCES
 SOLVER_NAMES = FIXED_STEP + ADAPTIVE
 
 

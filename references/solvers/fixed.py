@@ -1,5 +1,5 @@
-"""The fixed-step methods of the system under test: ``rk4``, ``euler`` and
-``symplectic-euler``. Built-in models run through the compiled fast path
+"""The tableau methods of the system under test (``rk4``, ``euler``,
+``symplectic-euler``, any scene's own tableau). Built-in models run through the compiled fast path
 (``rk4core.fast.solve_model``: the same numbers as ``rk4core.solve`` on
 ``model.rhs``, tested to 1e-14); any other model through ``rk4core.solve`` on
 ``model.rhs``. Compile/cache-load time of the fast path is ``compile_s``, kept
@@ -8,8 +8,10 @@ out of ``wall_s``; ``extra["path"]`` says which path ran.
 ``setting`` is the largest step ``h`` (s); the step used is
 ``(t_eval[-1] - t_eval[0]) / ceil(...)`` (``extra["h_used"]``). Output times on
 the step grid are returned exactly, others by cubic Hermite interpolation
-(``extra["dense"]`` says which). ``nfev`` is stages x steps (4, 1 and 2 per
-step), plus one end-slope evaluation per step that holds off-grid outputs.
+(``extra["dense"]`` says which). ``nfev`` is the method's own count
+(``Tableau.nfev_per_step`` per step, first-same-as-last reuse counted: see
+``rk4core.solve``), plus one end-slope evaluation per step that holds
+off-grid outputs.
 
 A run is UNSTABLE (with ``t_fail``; ``y`` NaN from the first output time not
 reached) at the first step where a component is non-finite or exceeds
@@ -43,19 +45,22 @@ __all__ = ["run_fixed", "MAX_GROWTH"]
 MAX_GROWTH = 1e6
 
 
-def run_fixed(name: str, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> SolverRun:
-    """Integrate ``model`` with fixed-step method ``name``; never raises."""
+def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> SolverRun:
+    """Integrate ``model`` with the tableau ``method`` (an
+    ``rk4core.methods.Tableau`` or a built-in name); never raises."""
+    tab = rk4core.get_method(method)
+    name = tab.name
     m = t_eval.shape[0]
     y = np.full((y0.shape[0], m), np.nan)
     use_fast = fast.supports(model)
-    compile_s = fast.warm_up(model, name) if use_fast else 0.0
+    compile_s = fast.warm_up(model, tab) if use_fast else 0.0
     bound = {"max_growth": MAX_GROWTH, "y_scale": state_scale(model, y0)}
     start = time.perf_counter()
     try:
         if use_fast:
-            res = fast.solve_model(model, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name, **bound)
+            res = fast.solve_model(model, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=tab, **bound)
         else:
-            res = rk4core.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=name,
+            res = rk4core.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=tab,
                                 **bound)
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         return SolverRun(name, h, t_eval, y, 0, 0, time.perf_counter() - start, compile_s, status=Status.FAILED,

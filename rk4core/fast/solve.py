@@ -16,7 +16,8 @@ import time
 import numpy as np
 
 from ..methods import get_method
-from ..solver import FixedStepResult, grid_time, grid_times, growth_bound, step_count, unstable_message
+from ..solver import (FixedStepResult, grid_time, grid_times, growth_bound, nfev_count, step_count,
+                      unstable_message)
 from ..validate import (check_max_growth, check_model_y0, check_output_size, check_step_args, check_t_eval,
                         check_t_span, check_y_scale)
 from . import _kernels as K
@@ -180,9 +181,13 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     Returns
     -------
     FixedStepResult
-        ``nfev`` counts right-hand-side calls as ``rk4core.solve`` does:
-        ``n_stages`` per step plus one Hermite end slope per step that holds
-        off-grid ``t_eval`` points.
+        ``nfev`` counts force evaluations as ``rk4core.solve`` counts
+        right-hand-side calls: ``nfev_count(tab, N) = tab.nfev_first_step +
+        (N - 1) tab.nfev_per_step`` for ``N`` steps attempted (a
+        first-same-as-last method evaluates its reused stage once before the
+        first step and carries its last stage into the next), plus the
+        dense-output slopes no stage gave (one end slope per step holding
+        off-grid ``t_eval`` points unless the method is FSAL).
 
     Notes
     -----
@@ -240,7 +245,7 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
         reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step,
                                            "given" if y_scale is not None else "initial")
     # As rk4core.solve, the stages of the step that failed are counted.
-    nfev = tab.n_stages * (n_done + (status != K.STATUS_OK)) + int(n_extra)
+    nfev = nfev_count(tab, n_done + (status != K.STATUS_OK)) + int(n_extra)
     if t_eval is None:
         t_out = grid_times(t0, t1, step, idx[:n_out], n)
     else:

@@ -41,7 +41,7 @@ from rk4core import get_method, rk_step
 from ._common import integrate_fixed, mode_amplitudes
 
 __all__ = ["STABLE_TOL", "MAX_BISECTIONS", "one_step_matrix", "spectral_radius", "largest_stable_step",
-           "theory_growth", "theory_boundary", "growth_steps", "measured_growth", "blowup_run"]
+           "theory_growth", "theory_boundary", "tolerance_boundary", "growth_steps", "measured_growth", "blowup_run"]
 
 STABLE_TOL = 1e-12
 THETA_MIN = 1e-5  # smallest omega h probed when looking for a stable step
@@ -50,25 +50,57 @@ THETA_MIN = 1e-5  # smallest omega h probed when looking for a stable step
 MAX_BISECTIONS = 100
 
 
-def theory_growth(method: str, theta):
-    """Growth factor per step (spectral radius of the mode's one-step map) at
-    ``theta = omega h``."""
+def theory_growth(method, theta):
+    """Growth factor per step (spectral radius of a harmonic mode's one-step
+    map) at ``theta = omega h``, from the method's tableau: ``|R(i theta)|``
+    for a classical tableau (``rk4core.stability_function.R``), the spectral
+    radius of the 2x2 step matrix for a partitioned one (symplectic Euler,
+    Stormer-Verlet). ``method`` is a tableau or a built-in name."""
+    from rk4core.stability_function import R, partitioned_step_matrix
+
+    tab = get_method(method)
     th = np.asarray(theta, dtype=float)
-    if method == "rk4":
-        z = 1j * th
-        return np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
-    if method == "euler":
-        return np.sqrt(1 + th**2)
-    if method == "symplectic-euler":
-        a = np.abs(th**2 / 2 - 1)
-        return np.where(th <= 2.0, 1.0, a + np.sqrt(np.clip(a * a - 1, 0, None)))
-    raise ValueError(f"`method` must be one of ['rk4', 'euler', 'symplectic-euler'], got {method!r}")
+    if not tab.partitioned:
+        return np.abs(R(tab, 1j * th))
+    flat = np.atleast_1d(th).ravel()
+    rho = np.array([np.max(np.abs(np.linalg.eigvals(partitioned_step_matrix(tab, x)))) for x in flat])
+    return rho.reshape(th.shape) if th.ndim else float(rho[0])
 
 
-def theory_boundary(method: str, omega_max: float) -> float:
-    """Largest stable ``h`` (s): 2 sqrt(2)/omega_max (RK4), 2/omega_max
-    (symplectic Euler), 0 (explicit Euler: no stable step)."""
-    return {"rk4": 2 * math.sqrt(2), "symplectic-euler": 2.0, "euler": 0.0}[method] / omega_max
+def theory_boundary(method, omega_max: float) -> float:
+    """Largest stable ``h`` (s) on a mode of ``omega_max`` (rad/s): the
+    method's imaginary-axis boundary over ``omega_max``
+    (``rk4core.stability_function.imaginary_axis_boundary``: 2 sqrt(2) for
+    RK4, 2 for symplectic Euler and Stormer-Verlet, 0 for explicit Euler, which
+    has no stable step)."""
+    from rk4core.stability_function import imaginary_axis_boundary
+
+    return imaginary_axis_boundary(get_method(method)) / omega_max
+
+
+def tolerance_boundary(method, omega_max: float) -> float:
+    """For a method with no stable step on the imaginary axis (explicit Euler,
+    a two-stage second-order method: ``|R(i theta)| > 1`` for every
+    ``theta > 0``), the largest ``h`` (s) that :func:`largest_stable_step`
+    accepts: growth ``<= 1 + STABLE_TOL`` per step, from the theory growth
+    (:func:`theory_growth`) by bisection; 0.0 when that ``omega h`` is below
+    :data:`THETA_MIN` (the bisection then reports no stable step). For
+    Ralston's method ``|R(i theta)| = sqrt(1 + theta^4/4)``, so
+    ``theta = (8 STABLE_TOL)^(1/4) = 1.68e-3``."""
+    def ok(th):
+        return float(theory_growth(method, th)) <= 1.0 + STABLE_TOL
+
+    if not ok(THETA_MIN):
+        return 0.0
+    lo, hi = THETA_MIN, 1.0
+    if ok(hi):
+        return theory_boundary(method, omega_max)
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo / omega_max
 
 
 def one_step_matrix(model, h: float, method: str) -> np.ndarray:

@@ -37,9 +37,12 @@ from __future__ import annotations
 
 import math
 import time
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+
+from references.registry import BOUNDARY_ALWAYS
 
 from . import boundary as B
 from . import geometry as G
@@ -66,6 +69,9 @@ LONG_STEP_MARGIN = 3.0
 LONG_MIN_STEPS = 5_000_000
 LONG_MAX_STEPS = 100_000_000
 _LONG_PARTS = ("drift", "rk4", "heyoka", "cvode-bdf")
+#: Built-in methods whose stability boundary every boundary study measures
+#: (``references.registry``; the scene's own tableaux in ``run.solvers`` are added).
+BOUNDARY_METHODS = BOUNDARY_ALWAYS
 
 
 @dataclass
@@ -75,12 +81,16 @@ class Context:
     y0: np.ndarray
     params: dict
     quick: bool
+    #: the scene's own tableau methods (name -> rk4core Tableau), studied beside the built-ins
+    tableaux: dict = dataclasses.field(default_factory=dict)
 
 
 def context(scene, quick: bool) -> Context:
     """The validated parameters, model and initial state of ``scene``'s study."""
     params = validate_params(dict(scene.stability or {}))
-    return Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick))
+    own = getattr(scene, "registry", {})
+    tableaux = {n: m.tableau for n, m in own.items() if m.tableau is not None and n in scene.solvers}
+    return Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick), tableaux)
 
 
 # -- unit keys --------------------------------------------------------------------------------
@@ -185,14 +195,19 @@ def _boundary(ctx: Context, part) -> StudyResult:
     res, s, m = StudyResult(), ctx.scene, ctx.model
     modes = m.modes()
     w = float(modes[0][-1])
-    for meth in ("rk4", "symplectic-euler", "euler"):
-        h_star, probes = B.largest_stable_step(m, meth, ctx.params["bisection_rtol"], w)
-        h_th = B.theory_boundary(meth, w)
-        ok = abs(h_star / h_th - 1) <= REL_BOUNDARY if h_th > 0 else h_star == 0.0
-        res.rows.append(row(s, "boundary", meth, "largest_stable_h_s", h_star, h_th, ok, note=(
+    methods = {name: name for name in BOUNDARY_METHODS}
+    methods.update(ctx.tableaux)  # the scene's own tableaux: boundary from the tableau, against runs
+    for meth, tab in methods.items():
+        h_star, probes = B.largest_stable_step(m, tab, ctx.params["bisection_rtol"], w)
+        h_th = B.theory_boundary(tab, w)
+        # no stable step in theory: the bisection's tolerance 1 + STABLE_TOL sets what it finds
+        expect = h_th if h_th > 0 else B.tolerance_boundary(tab, w)
+        ok = abs(h_star / expect - 1) <= REL_BOUNDARY if expect > 0 else h_star == 0.0
+        res.rows.append(row(s, "boundary", meth, "largest_stable_h_s", h_star, expect, ok, note=(
             f"omega_max = {w:.6g} rad/s; bisection on rho(S(h)) <= 1 + {B.STABLE_TOL:g}, rtol "
             f"{ctx.params['bisection_rtol']:g}, {probes} probes"
-            + ("; no stable h down to omega h = 1e-5" if meth == "euler" else ""))))
+            + ("" if h_th > 0 else "; |R(i theta)| > 1 for every theta > 0: expected is where the growth "
+               f"passes 1 + {B.STABLE_TOL:g}" + (" (below omega h = 1e-5: no stable h)" if expect == 0 else "")))))
         if h_th > 0:
             res.findings.append(f"{s}: {meth} largest stable step {h_star:.6g} s = {h_star * w:.5f}/omega_max "
                                 f"(theory {h_th * w:.5f}/omega_max)")
@@ -214,7 +229,7 @@ def _boundary(ctx: Context, part) -> StudyResult:
     res.plots.append({"kind": "growth", "scene": s, "study": "boundary", "name": "growth", "data": {
         "theta_line": line, "theory": {meth: np.asarray(B.theory_growth(meth, line), float) for meth in meths},
         "theta": np.array(thetas), "measured": {meth: np.array([g(meth, th) for th in thetas]) for meth in meths},
-        "boundary": {"rk4": 2 * math.sqrt(2), "symplectic-euler": 2.0}}})
+        "boundary": {meth: b for meth in meths if (b := B.theory_boundary(meth, 1.0)) > 0}}})
     # deliberate blow-ups: rows with status unstable and the time
     for meth, h, n in (("rk4", 1.2 * B.theory_boundary("rk4", w), 3000), ("euler", 1.0 / w, 6000)):
         r = B.blowup_run(m, meth, h, n)

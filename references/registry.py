@@ -1,0 +1,341 @@
+"""The method registry: every integrator the harness can run, as data.
+
+A :class:`Method` knows its kind, its expected order, its cost per step and
+its style in figures; nothing outside this module decides anything from a
+method's name. Kinds (DESIGN.md, "Methods: the system under test is the
+user's"):
+
+``tableau``
+    An explicit Runge-Kutta method given by its Butcher tableau
+    (:func:`rk4core.methods.make_tableau`): order from the order conditions,
+    cost per step counting first-same-as-last reuse.
+``partitioned``
+    A partitioned tableau for ``y = [q, v]`` with ``dq/dt = v`` (symplectic
+    Euler, Stormer-Verlet).
+``python``
+    ``"package.module:function"``, a step ``f(fun, t, y, h) -> y_next`` with
+    a declared ``order``; run on the generic loop of
+    :mod:`references.solvers.stepper`, its right-hand-side calls counted.
+``command``
+    An external program run through the file protocol of
+    :mod:`rk4core.command` (problem in, trajectory out), with a declared
+    ``order``.
+``reference``
+    ``dop853``, ``cvode-adams``, ``cvode-bdf``, ``heyoka``: adaptive, their
+    setting is ``rtol``.
+
+Built-in methods are :data:`BUILTIN`; a scene adds its own with
+``[methods.NAME]`` tables (:func:`method_from_table`) and
+:func:`resolve` looks a name up in the scene's methods first, then in the
+built-ins. Methods of the first four kinds are *fixed-step*: their setting is
+the step ``h`` (s).
+"""
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Mapping
+
+__all__ = ["Kind", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST", "CONVERGENCE_ALWAYS",
+           "BOUNDARY_ALWAYS", "resolve", "names",
+           "method_from_table", "methods_from_tables", "is_fixed_step", "setting_name", "style",
+           "order_of", "MethodError"]
+
+
+class Kind(str, Enum):
+    """What a method is, and so how it is run."""
+
+    TABLEAU = "tableau"
+    PARTITIONED = "partitioned"
+    PYTHON = "python"
+    COMMAND = "command"
+    REFERENCE = "reference"
+
+
+@dataclass(frozen=True)
+class Style:
+    """How a method looks in every figure."""
+
+    color: str
+    marker: str
+
+
+@dataclass(frozen=True, eq=False)
+class Method:
+    """One integrator.
+
+    Attributes
+    ----------
+    name : str
+        Registry name, as scenes list it in ``run.solvers``.
+    kind : Kind
+    order : int or None
+        Expected order of accuracy: computed from the order conditions for a
+        tableau, declared for ``python`` and ``command`` methods, None for the
+        adaptive references.
+    nfev_per_step : int or None
+        Right-hand-side evaluations per step in steady state (first-same-as-last
+        reuse counted); None when unknown before a run (python, command,
+        references).
+    style : Style
+    description : str
+    tableau : rk4core.methods.Tableau or None
+        For ``tableau`` and ``partitioned`` methods.
+    target : str or None
+        ``"package.module:function"`` of a ``python`` method.
+    argv : tuple of str or None
+        The command line of a ``command`` method, with the placeholders of
+        :mod:`rk4core.command`.
+    definition : dict
+        The scene's ``[methods.NAME]`` table as written (empty for built-ins);
+        part of the scene's digest, so a changed definition reruns.
+    """
+
+    name: str
+    kind: Kind
+    order: int | None
+    nfev_per_step: int | None
+    style: Style
+    description: str = ""
+    tableau: object = None
+    target: str | None = None
+    argv: tuple | None = None
+    definition: dict = field(default_factory=dict)
+
+    @property
+    def fixed_step(self) -> bool:
+        """True for every kind but ``reference``: the setting is the step ``h``."""
+        return self.kind is not Kind.REFERENCE
+
+    @property
+    def setting_name(self) -> str:
+        """``"h"`` for fixed-step methods, ``"rtol"`` for the references."""
+        return "h" if self.fixed_step else "rtol"
+
+    def step_function(self):
+        """The imported step function of a ``python`` method."""
+        if self.kind is not Kind.PYTHON:
+            raise ValueError(f"method {self.name!r} is a {self.kind.value} method, not a python one")
+        return _import_target(self.name, self.target)
+
+    def __repr__(self):
+        return f"Method({self.name!r}, {self.kind.value}, order={self.order})"
+
+
+class MethodError(ValueError):
+    """A method definition that cannot be used: ``field`` names the key
+    (``A``, ``python``, ``order``...) of ``[methods.NAME]``."""
+
+    def __init__(self, name: str, fld: str, problem: str):
+        self.name, self.field, self.problem = name, fld, problem
+        super().__init__(f"method {name!r}: `{fld}` {problem}")
+
+
+# -- built-ins -------------------------------------------------------------------
+_STYLES = {
+    "rk4": Style("#d62728", "o"),
+    "euler": Style("#ff7f0e", "v"),
+    "symplectic-euler": Style("#8c564b", "^"),
+    "stormer-verlet": Style("#e377c2", "<"),
+    "rk38": Style("#bcbd22", ">"),
+    "heun3": Style("#7f7f7f", "h"),
+    "ralston": Style("#aec7e8", "p"),
+    "dop853": Style("#1f77b4", "s"),
+    "cvode-adams": Style("#2ca02c", "D"),
+    "cvode-bdf": Style("#17becf", "P"),
+    "heyoka": Style("#9467bd", "*"),
+}
+#: Colours and markers handed, in scene order, to a scene's own methods.
+_USER_STYLES = (Style("#ff9896", "X"), Style("#98df8a", "d"), Style("#c5b0d5", "H"), Style("#c49c94", "8"),
+                Style("#f7b6d2", "1"), Style("#dbdb8d", "2"), Style("#9edae5", "3"), Style("#393b79", "4"))
+_REFERENCE_TEXT = {
+    "dop853": "scipy's explicit Runge-Kutta 8(5,3), adaptive",
+    "cvode-adams": "SUNDIALS CVODE, variable-order Adams-Moulton, adaptive",
+    "cvode-bdf": "SUNDIALS CVODE, variable-order BDF, adaptive",
+    "heyoka": "heyoka's Taylor method, adaptive order and step",
+}
+#: The method whose trust the harness measures first (the thesis' RK4): the
+#: one the state figures, the modal-energy runs, the wave packets and the
+#: stability study integrate with.
+UNDER_TEST = "rk4"
+#: Methods whose convergence order every scene with a ``convergence`` output
+#: measures, beside its own fixed-step methods: the thesis' RK4 and its
+#: first-order contrasts.
+CONVERGENCE_ALWAYS = ("rk4", "euler", "symplectic-euler")
+#: Built-in methods whose stability boundary every stability ``boundary``
+#: study measures (a scene's own tableaux in ``run.solvers`` are added).
+BOUNDARY_ALWAYS = ("rk4", "symplectic-euler", "stormer-verlet", "euler")
+
+
+def _tableau_method(tab) -> Method:
+    kind = Kind.PARTITIONED if tab.partitioned else Kind.TABLEAU
+    return Method(tab.name, kind, int(tab.order), int(tab.nfev_per_step),
+                  _STYLES.get(tab.name, _USER_STYLES[0]), tab.description, tableau=tab)
+
+
+#: The tableaux of ``rk4core.methods.METHODS`` a scene may list without
+#: defining them: the thesis' three methods and Stormer-Verlet. The other
+#: tableaux of rk4core's library (``rk38``, ``heun3``, ``ralston``) serve
+#: ``rk4core.solve`` callers; a scene defines its own (DESIGN.md's
+#: ``[methods.rk38]`` example), so their names stay free for scenes.
+BUILTIN_TABLEAUX = ("rk4", "euler", "symplectic-euler", "stormer-verlet")
+
+
+def _builtins() -> dict[str, Method]:
+    from rk4core.methods import METHODS
+
+    out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX}
+    for name, text in _REFERENCE_TEXT.items():
+        out[name] = Method(name, Kind.REFERENCE, None, None, _STYLES[name], text)
+    return out
+
+
+#: Every built-in method by name: the tableaux of ``rk4core.methods.METHODS``
+#: and the four adaptive references.
+BUILTIN: dict[str, Method] = _builtins()
+#: Names of the adaptive references.
+REFERENCES: tuple[str, ...] = tuple(n for n, m in BUILTIN.items() if m.kind is Kind.REFERENCE)
+
+
+def names(local: Mapping[str, Method] | None = None) -> list[str]:
+    """Every method name a scene with methods ``local`` may list."""
+    return list(BUILTIN) + [n for n in (local or {}) if n not in BUILTIN]
+
+
+def resolve(method, local: Mapping[str, Method] | None = None) -> Method:
+    """The :class:`Method` named ``method`` (the scene's ``local`` methods
+    first, then :data:`BUILTIN`); a :class:`Method` is returned as is.
+
+    Raises ``ValueError`` naming ``solver`` for an unknown name."""
+    if isinstance(method, Method):
+        return method
+    if local and method in local:
+        return local[method]
+    try:
+        return BUILTIN[method]
+    except (KeyError, TypeError):
+        raise ValueError(f"`solver` must be one of {names(local)}, got {method!r}") from None
+
+
+def is_fixed_step(method, local=None) -> bool:
+    """True when ``method``'s setting is a step ``h``."""
+    return resolve(method, local).fixed_step
+
+
+def setting_name(method, local=None) -> str:
+    """``"h"`` or ``"rtol"``."""
+    return resolve(method, local).setting_name
+
+
+def order_of(method, local=None) -> int | None:
+    """Expected order of ``method`` (None for the adaptive references)."""
+    return resolve(method, local).order
+
+
+def style(method, local=None) -> Style:
+    """The figure style of ``method``; grey for a name nobody registered."""
+    try:
+        return resolve(method, local).style
+    except ValueError:
+        return Style("#7f7f7f", "x")
+
+
+# -- methods from scenes ---------------------------------------------------------
+_TARGET = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
+_KEYS = {"A", "b", "c", "A_v", "b_v", "description", "python", "command", "order", "nfev_per_step"}
+_METHOD_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]{0,39}")
+
+
+def _import_target(name: str, target: str):
+    mod, _, fn = target.partition(":")
+    try:
+        obj = getattr(importlib.import_module(mod), fn)
+    except Exception as e:  # noqa: BLE001 - any import failure is the definition's
+        raise MethodError(name, "python", f"cannot be imported ({type(e).__name__}: {e}), got {target!r}") from None
+    if not callable(obj):
+        raise MethodError(name, "python", f"must name a callable, got {target!r}")
+    return obj
+
+
+def _declared_order(name, table) -> int:
+    if "order" not in table:
+        raise MethodError(name, "order", "is missing (python and command methods declare their order)")
+    order = table["order"]
+    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= 20:
+        raise MethodError(name, "order", f"must be an integer in 1..20, got {order!r}")
+    return order
+
+
+def _declared_cost(name, table) -> int | None:
+    cost = table.get("nfev_per_step")
+    if cost is not None and (isinstance(cost, bool) or not isinstance(cost, int) or cost < 0):
+        raise MethodError(name, "nfev_per_step", f"must be an integer >= 0, got {cost!r}")
+    return cost
+
+
+def method_from_table(name: str, table: Mapping, index: int = 0) -> Method:
+    """A :class:`Method` from a scene's ``[methods.NAME]`` table.
+
+    Exactly one of: a tableau (``A``, ``b``, optional ``c``; ``A_v`` and
+    ``b_v`` make it partitioned; numbers or rational strings such as
+    ``"1/3"``), ``python = "package.module:function"`` or ``command = [argv...]``;
+    the last two need ``order``. Raises :class:`MethodError` naming the key."""
+    from rk4core.methods import make_tableau
+
+    if not isinstance(name, str) or not _METHOD_NAME.fullmatch(name):
+        raise MethodError(str(name), "name", "must be 1 to 40 lowercase letters, digits, '.', '-' or '_'")
+    if name in BUILTIN:
+        raise MethodError(name, "name", "is a built-in method; choose another name")
+    if not isinstance(table, Mapping):
+        raise MethodError(name, "table", f"must be a table, got {table!r:.60}")
+    unknown = sorted(set(table) - _KEYS)
+    if unknown:
+        raise MethodError(name, unknown[0], f"is not a method key (known: {', '.join(sorted(_KEYS))})")
+    kinds = [k for k in ("A", "python", "command") if k in table]
+    if len(kinds) != 1:
+        raise MethodError(name, "A", "give exactly one of a tableau (`A`, `b`), `python` or `command`")
+    description = table.get("description", "")
+    if not isinstance(description, str):
+        raise MethodError(name, "description", f"must be a string, got {description!r:.60}")
+    st = _USER_STYLES[index % len(_USER_STYLES)]
+    definition = dict(table)
+    if kinds[0] == "A":
+        for key in ("order", "nfev_per_step"):
+            if key in table:
+                raise MethodError(name, key, "is computed from the tableau; remove it")
+        if "b" not in table:
+            raise MethodError(name, "b", "is missing")
+        try:
+            tab = make_tableau(name, table["A"], table["b"], table.get("c"), A_v=table.get("A_v"),
+                               b_v=table.get("b_v"), description=description)
+        except ValueError as e:
+            text = str(e).splitlines()[0]
+            m = re.search(r"`([A-Za-z_]+)`", text)
+            raise MethodError(name, m.group(1) if m else "A", text.split(": ", 1)[-1]) from None
+        kind = Kind.PARTITIONED if tab.partitioned else Kind.TABLEAU
+        return Method(name, kind, int(tab.order), int(tab.nfev_per_step), st, description or "tableau",
+                      tableau=tab, definition=definition)
+    order = _declared_order(name, table)
+    cost = _declared_cost(name, table)
+    if kinds[0] == "python":
+        target = table["python"]
+        if not isinstance(target, str) or not _TARGET.fullmatch(target):
+            raise MethodError(name, "python", f"must be 'package.module:function', got {target!r:.60}")
+        _import_target(name, target)
+        return Method(name, Kind.PYTHON, order, cost, st, description or f"python stepper {target}",
+                      target=target, definition=definition)
+    argv = table["command"]
+    if (not isinstance(argv, list) or not argv or not all(isinstance(a, str) and a for a in argv)
+            or len(argv) > 100):
+        raise MethodError(name, "command", f"must be a non-empty list of non-empty strings, got {argv!r:.60}")
+    return Method(name, Kind.COMMAND, order, cost, st, description or f"external program {argv[0]}",
+                  argv=tuple(argv), definition=definition)
+
+
+def methods_from_tables(tables: Mapping) -> dict[str, Method]:
+    """Every ``[methods.NAME]`` of a scene, by name, in the order written."""
+    if not isinstance(tables, Mapping):
+        raise MethodError("methods", "methods", f"must be a table of method tables, got {tables!r:.60}")
+    return {name: method_from_table(name, t, i) for i, (name, t) in enumerate(tables.items())}

@@ -1,0 +1,244 @@
+"""Order conditions of explicit (partitioned) Runge-Kutta methods, exactly.
+
+A Runge-Kutta method (``A``, ``b``) has order ``p`` when, for every rooted
+tree ``t`` with at most ``p`` vertices, its elementary weight satisfies
+
+    b^T Phi(t) = 1 / gamma(t)
+
+(Butcher's condition; Hairer-Norsett-Wanner I, sec. II.2, Theorem 2.13).
+Here ``Phi(leaf) = 1`` (the vector of ones) and, for a tree whose root has
+the subtrees ``t_1 ... t_m``, ``Phi(t)_i = prod_k (A Phi(t_k))_i``; the
+density is ``gamma(t) = |t| prod_k gamma(t_k)``.
+
+A partitioned method -- ``A, b`` for the first part ``y' = f(y, z)`` of the
+state, ``A_v, b_v`` for the second part ``z' = g(y, z)`` -- has order ``p``
+when the same holds over every *bi-coloured* tree with at most ``p`` vertices
+(Hairer-Lubich-Wanner, Geometric Numerical Integration, 2nd ed., sec. III.2.1,
+Theorem 2.4): a vertex of colour 0 stands for ``f``, of colour 1 for ``g``;
+the colour of a child picks the matrix on the edge to it (``A`` for colour 0,
+``A_v`` for colour 1) and the colour of the root picks the weights (``b`` or
+``b_v``). In :mod:`rk4core.methods` colour 0 is the position half ``q`` and
+colour 1 the velocity half ``v``.
+
+All arithmetic is in :class:`fractions.Fraction`: a condition holds or it
+does not. A tableau whose entries came from binary floats that are not the
+intended decimals (``1/3`` typed as ``0.333...``) can pass ``tol``: a
+condition then holds when ``|b^T Phi(t) - 1/gamma(t)| <= tol *
+|b|^T Phi_|A|(t)`` (the same weight formed with absolute values: the size of
+the rounding a float tableau carries).
+
+Trees are nested tuples: a tree is the sorted tuple of its subtrees, the
+single vertex is ``()``; a bi-coloured tree is ``(colour, children)`` with
+sorted children. They are generated once per order and kept.
+
+References
+----------
+J. C. Butcher, *Numerical Methods for Ordinary Differential Equations*,
+2nd ed., Wiley 2008, sec. 30-31 (trees, elementary weights, order).
+E. Hairer, S. P. Norsett, G. Wanner, *Solving Ordinary Differential
+Equations I*, 2nd ed., Springer 1993, sec. II.2.
+E. Hairer, C. Lubich, G. Wanner, *Geometric Numerical Integration*, 2nd ed.,
+Springer 2006, sec. III.2 (partitioned methods, bi-coloured trees).
+"""
+from __future__ import annotations
+
+from fractions import Fraction
+from functools import lru_cache
+from typing import Sequence
+
+__all__ = ["MAX_ORDER", "MAX_ORDER_PARTITIONED", "rooted_trees", "bicoloured_trees", "tree_order", "density",
+           "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order"]
+
+#: Highest order :func:`order` checks for a classical method (1205 trees).
+MAX_ORDER = 10
+#: Highest order :func:`order` checks for a partitioned method (24 250 trees).
+MAX_ORDER_PARTITIONED = 8
+
+
+# -- trees --------------------------------------------------------------------------------------------
+def tree_order(tree) -> int:
+    """Number of vertices of a tree (plain or bi-coloured)."""
+    children = tree[1] if _coloured(tree) else tree
+    return 1 + sum(tree_order(c) for c in children)
+
+
+def density(tree) -> int:
+    """``gamma(t) = |t| prod gamma(children)`` (colours play no part)."""
+    children = tree[1] if _coloured(tree) else tree
+    g = tree_order(tree)
+    for c in children:
+        g *= density(c)
+    return g
+
+
+def _coloured(tree) -> bool:
+    return len(tree) == 2 and isinstance(tree[0], int)
+
+
+def _grow(tree):
+    """Every tree with one more leaf than ``tree`` (plain trees)."""
+    yield tuple(sorted(tree + ((),)))
+    for k, child in enumerate(tree):
+        for g in _grow(child):
+            yield tuple(sorted(tree[:k] + (g,) + tree[k + 1:]))
+
+
+def _grow_coloured(tree):
+    """Every bi-coloured tree with one more leaf (of either colour) than ``tree``."""
+    colour, children = tree
+    for leaf_colour in (0, 1):
+        yield (colour, tuple(sorted(children + ((leaf_colour, ()),))))
+    for k, child in enumerate(children):
+        for g in _grow_coloured(child):
+            yield (colour, tuple(sorted(children[:k] + (g,) + children[k + 1:])))
+
+
+@lru_cache(maxsize=None)
+def rooted_trees(p: int) -> tuple:
+    """The rooted trees with exactly ``p`` vertices (1, 1, 2, 4, 9, 20, 48,
+    115, 286, 719 for p = 1..10), in a fixed order."""
+    if p < 1:
+        raise ValueError(f"`p` must be >= 1, got {p!r}")
+    if p == 1:
+        return ((),)
+    return tuple(sorted({g for t in rooted_trees(p - 1) for g in _grow(t)}))
+
+
+@lru_cache(maxsize=None)
+def bicoloured_trees(p: int) -> tuple:
+    """The bi-coloured rooted trees with exactly ``p`` vertices (2, 4, 14,
+    52, 214, 916, 4116, 18996 for p = 1..8), in a fixed order."""
+    if p < 1:
+        raise ValueError(f"`p` must be >= 1, got {p!r}")
+    if p == 1:
+        return ((0, ()), (1, ()))
+    return tuple(sorted({g for t in bicoloured_trees(p - 1) for g in _grow_coloured(t)}))
+
+
+def tree_conditions(p: int) -> list[tuple[tuple, int]]:
+    """The order conditions of order exactly ``p``: ``(tree, gamma)`` for every
+    rooted tree with ``p`` vertices; the condition is ``b^T Phi(tree) = 1/gamma``."""
+    return [(t, density(t)) for t in rooted_trees(p)]
+
+
+def bicoloured_tree_conditions(p: int) -> list[tuple[tuple, int]]:
+    """As :func:`tree_conditions` over the bi-coloured trees (partitioned methods)."""
+    return [(t, density(t)) for t in bicoloured_trees(p)]
+
+
+# -- elementary weights -------------------------------------------------------------------------------
+def _matvec(M, x):
+    return tuple(sum((m * xj for m, xj in zip(row, x) if m), Fraction(0)) for row in M)
+
+
+class _Weights:
+    """Memoised stage vectors ``Phi(t)`` of one method (plain or bi-coloured)."""
+
+    def __init__(self, mats):
+        self.mats = mats  # (A,) or (A, A_v): the matrix picked by a child's colour
+        self.s = len(mats[0])
+        self.memo = {}
+
+    def phi(self, tree):
+        v = self.memo.get(tree)
+        if v is not None:
+            return v
+        if len(self.mats) == 1:
+            kids = [(0, c) for c in tree]
+        else:
+            kids = [(c[0], c) for c in tree[1]]
+        v = tuple(Fraction(1) for _ in range(self.s))
+        for colour, c in kids:
+            w = _matvec(self.mats[colour], self.phi(c))
+            v = tuple(a * b for a, b in zip(v, w))
+        self.memo[tree] = v
+        return v
+
+
+def _exact(M):
+    if M is None:
+        return None
+    if len(M) and isinstance(M[0], (list, tuple)) or hasattr(M, "ndim") and M.ndim == 2:
+        return tuple(tuple(Fraction(x) for x in row) for row in M)
+    return tuple(Fraction(x) for x in M)
+
+
+def elementary_weight(tree, A, b, A_v=None, b_v=None) -> Fraction:
+    """``b^T Phi(tree)`` for a plain tree, or ``w_root^T Phi(tree)`` for a
+    bi-coloured one (``w`` = ``b`` for root colour 0, ``b_v`` for colour 1)."""
+    A, b, A_v, b_v = _exact(A), _exact(b), _exact(A_v), _exact(b_v)
+    if _coloured(tree):
+        W = _Weights((A, A_v if A_v is not None else A))
+        w = b if tree[0] == 0 else (b_v if b_v is not None else b)
+    else:
+        W, w = _Weights((A,)), b
+    return sum((x * y for x, y in zip(w, W.phi(tree))), Fraction(0))
+
+
+def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,
+          max_order: int | None = None, tol=0) -> int:
+    """Order of the (partitioned) Runge-Kutta method from its order conditions.
+
+    Parameters
+    ----------
+    A : (s, s) sequence of numbers
+        Runge-Kutta matrix (of the first part, for a partitioned method).
+        Entries are converted with ``Fraction(x)`` (exact for ints, floats,
+        Fractions and rational strings).
+    b : (s,) sequence
+        Weights.
+    A_v, b_v : optional
+        Coefficients of the second part; given together, they make the
+        conditions those over bi-coloured trees.
+    max_order : int, optional
+        Highest order checked: :data:`MAX_ORDER` (10) for a classical method,
+        :data:`MAX_ORDER_PARTITIONED` (8) for a partitioned one.
+    tol : number, optional
+        Relative tolerance for tableaux carrying float round-off (module
+        docstring); 0 (the default) demands exact equality.
+
+    Returns
+    -------
+    int
+        The largest ``p <= max_order`` such that every condition of order
+        ``<= p`` holds; ``max_order`` means "at least ``max_order``". 0 when
+        the weights do not sum to 1.
+    """
+    partitioned = A_v is not None or b_v is not None
+    if partitioned and (A_v is None or b_v is None):
+        raise ValueError("`A_v` and `b_v` must be given together")
+    A, b = _exact(A), _exact(b)
+    if max_order is None:
+        max_order = MAX_ORDER_PARTITIONED if partitioned else MAX_ORDER
+    tol = Fraction(tol)
+    if partitioned:
+        A_v, b_v = _exact(A_v), _exact(b_v)
+        W = _Weights((A, A_v))
+        Wabs = _Weights((_absm(A), _absm(A_v))) if tol else None
+        weights, weights_abs = (b, b_v), (_absv(b), _absv(b_v))
+        trees, root = bicoloured_trees, (lambda t: t[0])
+    else:
+        W = _Weights((A,))
+        Wabs = _Weights((_absm(A),)) if tol else None
+        weights, weights_abs = (b,), (_absv(b),)
+        trees, root = rooted_trees, (lambda t: 0)
+    for p in range(1, max_order + 1):
+        for t in trees(p):
+            w = weights[root(t)]
+            residual = sum((x * y for x, y in zip(w, W.phi(t))), Fraction(0)) - Fraction(1, density(t))
+            if residual == 0:
+                continue
+            if tol:
+                size = sum((x * y for x, y in zip(weights_abs[root(t)], Wabs.phi(t))), Fraction(0))
+                if abs(residual) <= tol * size:
+                    continue
+            return p - 1
+    return max_order
+
+
+def _absm(M):
+    return tuple(tuple(abs(x) for x in row) for row in M)
+
+
+def _absv(v):
+    return tuple(abs(x) for x in v)

@@ -1,0 +1,174 @@
+"""The method registry: every method is data (kind, order, cost, style); a
+scene brings its own tableaux and Python steppers; bad definitions are one
+line naming ``methods.NAME.KEY``; the harness runs them like the built-ins."""
+import subprocess
+import sys
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from references import registry
+from references.registry import Kind
+from references.solvers import Status, integrate
+from rk4core import make_model
+from validation import metrics
+from validation.scenes import SceneError, scene_from_dict
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.parametrize("name, kind, order, cost", [
+    ("rk4", Kind.TABLEAU, 4, 4), ("euler", Kind.TABLEAU, 1, 1), ("symplectic-euler", Kind.PARTITIONED, 1, 1),
+    ("stormer-verlet", Kind.PARTITIONED, 2, 1), ("dop853", Kind.REFERENCE, None, None),
+    ("cvode-bdf", Kind.REFERENCE, None, None), ("heyoka", Kind.REFERENCE, None, None)])
+def test_builtin_methods_know_kind_order_and_cost(name, kind, order, cost):
+    m = registry.BUILTIN[name]
+    assert (m.kind, m.order, m.nfev_per_step) == (kind, order, cost)
+    assert m.setting_name == ("rtol" if kind is Kind.REFERENCE else "h")
+
+
+def test_every_builtin_has_its_own_style():
+    styles = [(m.style.color, m.style.marker) for m in registry.BUILTIN.values()]
+    assert len(set(styles)) == len(styles)
+
+
+def _doc(methods, solvers):
+    return {"name": "reg", "model": "chain",
+            "params": {"masses": [1.0, 2.0], "springs": [3.0, 4.0, 5.0], "walls": "both"},
+            "initial": {"x": [0.01, 0.0]},
+            "run": {"t_end": 1.0, "h": [0.01], "tolerances": [1e-8], "solvers": solvers, "outputs": ["state"]},
+            "methods": methods}
+
+
+RK38 = {"c": ["0", "1/3", "2/3", "1"], "b": ["1/8", "3/8", "3/8", "1/8"],
+        "A": [["0", "0", "0", "0"], ["1/3", "0", "0", "0"], ["-1/3", "1", "0", "0"], ["1", "-1", "1", "0"]]}
+
+
+def test_scene_tableau_from_rationals_has_computed_order_and_exact_coefficients():
+    scene = scene_from_dict(_doc({"rk38": RK38}, ["rk4", "rk38"]))
+    m = scene.method("rk38")
+    assert m.kind is Kind.TABLEAU and m.order == 4 and m.nfev_per_step == 4
+    assert m.tableau.b_exact == (Fraction(1, 8), Fraction(3, 8), Fraction(3, 8), Fraction(1, 8))
+    assert scene.fixed_solvers == ["rk4", "rk38"]
+
+
+@pytest.mark.parametrize("methods, field", [
+    ({"mid": {"A": [["1/2"]], "b": ["1"]}}, "methods.mid.A"),                       # implicit midpoint
+    ({"two": {"A": [["0", "0"], ["1", "0"]], "b": ["1"]}}, "methods.two.b"),        # one weight for 2 stages
+    ({"bad": {"A": [["0", "0"], ["1/x", "0"]], "b": ["1/2", "1/2"]}}, "methods.bad.A"),
+    ({"rows": {"A": [["0", "0"], ["1", "0"]], "b": ["1/2", "1/2"], "c": ["0", "1/2"]}}, "methods.rows.c"),
+    ({"rk4": RK38}, "methods.rk4"),                                                  # a built-in's name
+    ({"x": {"A": [["0"]], "b": ["1"], "order": 1}}, "methods.x.order"),             # computed, not declared
+    ({"x": {"python": "rk4core.steppers:rk4_step"}}, "methods.x.order"),            # python needs an order
+    ({"x": {"python": "no.such.module:f", "order": 4}}, "methods.x.python"),
+    ({"x": {"python": "not a target", "order": 4}}, "methods.x.python"),
+    ({"x": {"command": "octave-cli run.m", "order": 4}}, "methods.x.command"),     # argv is a list
+    ({"x": {"A": [["0"]], "b": ["1"], "python": "rk4core.steppers:rk4_step"}}, "methods.x.A"),
+    ({"x": {"A": [["0"]], "b": ["1"], "colour": "red"}}, "methods.x.colour"),
+])
+def test_bad_method_definitions_are_one_line_naming_the_key(methods, field):
+    with pytest.raises(SceneError) as e:
+        scene_from_dict(_doc(methods, ["rk4"]))
+    assert e.value.field == field, str(e.value)
+    assert "\n" not in str(e.value)
+
+
+def test_an_unknown_solver_names_the_scene_methods_too():
+    with pytest.raises(SceneError) as e:
+        scene_from_dict(_doc({"rk38": RK38}, ["rk4", "rk39"]))
+    assert e.value.field == "run.solvers[1]" and "rk38" in str(e.value)
+
+
+def test_invalid_method_in_a_scene_file_is_exit_2_without_traceback(tmp_path):
+    p = tmp_path / "mid.toml"
+    p.write_text('name = "mid"\nmodel = "chain"\n[params]\nmasses = [1.0]\nsprings = [1.0, 1.0]\nwalls = "both"\n'
+                 '[initial]\nx = [0.1]\n[methods.mid]\nA = [["1/2"]]\nb = ["1"]\n'
+                 '[run]\nt_end = 1.0\nh = [0.1]\nsolvers = ["mid"]\noutputs = ["state"]\n')
+    r = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(p), "--out", str(tmp_path / "o")],
+                       cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+    assert "field `methods.mid.A`" in r.stderr and "lower triangular" in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+# -- python steppers -------------------------------------------------------------------
+def _chain():
+    model = make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "both"})
+    return model, np.array([0.005, 0.005, 0.0, 0.0])
+
+
+def _python_method(target, order=4):
+    return registry.method_from_table("mine", {"python": target, "order": order})
+
+
+def test_a_python_rk4_stepper_equals_the_tableau_rk4_to_round_off():
+    model, y0 = _chain()
+    t = np.linspace(0.0, 2.0, 21)
+    mine = integrate(_python_method("rk4core.steppers:rk4_step"), model, y0, t, 0.01)
+    ref = integrate("rk4", model, y0, t, 0.01)
+    assert mine.status is Status.OK and mine.n_steps == 200
+    assert mine.nfev == 4 * 200  # every call of fun counted
+    assert np.max(np.abs(mine.y - ref.y)) <= 1e-14 * np.max(np.abs(ref.y))
+
+
+def _boom(fun, t, y, h):
+    raise RuntimeError("my stepper broke")
+
+
+def _wrong_shape(fun, t, y, h):
+    return y[:1]
+
+
+def _explode(fun, t, y, h):
+    return 10.0 * y
+
+
+@pytest.mark.parametrize("target, status, words", [
+    ("test_registry:_boom", Status.FAILED, "my stepper broke"),
+    ("test_registry:_wrong_shape", Status.FAILED, "shape"),
+    ("test_registry:_explode", Status.UNSTABLE, "scale"),
+])
+def test_a_failing_python_stepper_is_a_status_not_an_exception(target, status, words):
+    model, y0 = _chain()
+    run = integrate(_python_method(target), model, y0, np.linspace(0.0, 1.0, 11), 0.01)
+    assert run.status is status and words in run.message
+    assert np.all(np.isnan(run.y[:, -1]))
+
+
+# -- energy theory for any tableau -----------------------------------------------------
+@pytest.mark.parametrize("name", ["rk4", "rk38", "heun3", "ralston", "euler"])
+def test_energy_loss_per_step_is_one_minus_abs_R_squared(name):
+    from rk4core import get_method
+    from rk4core.stability_function import R
+
+    tab = get_method(name)
+    theta = np.array([0.01, 0.1, 0.5, 1.0, 1.5])
+    direct = 1.0 - np.abs(R(tab, 1j * theta)) ** 2
+    np.testing.assert_allclose(metrics.energy_loss(tab, theta), direct, rtol=1e-6, atol=1e-15)
+
+
+def test_rk4_energy_loss_is_the_closed_form():
+    theta = np.array([1e-3, 0.05, 0.3, 2.0, np.sqrt(8.0)])
+    # the same expression, evaluated from the exact integer coefficients: a few ulp apart at most
+    np.testing.assert_allclose(metrics.rk4_energy_loss(theta), theta**6 * (8.0 - theta**2) / 576.0,
+                               rtol=1e-15, atol=0)
+    assert metrics.rk4_energy_loss(np.sqrt(8.0) * (1 + 1e-15)) < 0 < metrics.rk4_energy_loss(np.sqrt(8.0) * (1 - 1e-15))
+
+
+def test_stability_boundaries_from_runs_equal_the_tableaux_boundaries():
+    # methods-2dof's boundary study: bisection on the runs' one-step maps against
+    # the boundary computed from each tableau (0.5 %), its own tableaux included.
+    from validation import stability as S
+    from validation.scenes import SCENE_DIR, load_scene
+
+    scene = load_scene(SCENE_DIR / "methods_2dof.toml")
+    rows = S.run_unit(scene, "boundary", True).rows
+    got = {r["solver"]: r for r in rows if r["quantity"] == "largest_stable_h_s"}
+    assert set(got) == {"rk4", "symplectic-euler", "stormer-verlet", "euler", "rk38", "heun3", "ralston2"}
+    for name, r in got.items():
+        assert r["passed"] is True, (name, r)
+        if r["theory"] > 0:
+            assert abs(r["measured"] / r["theory"] - 1) <= 0.005, name
