@@ -172,3 +172,24 @@ def test_stability_boundaries_from_runs_equal_the_tableaux_boundaries():
         assert r["passed"] is True, (name, r)
         if r["theory"] > 0:
             assert abs(r["measured"] / r["theory"] - 1) <= 0.005, name
+
+
+def test_a_command_method_whose_program_is_missing_is_a_status_and_a_finding():
+    # GNU Octave (or any program) absent on a user's machine: the row says
+    # "unavailable" with the message, the report says so, nothing fails or raises.
+    from validation import execute as X
+    from validation import measure as M
+    from validation import plan as P
+
+    doc = _doc({"prog": {"command": ["no-such-program-rk4h", "{problem}", "{trajectory}"], "order": 4}},
+               ["rk4", "prog"])
+    doc["run"]["outputs"] = ["state"]
+    scene = scene_from_dict(doc)
+    specs = P.plan(scene, figures=False)
+    records = {s.key: X.execute(scene, s) for s in specs}
+    res = M.measure(scene, specs, records, figures=False)
+    rows = {r["solver"]: r for r in res.tables["accuracy"]}
+    assert rows["prog"]["status"] == "unavailable" and "no-such-program-rk4h not found" in rows["prog"]["message"]
+    assert rows["rk4"]["status"] == "ok"
+    assert not res.failures
+    assert any("prog at 0.01 did not run" in f for f in res.findings)

@@ -139,6 +139,8 @@ def _runs(scene, specs, records, res, draw):
         status = rec.status
         if status == "failed":
             _failed(res, spec, rec)
+        elif status == "unavailable":  # a command method's program is not installed: said, not failed
+            res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} did not run: {rec.message}")
         elif status == "unstable":
             res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} became unstable: "
                                 f"{rec.message or 'non-finite state'}")
