@@ -40,8 +40,7 @@ from typing import Mapping
 
 __all__ = ["Kind", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST", "CONVERGENCE_ALWAYS",
            "BOUNDARY_ALWAYS", "resolve", "names",
-           "method_from_table", "methods_from_tables", "is_fixed_step", "setting_name", "style",
-           "order_of", "MethodError"]
+           "method_from_table", "methods_from_tables", "MethodError"]
 
 
 class Kind(str, Enum):
@@ -217,29 +216,6 @@ def resolve(method, local: Mapping[str, Method] | None = None) -> Method:
         return BUILTIN[method]
     except (KeyError, TypeError):
         raise ValueError(f"`solver` must be one of {names(local)}, got {method!r}") from None
-
-
-def is_fixed_step(method, local=None) -> bool:
-    """True when ``method``'s setting is a step ``h``."""
-    return resolve(method, local).fixed_step
-
-
-def setting_name(method, local=None) -> str:
-    """``"h"`` or ``"rtol"``."""
-    return resolve(method, local).setting_name
-
-
-def order_of(method, local=None) -> int | None:
-    """Expected order of ``method`` (None for the adaptive references)."""
-    return resolve(method, local).order
-
-
-def style(method, local=None) -> Style:
-    """The figure style of ``method``; grey for a name nobody registered."""
-    try:
-        return resolve(method, local).style
-    except ValueError:
-        return Style("#7f7f7f", "x")
 
 
 # -- methods from scenes ---------------------------------------------------------

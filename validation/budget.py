@@ -43,7 +43,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-
 from .scenes import Scene, SceneError
 
 __all__ = ["Estimate", "estimate", "check", "MAX_STEPS", "MAX_TRUTH_STEPS", "MAX_BYTES", "MAX_DENSE_DOF",

@@ -31,7 +31,6 @@ and the report says that its timings came from a shared cluster.
 from __future__ import annotations
 
 import math
-
 import os
 import signal
 import sys
@@ -260,8 +259,6 @@ SCHEDULER_TIMEOUT_S = 20.0
 
 def scheduler_timeout() -> float:
     """:data:`SCHEDULER_TIMEOUT_S`, or ``RK4H_SCHEDULER_TIMEOUT`` (seconds, > 0) when set."""
-    import os
-
     text = os.environ.get("RK4H_SCHEDULER_TIMEOUT")
     if text is None:
         return SCHEDULER_TIMEOUT_S

@@ -97,9 +97,7 @@ def _all_styles() -> dict:
 
 def solver_style(label: str):
     """``(colour, marker)`` of the solver ``label`` names (its longest known prefix)."""
-    styles = _all_styles()
-    name = _solver_of(label)
-    return styles.get(name, _UNKNOWN_STYLE)
+    return _all_styles().get(_solver_of(label), _UNKNOWN_STYLE)
 
 
 def _solver_of(label: str) -> str:

@@ -123,6 +123,17 @@ def _failed(res, spec, rec):
     res.check(f"{spec.purpose} completes", False, f"{what} {verb} {rec.message or 'no message'}")
 
 
+def _with_values(specs, records, res):
+    """``(spec, record)`` of every spec whose record holds values; the others
+    are failed checks (:func:`_failed`)."""
+    for s in specs:
+        rec = records[s.key]
+        if rec.values:
+            yield s, rec
+        else:
+            _failed(res, s, rec)
+
+
 # -- accuracy, energy, work-precision --------------------------------------------------
 def _runs(scene, specs, records, res, draw):
     series = {}
@@ -281,11 +292,7 @@ def _convergence(scene, specs, records, res, draw):
 
 # -- modes, dispersion, modal energy, linearization, state figures ------------------------------
 def _modes(scene, specs, records, res):
-    for s in specs:
-        rec = records[s.key]
-        if not rec.values:
-            _failed(res, s, rec)
-            continue
+    for s, rec in _with_values(specs, records, res):
         for j, w in enumerate(rec.values["omega"], start=1):
             res.add("modes", {"scene": scene.name, "mode": j, "omega_rad_s": w, "freq_hz": w / (2 * math.pi),
                               "linearized": not rec.values["linear"]})
@@ -295,11 +302,7 @@ def _thesis_code(scene, specs, records, res):
     """The thesis' programs against rk4core and the truth: one check per
     comparison that ran; programs that could not run (no ``octave-cli``)
     are rows with status ``unavailable`` and one finding, not failures."""
-    for s in specs:
-        rec = records[s.key]
-        if not rec.values:
-            _failed(res, s, rec)
-            continue
+    for s, rec in _with_values(specs, records, res):
         rows = rec.values["rows"]
         for r in rows:
             res.add("thesis_code", {"scene": scene.name, **r})
@@ -396,11 +399,7 @@ def _modal(scene, specs, records, res, draw):
 
 
 def _linearization(scene, specs, records, res):
-    for s in specs:
-        rec = records[s.key]
-        if not rec.values:
-            _failed(res, s, rec)
-            continue
+    for s, rec in _with_values(specs, records, res):
         v = rec.values
         res.add("linearization", {"scene": scene.name, "amplitude_q": v["amplitude_q"],
                                   "error_max_q": v["error_max_q"], "error_rel_q": v["error_rel_q"]})

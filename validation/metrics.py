@@ -15,6 +15,7 @@ never solvers. Conventions (DESIGN.md):
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -63,6 +64,7 @@ def drift_per_time(model, t, y) -> float:
     return float(r[-1] / (t[-1] - t[0])) if not np.isnan(r[-1]) else float("nan")
 
 
+@functools.lru_cache(maxsize=None)
 def _energy_loss_coefficients(tab) -> tuple[int, tuple[int, ...], int]:
     """``(m, (n_m, n_m+1, ...), D)`` with ``1 - |R(i theta)|^2 =
     theta^(2m) (n_m + n_m+1 theta^2 + ...) / D`` exactly (integers), from the
@@ -72,7 +74,6 @@ def _energy_loss_coefficients(tab) -> tuple[int, tuple[int, ...], int]:
     ``|R(iy)|^2 = sum_n y^n sum_{j+k=n} a_j a_k i^(j-k)``: odd powers cancel,
     and the low even powers cancel exactly for a method of order ``p``
     (``m >= p/2 + 1`` when ``p`` is even)."""
-    import math as _m
     from fractions import Fraction
 
     from rk4core.stability_function import stability_polynomial
@@ -88,11 +89,8 @@ def _energy_loss_coefficients(tab) -> tuple[int, tuple[int, ...], int]:
     coef[0] += 1  # 1 - |R|^2
     m = next((i for i, c in enumerate(coef) if c != 0), len(coef))
     coef = coef[m:] or [Fraction(0)]
-    den = _m.lcm(*(c.denominator for c in coef))
+    den = math.lcm(*(c.denominator for c in coef))
     return m, tuple(int(c * den) for c in coef), den
-
-
-_LOSS_CACHE: dict = {}
 
 
 def energy_loss(tab, theta):
@@ -106,10 +104,7 @@ def energy_loss(tab, theta):
     exact integer form of :func:`_energy_loss_coefficients` (for RK4
     ``theta^6 (8 - theta^2) / 576``): no cancellation, exact in sign at the
     imaginary-axis stability boundary (negative, a gain, beyond it)."""
-    key = (tab.name, tab.b.tobytes(), tab.A.tobytes())
-    if key not in _LOSS_CACHE:
-        _LOSS_CACHE[key] = _energy_loss_coefficients(tab)
-    m, ints, den = _LOSS_CACHE[key]
+    m, ints, den = _energy_loss_coefficients(tab)
     t2 = np.asarray(theta, float) ** 2
     acc = np.zeros_like(t2) + float(ints[-1])
     for c in ints[-2::-1]:

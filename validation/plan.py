@@ -55,7 +55,7 @@ from pathlib import Path
 from references.registry import CONVERGENCE_ALWAYS, UNDER_TEST
 
 __all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS",
-           "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "ORDER_CONTRASTS", "order_methods", "settings_of", "PURPOSES",
+           "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "order_methods", "settings_of", "PURPOSES",
            "TIMED_UNITS"]
 
 #: Target relative errors of the cheapest-solver table.
@@ -70,9 +70,6 @@ ORDER_TOL = 0.1
 #: asymptotic range.
 RK4_THETAS = (0.2, 0.1, 0.05, 0.025)
 EULER_THETAS = (0.01, 0.005, 0.0025, 0.00125)
-#: Methods whose convergence is measured in every scene with a convergence
-#: output, beside the scene's own fixed-step methods (``references.registry``).
-ORDER_CONTRASTS = CONVERGENCE_ALWAYS
 #: Wave packets of the dispersion output (carrier in units of pi/d).
 PACKET_KP = (0.3, 0.6)
 PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "packet", "linearization", "stability",
@@ -169,10 +166,10 @@ def settings_of(scene, solver) -> list:
 
 def order_methods(scene) -> list[tuple[str, str, tuple]]:
     """``(method, scene key of its thetas, default thetas)`` of every
-    convergence sweep of ``scene``: :data:`ORDER_CONTRASTS` and the scene's
+    convergence sweep of ``scene``: :data:`references.registry.CONVERGENCE_ALWAYS` and the scene's
     own fixed-step methods, in that order."""
     out = []
-    for name in dict.fromkeys((*ORDER_CONTRASTS, *scene.fixed_solvers)):
+    for name in dict.fromkeys((*CONVERGENCE_ALWAYS, *scene.fixed_solvers)):
         high = (scene.method(name).order or 1) >= 3
         out.append((name, "theta", RK4_THETAS) if high else (name, "theta_euler", EULER_THETAS))
     return out
@@ -194,7 +191,6 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
     dig = scene_digest(scene)
     want = set(scene.outputs)
     draw = figures and "figures" in want
-    scene.registry  # noqa: B018 - a bad [methods] table fails here, before any spec
     spec = lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw)  # noqa: E731
     out = []
     trajectories = bool({"state", "energy", "work_precision"} & want)

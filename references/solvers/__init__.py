@@ -71,14 +71,13 @@ __all__ = ["integrate", "check_setting", "check_model", "SOLVER_NAMES", "FIXED_S
            "SolverRun", "absolute_tolerance"]
 
 
-def check_setting(solver, setting, local=None) -> float:
-    """Validate ``setting`` for ``solver`` (a name, resolved in the scene's
-    methods ``local`` and then the built-ins, or a
+def check_setting(solver, setting) -> float:
+    """Validate ``setting`` for ``solver`` (a built-in name or a
     :class:`references.registry.Method`): a finite step ``h > 0`` for the
     fixed-step methods, a relative tolerance in (0, 1) for adaptive ones.
 
     Raises ``ValueError`` naming the solver or the setting."""
-    method = resolve(solver, local)
+    method = resolve(solver)
     name = method.name
     if method.fixed_step:
         return positive(f"h ({name})", setting)
@@ -113,14 +112,14 @@ def _check_inputs(model, y0, t_eval, atol, max_steps):
 
 
 def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
-              max_steps: int = DEFAULT_MAX_STEPS, local=None) -> SolverRun:
+              max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
     """Integrate ``model`` from ``y0`` at ``t_eval[0]`` to ``t_eval[-1]`` with ``solver``.
 
     Parameters
     ----------
     solver : str or references.registry.Method
-        A method name (``SOLVER_NAMES``, or one of the scene's methods
-        ``local``) or the method itself.
+        A built-in method's name (``SOLVER_NAMES``) or a method (a scene's
+        own: ``Scene.method(name)``).
     model : rk4core.models.Model
     y0 : array_like, shape (2 n_dof,)
         Initial state ``[q, v]`` (SI units of the model's coordinates).
@@ -136,15 +135,13 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
         DOP853's accepted steps (and ``30 max_steps`` RHS evaluations),
         heyoka's Taylor steps; ignored by the fixed-step solvers, whose step
         count is ``ceil((t_eval[-1] - t_eval[0]) / h)``.
-    local : mapping of str to Method, optional
-        A scene's own methods (``[methods.NAME]``), looked up before the built-ins.
 
     Returns
     -------
     SolverRun
         ``y`` of shape (2 n_dof, m) at ``t_eval``.
     """
-    method = resolve(solver, local)
+    method = resolve(solver)
     setting = check_setting(method, setting)
     y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
     if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):

@@ -37,8 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -69,9 +68,6 @@ LONG_STEP_MARGIN = 3.0
 LONG_MIN_STEPS = 5_000_000
 LONG_MAX_STEPS = 100_000_000
 _LONG_PARTS = ("drift", "rk4", "heyoka", "cvode-bdf")
-#: Built-in methods whose stability boundary every boundary study measures
-#: (``references.registry``; the scene's own tableaux in ``run.solvers`` are added).
-BOUNDARY_METHODS = BOUNDARY_ALWAYS
 
 
 @dataclass
@@ -82,7 +78,7 @@ class Context:
     params: dict
     quick: bool
     #: the scene's own tableau methods (name -> rk4core Tableau), studied beside the built-ins
-    tableaux: dict = dataclasses.field(default_factory=dict)
+    tableaux: dict = field(default_factory=dict)
 
 
 def context(scene, quick: bool) -> Context:
@@ -195,7 +191,7 @@ def _boundary(ctx: Context, part) -> StudyResult:
     res, s, m = StudyResult(), ctx.scene, ctx.model
     modes = m.modes()
     w = float(modes[0][-1])
-    methods = {name: name for name in BOUNDARY_METHODS}
+    methods = {name: name for name in BOUNDARY_ALWAYS}
     methods.update(ctx.tableaux)  # the scene's own tableaux: boundary from the tableau, against runs
     for meth, tab in methods.items():
         h_star, probes = B.largest_stable_step(m, tab, ctx.params["bisection_rtol"], w)
