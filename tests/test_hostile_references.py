@@ -652,7 +652,7 @@ def step_counter(monkeypatch):
     for mod in (B, LH, ST, G, LN, S):
         monkeypatch.setattr(mod, "integrate_fixed", counted_fixed)
     monkeypatch.setattr(RS, "integrate", counted_integrate)
-    cv, pb, sr = LN.cvode_band_cost, LN.rk4_peak_bytes, B.spectral_radius
+    cv, pb, sr = LN.cvode_band_cost, LN.peak_bytes, B.spectral_radius
 
     def counted_cv(N, *a, **k):
         out = cv(N, *a, **k)
@@ -668,7 +668,7 @@ def step_counter(monkeypatch):
         return sr(*a, **k)
 
     monkeypatch.setattr(LN, "cvode_band_cost", counted_cv)
-    monkeypatch.setattr(LN, "rk4_peak_bytes", counted_pb)
+    monkeypatch.setattr(LN, "peak_bytes", counted_pb)
     monkeypatch.setattr(B, "spectral_radius", counted_sr)
     return tally
 

@@ -175,7 +175,7 @@ NS = [1000, 3000, 10000, 30000]
 
 
 def test_rk4_memory_grows_linearly_in_n():
-    peaks = [LN.rk4_peak_bytes(N) for N in NS]
+    peaks = [LN.peak_bytes(N) for N in NS]
     assert LN.fit_exponent(NS, peaks) == pytest.approx(1.0, abs=0.1)
 
 
@@ -187,7 +187,7 @@ def test_dense_control_makes_the_memory_fit_fail():
 
 @pytest.mark.parametrize("N", [1000, 30000])
 def test_rk4_work_per_step_is_four_rhs_calls(N):
-    _, nfev_per_step, _ = LN.rk4_cost(N, n_steps=5, repeats=1)
+    _, nfev_per_step, _ = LN.step_cost(N, n_steps=5, repeats=1)
     assert nfev_per_step == 4
 
 
@@ -195,9 +195,9 @@ def test_rk4_work_per_step_is_four_rhs_calls(N):
 def test_rk4_wall_time_per_step_linear_up_to_1e5():
     # from N = 3e3: below that the working set is cache-resident (see large_n docs)
     Ns = [3000, 10000, 30000, 100000]
-    times = [LN.rk4_cost(N, n_steps=1000, repeats=3)[0] for N in Ns]
+    times = [LN.step_cost(N, n_steps=1000, repeats=3)[0] for N in Ns]
     assert LN.fit_exponent(Ns, times) <= 1.1
-    peaks = [LN.rk4_peak_bytes(N) for N in Ns]
+    peaks = [LN.peak_bytes(N) for N in Ns]
     assert LN.fit_exponent(Ns, peaks) == pytest.approx(1.0, abs=0.1)
 
 

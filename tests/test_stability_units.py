@@ -41,7 +41,7 @@ def _diffs(rows_a, rows_b, cols=DETERMINISTIC):
 
 
 # -- units --------------------------------------------------------------------------------------
-LONG = ["long_horizon:drift", "long_horizon:rk4", "long_horizon:heyoka", "long_horizon:cvode-bdf"]
+LONG = ["long_horizon:drift", "long_horizon:method", "long_horizon:heyoka", "long_horizon:cvode-bdf"]
 UNITS = {
     ("stability_2dof", True): ["boundary", *LONG, "roundoff", "mass_ratio:closed_form", "mass_ratio:mu=1e-02",
                                "mass_ratio:mu=1e+00", "mass_ratio:mu=1e+02"],
@@ -98,7 +98,7 @@ def test_run_unit_refuses_a_unit_not_in_the_scene():
 
 # -- run_unit: tidy rows, plain data ------------------------------------------------------------
 CHEAP = [("stability_stiff_chain", "boundary"), ("stability_2dof", "roundoff"),
-         ("stability_2dof", "long_horizon:drift"), ("stability_2dof", "long_horizon:rk4"),
+         ("stability_2dof", "long_horizon:drift"), ("stability_2dof", "long_horizon:method"),
          ("stability_2dof", "mass_ratio:closed_form"), ("stability_planar4", "amplitude"),
          ("stability_planar4", "singular")]
 
@@ -123,7 +123,7 @@ def test_run_unit_rows_are_tidy(name, unit, cheap_results):
 
 @pytest.mark.parametrize("name, unit, quantity, column", [
     ("stability_stiff_chain", "boundary", "growth_per_step", "theta"),
-    ("stability_2dof", "long_horizon:rk4", "long_energy_loss_per_step", "mode"),
+    ("stability_2dof", "long_horizon:method", "long_energy_loss_per_step", "mode"),
     ("stability_2dof", "mass_ratio:closed_form", "omega_low^2_vs_eig", "mu"),
     ("stability_planar4", "amplitude", "linearization_error", "a_over_l"),
     ("stability_planar4", "singular", "closest_approach_m", "offset"),
@@ -273,8 +273,8 @@ def _synthetic_plots():
     n = np.array([3e3, 1e4, 3e4])
     return {
         "large_n": {"kind": "large_n", "scene": "s", "study": "large_n", "name": "large_n", "data": {
-            "n": n, "rk4_wall_per_step": 3e-8 * n, "rk4_peak_bytes": 200.0 * n, "cvode_wall_per_step": 2e-7 * n,
-            "fits": {"rk4_time": 1.0, "rk4_bytes": 1.0, "cvode_time": 1.0}}},
+            "n": n, "method": "rk4", "wall_per_step": 3e-8 * n, "peak_bytes": 200.0 * n, "cvode_wall_per_step": 2e-7 * n,
+            "fits": {"time": 1.0, "bytes": 1.0, "cvode_time": 1.0}}},
         "cost": S.assemble(_scene("stability_stiff_chain"), True, {
             u: _fake_cost_point(S.parse_unit(u)[2].get("ratio", 1.0), 10.0 * (i + 1))
             for i, u in enumerate(S.units(_scene("stability_stiff_chain"), True))}).plots[-1],
@@ -288,7 +288,7 @@ def _real_plots(cheap_results):
             if not p.get("part"):
                 plots[p["kind"]] = p
     long = S.assemble(_scene("stability_2dof"), True,
-                      {u: cheap_results["stability_2dof", u] for u in ("long_horizon:drift", "long_horizon:rk4")})
+                      {u: cheap_results["stability_2dof", u] for u in ("long_horizon:drift", "long_horizon:method")})
     plots.update({p["kind"]: p for p in long.plots})
     return plots
 
@@ -342,7 +342,7 @@ def test_unit_steps_of_the_long_run_is_its_step_count():
     model = scene.build_model()
     w = model.modes()[0]
     n = math.ceil(1e3 * 2 * math.pi / w[0] / (0.2 / w[-1]))  # quick: 1e3 periods at omega_max h = 0.2
-    assert S.unit_steps(scene, "long_horizon:rk4", True) == pytest.approx(n, abs=1)
+    assert S.unit_steps(scene, "long_horizon:method", True) == pytest.approx(n, abs=1)
 
 
 # -- the one integration path -------------------------------------------------------------------

@@ -545,6 +545,7 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     stability = doc.get("stability")
     if "stability" in outputs or stability is not None:
         stability = _stability(path, stability if stability is not None else {})
+        stability["method"] = _stability_method(path, stability.get("method"), solvers, methods)
 
     scene = Scene(name=name, description=description, model=model_name, params=dict(params),
                   initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
@@ -612,6 +613,23 @@ def _stability(path, params) -> dict:
         if text.startswith(str(path)):
             raise SceneError(path, "stability", text[len(str(path)):].lstrip(": ")) from None
         raise _from_value_error(path, "stability", e) from None
+
+
+def _stability_method(path, name, solvers, methods) -> str:
+    """``stability.method``: the classical tableau the studies integrate
+    (given, or the first classical tableau of ``run.solvers``, else
+    :data:`references.registry.UNDER_TEST`)."""
+    from references.registry import UNDER_TEST, Kind
+
+    if name is None:
+        return next((sv for sv in solvers if resolve(sv, methods).kind is Kind.TABLEAU), UNDER_TEST)
+    if name not in names(methods):
+        raise SceneError(path, "stability.method", f"must be one of {', '.join(names(methods))}", name)
+    kind = resolve(name, methods).kind
+    if kind is not Kind.TABLEAU:
+        raise SceneError(path, "stability.method", f"must be a classical tableau method (the studies use its "
+                         f"stability function R(z)); {name!r} is a {kind.value} method", name)
+    return name
 
 
 # -- sweeps --------------------------------------------------------------------

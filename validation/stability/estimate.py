@@ -47,9 +47,10 @@ import numpy as np
 
 from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
-from .long_horizon import rk4_phase_lag_per_step
+from ..metrics import energy_log_factor, phase_lag
+from .boundary import theory_boundary
 from .params import pick, validate_params
-from .studies import parse_unit, units
+from .studies import GROWTH_ALWAYS, context_method, parse_unit, units
 
 __all__ = ["estimate_steps", "unit_steps", "frequency_range", "heyoka_steps"]
 
@@ -100,22 +101,22 @@ def _modal_amplitudes(model, y0):
     return omega, phi, amp
 
 
-def _rk4_error(omega, phi, amp, t_end, h, scale):
+def _fixed_error(tab, omega, phi, amp, t_end, h, scale):
     """Bound on ``max_i |q_i(t_end) - q_i^exact| / scale`` after ``ceil(t_end/h)``
-    RK4 steps: each mode's amplitude times ``|R(i theta)^n - e^{i n theta}|``."""
+    steps of the tableau ``tab``: each mode's amplitude times ``|R(i theta)^n -
+    e^{i n theta}|``."""
     n = math.ceil(t_end / h * (1 - 1e-12))
     hu = t_end / n
     th = omega * hu
-    t2 = th * th
-    log_abs = 0.5 * np.log1p(-(t2 * t2 * t2) * (8.0 - t2) / 576.0)
+    log_abs = 0.5 * energy_log_factor(tab, th)
     r = np.exp(np.minimum(n * log_abs, 700.0))
-    ph = n * rk4_phase_lag_per_step(th)
+    ph = n * phase_lag(tab, th)
     dev = np.sqrt((r * np.cos(ph) - 1.0) ** 2 + (r * np.sin(ph)) ** 2)
     err = np.max(np.abs(phi) @ (amp * dev)) / scale
     return n, float(err)
 
 
-def _sweep(model, y0, target, ladder, skipped, max_rk4_steps=5e7):
+def _sweep(model, y0, target, ladder, skipped, meth, tab, max_rk4_steps=5e7):
     """Steps per solver of :func:`validation.stability.stiffness.cost_at_target`."""
     omega, phi, amp = _modal_amplitudes(model, y0)
     pos = omega > 0
@@ -125,11 +126,12 @@ def _sweep(model, y0, target, ladder, skipped, max_rk4_steps=5e7):
     excited = pos & (amp * np.max(np.abs(phi), axis=0) >= _EXCITED * scale)
     w_exc = float(omega[excited][-1]) if excited.any() else w_lo
     p_fast, p_exc = t_end * w_hi / (2 * math.pi), t_end * w_exc / (2 * math.pi)
-    out = {"rk4": 0.0}
-    h = 0.99 * 2 * math.sqrt(2) / w_hi
+    out = {meth: 0.0}
+    h_stab = theory_boundary(tab, w_hi)
+    h = 0.99 * h_stab if h_stab > 0 else 0.5 / w_hi
     while t_end / h <= max_rk4_steps:
-        n, err = _rk4_error(omega, phi, amp, t_end, h, scale)
-        out["rk4"] += n
+        n, err = _fixed_error(tab, omega, phi, amp, t_end, h, scale)
+        out[meth] += n
         if err <= target:
             break
         h /= 2
@@ -148,7 +150,8 @@ def _cost_point(p, quick, study, x):
     model, y0 = build(x)
     ratio, exc = excited_ratio(model, y0)
     skipped = {sv for sv in ("dop853", "cvode-bdf", "heyoka") if skip_reason(sv, what, ratio, exc, quick)}
-    return _sweep(model, y0, p["target_error"], RTOL_LADDER_QUICK if quick else RTOL_LADDER, skipped)
+    return _sweep(model, y0, p["target_error"], RTOL_LADDER_QUICK if quick else RTOL_LADDER, skipped,
+                  p["method"], p["_tab"])
 
 
 # -- the units --------------------------------------------------------------------------------
@@ -157,24 +160,27 @@ def _boundary(model, p, quick, part):
         return {}
     probes = 3 * min(2 + math.ceil(math.log2(1.0 / p["bisection_rtol"])) + 1, MAX_BISECTIONS + 12)
     runs = {("euler", float(th)) for th in (1e-3, 0.1, 0.5, 1.0)}  # one run per (method, theta)
-    runs |= {(meth, float(th)) for meth in ("rk4", "euler", "symplectic-euler") for th in p["growth_theta"]}
-    steps = {meth: float(sum(growth_steps(m, th) for m, th in runs if m == meth))
-             for meth in ("rk4", "euler", "symplectic-euler")}
-    g_rk4 = float(theory_growth("rk4", 1.2 * 2 * math.sqrt(2)))
-    steps["rk4"] += min(3000, math.ceil(_FMAX_LOG / math.log(g_rk4)))
+    meths = tuple(dict.fromkeys((p["method"],) + GROWTH_ALWAYS))
+    tabs = {m: (p["_tab"] if m == p["method"] else m) for m in meths}
+    runs |= {(meth, float(th)) for meth in meths for th in p["growth_theta"]}
+    steps = {meth: float(sum(growth_steps(tabs[m], th) for m, th in runs if m == meth)) for meth in meths}
+    b = theory_boundary(p["_tab"], 1.0)
+    if b > 0:  # the blow-up run 20 % past the boundary
+        g = float(theory_growth(p["_tab"], 1.2 * b))
+        steps[p["method"]] += min(3000, math.ceil(_FMAX_LOG / math.log(g)))
     steps["euler"] += min(6000, math.ceil(_FMAX_LOG / math.log(math.sqrt(2.0))))
     return {"probe": float(probes), **steps}
 
 
 def _long_horizon(model, p, quick, part):
-    if not model.linear or part not in ("drift", "rk4", "heyoka", "cvode-bdf"):
+    if not model.linear or part not in ("drift", "method", "heyoka", "cvode-bdf"):
         return {}
     w_lo, w_hi = frequency_range(model)
     periods = pick(p, "long_periods", quick)
     if part == "drift":
-        return {"rk4": 2000.0 * len(p["drift_theta"])}
-    if part == "rk4":
-        return {"rk4": float(math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi)))}
+        return {p["method"]: 2000.0 * len(p["drift_theta"])}
+    if part == "method":
+        return {p["method"]: float(math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi)))}
     if part == "heyoka":
         from .studies import long_reference_max_steps
 
@@ -189,7 +195,7 @@ def _roundoff(model, p, quick, part):
         return {}
     w_lo, w_hi = frequency_range(model)
     t_end = 2 * math.pi / w_lo
-    return {"rk4": float(sum(math.ceil(t_end / (th / w_hi)) for th in pick(p, "roundoff_theta", quick)))}
+    return {p["method"]: float(sum(math.ceil(t_end / (th / w_hi)) for th in pick(p, "roundoff_theta", quick)))}
 
 
 def _large_n(model, p, quick, part):
@@ -197,21 +203,21 @@ def _large_n(model, p, quick, part):
 
     n_steps, repeats = LARGE_N_TIMING[bool(quick)]
     Ns = [int(v) for v in pick(p, "n_values", quick)]
-    # rk4_cost: one warm-up step and the timed repeats; rk4_peak_bytes: 3 steps; CVODE-BDF
+    # step_cost: one warm-up step and the timed repeats; peak_bytes: 3 steps; CVODE-BDF
     # (band) over one period of the lowest mode at rtol 1e-6, only that mode excited
-    return {"rk4": float(sum(1 + repeats * n_steps + 3 for _ in Ns)), "cvode-bdf": float(len(Ns) * _bdf(1.0, 1e-6))}
+    return {p["method"]: float(sum(1 + repeats * n_steps + 3 for _ in Ns)), "cvode-bdf": float(len(Ns) * _bdf(1.0, 1e-6))}
 
 
 def _amplitude(model, p, quick, part):
     if four_spring_params(model) is None:  # the study is skipped
         return {}
-    return {"rk4": float(len(p["amplitudes"]) * 2 * round(5.0 * 400))}
+    return {p["method"]: float(len(p["amplitudes"]) * 2 * round(5.0 * 400))}
 
 
 def _singular(model, p, quick, part):
     if four_spring_params(model) is None:  # the study is skipped
         return {}
-    return {"rk4": 400.0 + 1.0}
+    return {p["method"]: 400.0 + 1.0}
 
 
 _UNITS = {"boundary": _boundary, "long_horizon": _long_horizon, "roundoff": _roundoff, "large_n": _large_n,
@@ -229,12 +235,20 @@ def _unit_detail(model, p, quick, unit) -> dict:
     return _UNITS[study](model, p, quick, part)
 
 
+def _params(scene) -> dict:
+    """The scene's validated ``[stability]`` table, with ``_tab``: the tableau
+    of ``stability.method``."""
+    p = validate_params(dict(scene.stability or {}))
+    p["method"], p["_tab"] = context_method(scene, p)
+    return p
+
+
 def unit_steps(scene, unit: str, quick: bool = False, *, detail: bool = False):
     """Estimated integration steps of one unit of ``scene``'s stability study
     (fixed-step steps, adaptive solvers' steps, one-step-map probes added up;
     ``detail=True``: ``{solver: steps}``). No integration; see the module
     docstring for the model and its accuracy."""
-    p = validate_params(dict(scene.stability or {}))
+    p = _params(scene)
     study = parse_unit(unit)[0]
     if study not in p["studies"]:
         raise ValueError(f"`unit` {unit!r}: scene {scene.name!r} has no {study} study")
@@ -268,7 +282,7 @@ def estimate_steps(scene, quick: bool = False, *, detail: bool = False):
     """
     if not scene.stability:
         return {} if detail else 0.0
-    p = validate_params(dict(scene.stability))
+    p = _params(scene)
     model = scene.build_model()
     parts: dict = {study: {} for study in p["studies"]}
     for unit in units(scene, quick):

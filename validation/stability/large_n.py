@@ -32,7 +32,7 @@ import rk4core
 
 from ._common import integrate_fixed, loglog_slope
 
-__all__ = ["uniform_chain", "rk4_cost", "rk4_peak_bytes", "cvode_band_cost", "dense_rhs_peak_bytes"]
+__all__ = ["uniform_chain", "step_cost", "peak_bytes", "cvode_band_cost", "dense_rhs_peak_bytes"]
 
 
 def uniform_chain(N: int, m: float = 1.0, k: float = 1.0):
@@ -43,29 +43,30 @@ def uniform_chain(N: int, m: float = 1.0, k: float = 1.0):
     return model, model.state(x)
 
 
-def rk4_cost(N: int, n_steps: int = 200, repeats: int = 5, h: float = 0.1):
-    """Wall time per RK4 step (s, minimum of ``repeats``) of an N-mass chain,
-    RHS calls per step and the path used; ``h = 0.1`` s is stable (omega_max < 2 for m = k = 1)."""
+def step_cost(N: int, n_steps: int = 200, repeats: int = 5, h: float = 0.1, method="rk4"):
+    """Wall time per step (s, minimum of ``repeats``) of ``method`` (a tableau
+    or its name; RK4 by default) on an N-mass chain, RHS calls per step and the
+    path used; ``h = 0.1`` s is stable for RK4 (omega_max < 2 for m = k = 1)."""
     model, y0 = uniform_chain(N)
-    integrate_fixed(model, (0.0, h), y0, n_steps=1, t_eval=[h])  # warm-up / compile
+    integrate_fixed(model, (0.0, h), y0, n_steps=1, t_eval=[h], method=method)  # warm-up / compile
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         res, path = integrate_fixed(model, (0.0, n_steps * h), y0, n_steps=n_steps,
-                                    t_eval=[n_steps * h])
+                                    t_eval=[n_steps * h], method=method)
         times.append((time.perf_counter() - t0) / n_steps)
     return min(times), res.nfev / res.n_steps, path
 
 
-def rk4_peak_bytes(N: int, n_steps: int = 3) -> int:
-    """Peak bytes allocated (tracemalloc) by a short generic-path RK4 run on an
-    N-mass chain, model construction excluded."""
+def peak_bytes(N: int, n_steps: int = 3, method="rk4") -> int:
+    """Peak bytes allocated (tracemalloc) by a short generic-path run of
+    ``method`` (RK4 by default) on an N-mass chain, model construction excluded."""
     model, y0 = uniform_chain(N)
     tracemalloc.start()
     try:
         tracemalloc.reset_peak()
         base = tracemalloc.get_traced_memory()[0]
-        rk4core.solve(model.rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps])
+        rk4core.solve(model.rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps], method=method)
         peak = tracemalloc.get_traced_memory()[1] - base
     finally:
         tracemalloc.stop()

@@ -1,5 +1,7 @@
-"""Long horizons: RK4's energy drift and phase error per step, the references'
-drift on the same run, and the round-off floor.
+"""Long horizons: a tableau method's energy drift and phase error per step
+(RK4 below; any classical tableau through its stability function,
+:func:`validation.metrics.energy_loss` and :func:`validation.metrics.phase_lag`),
+the references' drift on the same run, and the round-off floor.
 
 In each normal mode (``theta = omega h``) one RK4 step multiplies the complex
 mode amplitude ``z = omega eta - i eta'`` by ``R(i theta)`` (see
@@ -27,7 +29,9 @@ import numpy as np
 
 from references.exact import modal_solution
 
-from ..metrics import rk4_energy_loss
+from rk4core.methods import RK4
+
+from ..metrics import phase_lag, rk4_energy_loss
 
 from ._common import error_rel, integrate_fixed, mode_amplitudes
 
@@ -42,13 +46,6 @@ _MIN_FIT_POINTS = 10
 def _R(theta):
     z = 1j * np.asarray(theta, dtype=float)
     return 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
-
-
-#: Below this |theta| the phase lag is formed from the series of
-#: ``exp(i theta) - R(i theta)`` (no cancellation); above it from the
-#: continuous argument of ``R(i theta)``.
-_SERIES_BELOW = 2.0
-_SERIES_TERMS = 24  # k = 5 ... 28: the last term is < 1e-19 of the first for |theta| < 2
 
 
 def rk4_energy_loss_per_step(theta, leading=False):
@@ -84,28 +81,11 @@ def rk4_phase_arg(theta):
     return np.sign(th) * arg
 
 
-def _lag_series(a):
-    """``a - arg R(i a)`` for ``|a| < 2`` from ``R(i a) e^{-i a} = 1 + w``,
-    ``w = -(e^{i a} - R(i a)) e^{-i a}``, the bracket summed as its series
-    ``sum_{k >= 5} (i a)^k / k!`` (no cancellation)."""
-    tail = np.zeros_like(a, dtype=complex)
-    term = (1j * a) ** 5 / 120.0
-    for k in range(5, 5 + _SERIES_TERMS):
-        tail = tail + term
-        term = term * (1j * a) / (k + 1)
-    w = -tail * np.exp(-1j * a)
-    return -np.arctan2(w.imag, 1.0 + w.real)
-
-
 def rk4_phase_lag_per_step(theta, leading=False):
-    """Phase lag (rad) per RK4 step of a mode, ``theta - arg R(i theta)``,
-    with the continuous argument of :func:`rk4_phase_arg` (no ``2 pi`` jump at
-    ``theta = sqrt 6``; negative, a phase lead, beyond about 2.3).
-
-    Below ``|theta| = 2`` the lag is formed from the series of ``e^{i theta} -
-    R(i theta)`` (:func:`_lag_series`), since ``theta - arg R`` cancels there
-    (the lag is ``theta^5/120``, 2.6e-9 at ``theta = 0.05``); a few ulp
-    relative for every ``theta``.
+    """Phase lag (rad) per RK4 step of a mode, ``theta - arg R(i theta)``:
+    :func:`validation.metrics.phase_lag` of classical RK4 (continuous
+    argument, no ``2 pi`` jump at ``theta = sqrt 6``; negative, a phase lead,
+    beyond about 2.3; a few ulp relative for every ``theta``).
 
     Parameters
     ----------
@@ -115,19 +95,13 @@ def rk4_phase_lag_per_step(theta, leading=False):
         Return the leading term ``theta^5/120`` instead.
     """
     th = np.asarray(theta, dtype=float)
-    if leading:
-        return th**5 / 120
-    a = np.abs(th)
-    small = a < _SERIES_BELOW
-    with np.errstate(invalid="ignore", over="ignore"):
-        direct = a - rk4_phase_arg(a)
-        series = _lag_series(np.where(small, a, 0.0))
-    return np.sign(th) * np.where(small, series, direct)
+    return th**5 / 120 if leading else phase_lag(RK4, th)
 
 
-def measure_drift_and_phase(model, y0, h, n_steps, *, record_every=1):
-    """Integrate ``n_steps`` RK4 steps and measure, per mode, the energy loss and
-    phase lag per step.
+def measure_drift_and_phase(model, y0, h, n_steps, *, method="rk4", record_every=1):
+    """Integrate ``n_steps`` steps of ``method`` (a classical tableau or its
+    name; RK4 by default) and measure, per mode, the energy loss and phase lag
+    per step.
 
     Both are least-squares slopes over the recorded steps: of ``-2 log|z_k|``
     (energy, returned as ``-expm1(2 slope)``) and of the unwrapped
@@ -146,7 +120,7 @@ def measure_drift_and_phase(model, y0, h, n_steps, *, record_every=1):
         omega), ``steps_fitted`` (last step used per mode), ``t``, ``rel_energy_error`` (total energy, for a figure),
         ``result`` (the solver result), ``path`` ("fast"/"solve").
     """
-    res, path = integrate_fixed(model, (0.0, n_steps * h), y0, n_steps=n_steps,
+    res, path = integrate_fixed(model, (0.0, n_steps * h), y0, n_steps=n_steps, method=method,
                                 record_every=record_every)
     omega, z = mode_amplitudes(model, res.y)
     k = np.rint(res.t / res.h)
@@ -171,8 +145,8 @@ def measure_drift_and_phase(model, y0, h, n_steps, *, record_every=1):
             "t": res.t, "rel_energy_error": np.abs(E - E[0]) / abs(E[0]), "result": res, "path": path}
 
 
-def roundoff_sweep(model, y0, t_end, hs):
-    """RK4 error at ``t_end`` against the modal solution for each step in ``hs``.
+def roundoff_sweep(model, y0, t_end, hs, method="rk4"):
+    """Error of ``method`` (RK4 by default) at ``t_end`` against the modal solution for each step in ``hs``.
 
     Error: :func:`._common.error_rel` (``max_i |q_i - q_i^exact| / max_i
     |q_i(0)|``) at ``t_end``. Returns (h_used, errors, paths).
@@ -182,7 +156,7 @@ def roundoff_sweep(model, y0, t_end, hs):
     scale = float(np.max(np.abs(y0[: model.n_dof]))) or 1.0
     h_used, errs, paths = [], [], []
     for h in hs:
-        res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end])
+        res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end], method=method)
         h_used.append(res.h)
         errs.append(error_rel(model, res.y[:, -1:], ref, scale) if res.success else math.nan)
         paths.append(path)

@@ -32,6 +32,10 @@ Param = namedtuple("Param", "name type min max default unit meaning")
 PARAMS = (
     Param("studies", "list[str]", None, None, None, "-",
           f"required: the studies to run, out of {', '.join(STUDIES)}"),
+    Param("method", "str", None, None, None, "-",
+          "the classical tableau method the studies other than boundary integrate (a built-in such as "
+          "rk4 or rk38, or one of the scene's [methods]); default: the first classical tableau of "
+          "run.solvers, else rk4"),
     Param("bisection_rtol", "float", 1e-12, 1e-3, 1e-4, "1",
           "relative precision of the bisection for the largest stable step (at most 100 probes)"),
     Param("growth_theta", "list[float]", 1e-4, 4.0,
@@ -184,6 +188,11 @@ def validate_params(params, where: str = "stability") -> dict:
         if key == "studies":
             continue
         p = _BY_NAME[key]
+        if p.type == "str":
+            if not isinstance(value, str) or not value:
+                raise StabilityParamError(where, key, "must be a non-empty string", value)
+            out[key] = value
+            continue
         if p.type.startswith("list"):
             if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)):
                 raise StabilityParamError(where, key, "must be a list of numbers", value)
@@ -205,7 +214,7 @@ def params_table_markdown() -> str:
     lines = ["| key | type | range | default | unit | meaning |", "|---|---|---|---|---|---|"]
     for p in PARAMS:
         rng = "-" if p.min is None else f"{_fmt(p.min)} ... {_fmt(p.max)}"
-        default = "(required)" if p.default is None else (
+        default = ("(required)" if p.name == "studies" else "(see meaning)") if p.default is None else (
             ", ".join(_fmt(v) for v in p.default) if isinstance(p.default, list) else _fmt(p.default))
         lines.append(f"| `{p.name}` | {p.type} | {rng} | {default} | {p.unit} | {p.meaning} |")
     return "\n".join(lines)

@@ -171,10 +171,16 @@ def _predict(ladder, target, runs, a, b):
     return next((k for k in range(len(ladder)) if math.log(ladder[k]) <= x + 1e-9), len(ladder) - 1)
 
 
-def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 5e7,
+def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_steps: float = 5e7,
                    skip=lambda solver: None, rtol_ladder=RTOL_LADDER):
     """Cheapest setting of each solver meeting ``target`` (the study's one
     cost-at-target search; see the module docstring).
+
+    ``fixed`` maps the fixed-step solvers among ``solvers`` to their tableaux
+    (default ``{"rk4": RK4}``): their step starts at 0.99 of the method's
+    imaginary-axis boundary (or ``0.5 / omega_max`` for a method without one)
+    and halves until the error meets ``target`` or ``max_rk4_steps`` steps
+    would be needed; every other solver climbs the rtol ladder.
 
     ``skip(solver)`` returns the reason a solver is skipped (a string), or
     None/False to run it.
@@ -184,6 +190,10 @@ def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 
     "not-reached", "skipped", or the run's failure status), note (deterministic),
     and ``omega_max``, ``omega_min``, ``stiffness_ratio``.
     """
+    from rk4core.methods import RK4
+    from rk4core.stability_function import imaginary_axis_boundary
+
+    fixed = {"rk4": RK4} if fixed is None else fixed
     omega = model.modes()[0]
     w_lo, w_hi = float(omega[omega > 0][0]), float(omega[-1])
     t_end = 2 * math.pi / w_lo
@@ -199,16 +209,18 @@ def cost_at_target(model, y0, target: float, solvers, *, max_rk4_steps: float = 
             rec.update(status="skipped", note=why if isinstance(why, str) else "skipped (see params)")
             out.append(rec)
             continue
-        if solver == "rk4":
-            h = 0.99 * 2 * math.sqrt(2) / w_hi
+        if solver in fixed:
+            tab = fixed[solver]
+            h_stab = imaginary_axis_boundary(tab) / w_hi
+            h = 0.99 * h_stab if h_stab > 0 else 0.5 / w_hi
             while t_end / h <= max_rk4_steps:
                 t0 = time.perf_counter()
-                res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end])
+                res, path = integrate_fixed(model, (0.0, t_end), y0, h=h, t_eval=[t_end], method=tab)
                 wall = time.perf_counter() - t0
                 err = error_rel(model, res.y[:, -1:], ref, scale) if res.success else math.nan
                 rec.update(setting=res.h, error=err, nfev=res.nfev, n_steps=res.n_steps,
                            wall_s=wall,
-                           note=f"path={path}; h_stab={2 * math.sqrt(2) / w_hi:.3g}")
+                           note=f"path={path}; h_stab={h_stab:.3g}")
                 if not res.success:
                     rec.update(status="unstable", note=res.message)
                     break

@@ -13,8 +13,8 @@ shipped scenes, 2-core machine):
 
 ``boundary``, ``roundoff``, ``large_n``, ``amplitude``, ``singular``
     one unit each (each under ~7 s in full mode);
-``long_horizon:drift``, ``long_horizon:rk4``, ``long_horizon:heyoka``, ``long_horizon:cvode-bdf``
-    the 2000-step drift and phase fits, the long RK4 run, and each
+``long_horizon:drift``, ``long_horizon:method``, ``long_horizon:heyoka``, ``long_horizon:cvode-bdf``
+    the 2000-step drift and phase fits, the long run of ``stability.method``, and each
     reference's energy drift: separate runs of a few seconds each, so a pool
     runs them side by side (a nonlinear model: one unit ``long_horizon``, skipped);
 ``stiffness:ratio=X``, ``mass_ratio:closed_form``, ``mass_ratio:mu=X``
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.registry import BOUNDARY_ALWAYS
+from references.registry import BOUNDARY_ALWAYS, UNDER_TEST
 
 from . import boundary as B
 from . import geometry as G
@@ -49,15 +49,20 @@ from . import large_n as LN
 from . import long_horizon as LH
 from . import mass_ratio as MR
 from . import stiffness as ST
+from ..metrics import energy_loss, leading_terms, phase_lag
 from ._common import PARAM_COLUMNS, StudyResult, integrate_fixed, row
 from .params import STUDIES, pick, validate_params
 
-__all__ = ["units", "run_unit", "run_unit_in", "assemble", "failed_unit", "parse_unit", "unit_key", "Context",
+__all__ = ["context_method", "units", "run_unit", "run_unit_in", "assemble", "failed_unit", "parse_unit", "unit_key", "Context",
            "context", "REL_BOUNDARY", "REL_DRIFT", "COST_SOLVERS"]
 
 REL_BOUNDARY = 0.005  # issue 6: boundaries within 0.5 % of theory
 REL_DRIFT = 0.02      # issue 6: drift and phase rates within 2 % where theta <= 0.5
-COST_SOLVERS = ("rk4", "dop853", "cvode-bdf", "heyoka")
+#: The references of the cost sweeps; the scene's ``stability.method`` runs first.
+COST_REFERENCES = ("dop853", "cvode-bdf", "heyoka")
+COST_SOLVERS = (UNDER_TEST,) + COST_REFERENCES  # with the default method
+#: Methods drawn in every growth-factor figure, beside ``stability.method``.
+GROWTH_ALWAYS = tuple(m for m in BOUNDARY_ALWAYS if m != "stormer-verlet")
 #: Long-horizon references: (solver, rtol).
 LONG_REFERENCES = (("heyoka", 1e-12), ("cvode-bdf", 1e-10))
 #: heyoka's step cap on the long horizon: this many times the calibrated
@@ -67,7 +72,8 @@ LONG_REFERENCES = (("heyoka", 1e-12), ("cvode-bdf", 1e-10))
 LONG_STEP_MARGIN = 3.0
 LONG_MIN_STEPS = 5_000_000
 LONG_MAX_STEPS = 100_000_000
-_LONG_PARTS = ("drift", "rk4", "heyoka", "cvode-bdf")
+#: ``method``: the long run of the scene's ``stability.method``.
+_LONG_PARTS = ("drift", "method", "heyoka", "cvode-bdf")
 
 
 @dataclass
@@ -79,6 +85,15 @@ class Context:
     quick: bool
     #: the scene's own tableau methods (name -> rk4core Tableau), studied beside the built-ins
     tableaux: dict = field(default_factory=dict)
+    #: ``stability.method``: the classical tableau the studies other than boundary integrate
+    method: str = UNDER_TEST
+    tab: object = None
+
+    def __post_init__(self):
+        if self.tab is None:
+            from rk4core.methods import get_method
+
+            self.tab = self.tableaux.get(self.method) or get_method(self.method)
 
 
 def context(scene, quick: bool) -> Context:
@@ -86,7 +101,19 @@ def context(scene, quick: bool) -> Context:
     params = validate_params(dict(scene.stability or {}))
     own = getattr(scene, "registry", {})
     tableaux = {n: m.tableau for n, m in own.items() if m.tableau is not None and n in scene.solvers}
-    return Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick), tableaux)
+    method, tab = context_method(scene, params)
+    return Context(scene.name, scene.build_model(), np.asarray(scene.y0(), float), params, bool(quick), tableaux,
+                   method, tab)
+
+
+def context_method(scene, params) -> tuple:
+    """``(name, tableau)`` of the scene's ``stability.method`` (validated by
+    :mod:`validation.scenes`; :data:`UNDER_TEST` when absent)."""
+    from rk4core.methods import get_method
+
+    method = params.get("method") or UNDER_TEST
+    own = getattr(scene, "registry", {})
+    return method, (own[method].tableau if method in own else get_method(method))
 
 
 # -- unit keys --------------------------------------------------------------------------------
@@ -178,7 +205,7 @@ def failed_unit(scene, unit: str, exc: BaseException | str) -> StudyResult:
         study, part, params = parse_unit(unit)
     except ValueError:
         study, part, params = str(unit).partition(":")[0], None, {}
-    solver = part if part in ("rk4", "heyoka", "cvode-bdf") else "-"
+    solver = part if part in ("heyoka", "cvode-bdf") else "-"
     text = exc if isinstance(exc, str) else f"{type(exc).__name__}: {exc}"
     return StudyResult(rows=[row(scene_name, study, solver, study, math.nan, passed=False, status="failed",
                                  note=f"unit {unit}: {text}", **params)])
@@ -193,6 +220,7 @@ def _boundary(ctx: Context, part) -> StudyResult:
     w = float(modes[0][-1])
     methods = {name: name for name in BOUNDARY_ALWAYS}
     methods.update(ctx.tableaux)  # the scene's own tableaux: boundary from the tableau, against runs
+    methods.setdefault(ctx.method, ctx.tab)  # and the method the other studies integrate
     for meth, tab in methods.items():
         h_star, probes = B.largest_stable_step(m, tab, ctx.params["bisection_rtol"], w)
         h_th = B.theory_boundary(tab, w)
@@ -211,7 +239,7 @@ def _boundary(ctx: Context, part) -> StudyResult:
 
     def g(meth, th):
         if (meth, th) not in growth:
-            growth[meth, th] = B.measured_growth(m, meth, th, modes=modes)[0]
+            growth[meth, th] = B.measured_growth(m, methods.get(meth, meth), th, modes=modes)[0]
         return growth[meth, th]
 
     for th in (1e-3, 0.1, 0.5, 1.0):
@@ -220,17 +248,20 @@ def _boundary(ctx: Context, part) -> StudyResult:
                             abs((gm - 1) / (g_th - 1) - 1) <= 1e-6, theta=th,
                             note="fastest mode, integrated run; passed: (g-1) within 1e-6 relative"))
     thetas = [float(t) for t in ctx.params["growth_theta"]]
-    meths = ("rk4", "euler", "symplectic-euler")
+    meths = tuple(dict.fromkeys((ctx.method,) + GROWTH_ALWAYS))
+    tabs = {meth: (ctx.tab if meth == ctx.method else meth) for meth in meths}
     line = np.linspace(1e-3, max(thetas) * 1.05, 400)
     res.plots.append({"kind": "growth", "scene": s, "study": "boundary", "name": "growth", "data": {
-        "theta_line": line, "theory": {meth: np.asarray(B.theory_growth(meth, line), float) for meth in meths},
+        "theta_line": line, "theory": {meth: np.asarray(B.theory_growth(tabs[meth], line), float) for meth in meths},
         "theta": np.array(thetas), "measured": {meth: np.array([g(meth, th) for th in thetas]) for meth in meths},
-        "boundary": {meth: b for meth in meths if (b := B.theory_boundary(meth, 1.0)) > 0}}})
-    # deliberate blow-ups: rows with status unstable and the time
-    for meth, h, n in (("rk4", 1.2 * B.theory_boundary("rk4", w), 3000), ("euler", 1.0 / w, 6000)):
-        r = B.blowup_run(m, meth, h, n)
+        "boundary": {meth: b for meth in meths if (b := B.theory_boundary(tabs[meth], 1.0)) > 0}}})
+    # deliberate blow-ups: rows with status unstable and the time (the studied
+    # method 20 % past its boundary, when it has one; explicit Euler at omega h = 1)
+    blow = [(ctx.method, 1.2 * B.theory_boundary(ctx.tab, w), 3000)] if B.theory_boundary(ctx.tab, w) > 0 else []
+    for meth, h, n in blow + [("euler", 1.0 / w, 6000)]:
+        r = B.blowup_run(m, tabs.get(meth, meth), h, n)
         blew = r.status == -1 and r.t_fail is not None and math.isfinite(r.t_fail)
-        gth = float(B.theory_growth(meth, h * w))
+        gth = float(B.theory_growth(tabs.get(meth, meth), h * w))
         res.rows.append(row(s, "boundary", meth, "blowup_time_s", r.t_fail if blew else math.nan, math.nan, blew,
                             status="unstable" if blew else "ok", theta=h * w,
                             note=f"{r.message}; theory growth {gth:.4g} per step"))
@@ -248,70 +279,81 @@ def _long(ctx: Context, part) -> StudyResult:
         return skip
     if part not in _LONG_PARTS:
         raise ValueError(f"`unit` long_horizon:{part}: the parts are {', '.join(_LONG_PARTS)}")
-    return {"drift": _long_drift, "rk4": _long_rk4}.get(part, _long_reference)(ctx, part)
+    return {"drift": _long_drift, "method": _long_method}.get(part, _long_reference)(ctx, part)
 
 
 def _long_drift(ctx, part):
     res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
     w_hi, _ = _omegas(m)
     pts = {"theta": [], "energy_loss": [], "phase_lag": []}
+    meth, tab = ctx.method, ctx.tab
+    (a_e, p_e), (a_p, p_p) = leading_terms(tab)
     for th in p["drift_theta"]:
-        d = LH.measure_drift_and_phase(m, ctx.y0, th / w_hi, 2000)
+        d = LH.measure_drift_and_phase(m, ctx.y0, th / w_hi, 2000, method=tab)
         th_m = float(d["theta"][-1])
-        e_th = float(LH.rk4_energy_loss_per_step(th_m))
-        p_th = float(LH.rk4_phase_lag_per_step(th_m))
-        e_lead, p_lead = th_m**6 / 72, th_m**5 / 120
-        checked = th_m <= 0.5
+        e_th = float(energy_loss(tab, th_m))
+        p_th = float(phase_lag(tab, th_m))
+        checked = th_m <= 0.5 and e_th > 0 and p_th != 0
         e, ph = float(d["energy_loss"][-1]), float(d["phase_lag"][-1])
-        res.rows.append(row(s, "long_horizon", "rk4", "energy_loss_per_step", e, e_th,
+        res.rows.append(row(s, "long_horizon", meth, "energy_loss_per_step", e, e_th,
                             abs(e / e_th - 1) <= REL_DRIFT if checked else None, theta=th_m,
-                            note=f"2000 steps; theory 1-|R(i theta)|^2; leading order theta^6/72 = {e_lead:.6g}"))
-        res.rows.append(row(s, "long_horizon", "rk4", "phase_lag_per_step", ph, p_th,
+                            note=f"2000 steps; theory 1-|R(i theta)|^2 from the tableau; leading order "
+                                 f"{a_e:.6g} theta^{p_e} = {a_e * th_m**p_e:.6g}"))
+        res.rows.append(row(s, "long_horizon", meth, "phase_lag_per_step", ph, p_th,
                             abs(ph / p_th - 1) <= REL_DRIFT if checked else None, theta=th_m,
-                            note=f"2000 steps; theory theta - arg R(i theta); leading order theta^5/120 = "
-                                 f"{p_lead:.6g}"))
+                            note=f"2000 steps; theory theta - arg R(i theta) from the tableau; leading order "
+                                 f"{a_p:.6g} theta^{p_p} = {a_p * th_m**p_p:.6g}"))
         pts["theta"].append(th_m)
         pts["energy_loss"].append(e)
         pts["phase_lag"].append(ph)
+    data = {k: np.array(v, float) for k, v in pts.items()}
+    th = data["theta"][np.isfinite(data["theta"]) & (data["theta"] > 0)]
+    line = np.logspace(np.log10(float(th.min()) / 2 if th.size else 1e-2), np.log10(0.6), 100)
+    data.update(method=meth, theta_line=line, loss_theory=np.asarray(energy_loss(tab, line), float),
+                lag_theory=np.asarray(phase_lag(tab, line), float), loss_leading=(a_e, p_e), lag_leading=(a_p, p_p))
     res.plots.append({"kind": "drift_points", "scene": s, "study": "long_horizon", "name": "drift", "part": True,
-                      "data": {k: np.array(v, float) for k, v in pts.items()}})
+                      "data": data})
     return res
 
 
-def _long_rk4(ctx, part):
+def _long_method(ctx, part):
     from rk4core import fast
 
     res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
+    meth, tab = ctx.method, ctx.tab
     w_hi, w_lo = _omegas(m)
     periods = pick(p, "long_periods", ctx.quick)
     h = p["long_theta"] / w_hi
     n = int(math.ceil(periods * 2 * math.pi / w_lo / h))
     if n > 2_000_000 and not fast.supports(m):
-        res.rows.append(row(s, "long_horizon", "rk4", "long_run", math.nan, status="skipped", periods=periods,
+        res.rows.append(row(s, "long_horizon", meth, "long_run", math.nan, status="skipped", periods=periods,
                             note=f"{n} steps and no compiled path for {m.name} (rk4core.fast.supports)"))
         return res
     t0 = time.perf_counter()
-    d = LH.measure_drift_and_phase(m, ctx.y0, h, n, record_every=max(1, n // 20000))
+    d = LH.measure_drift_and_phase(m, ctx.y0, h, n, method=tab, record_every=max(1, n // 20000))
     wall = time.perf_counter() - t0
     for j, th in enumerate(d["theta"]):
         th = float(th)
-        e_th, p_th = float(LH.rk4_energy_loss_per_step(th)), float(LH.rk4_phase_lag_per_step(th))
+        e_th, p_th = float(energy_loss(tab, th)), float(phase_lag(tab, th))
         e, ph = float(d["energy_loss"][j]), float(d["phase_lag"][j])
-        res.rows.append(row(s, "long_horizon", "rk4", "long_energy_loss_per_step", e, e_th,
-                            abs(e / e_th - 1) <= REL_DRIFT, mode=j + 1, theta=th, periods=periods,
+        res.rows.append(row(s, "long_horizon", meth, "long_energy_loss_per_step", e, e_th,
+                            abs(e / e_th - 1) <= REL_DRIFT if e_th > 0 else None, mode=j + 1, theta=th,
+                            periods=periods,
                             note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f} (while the mode is "
                                  f"above 1e-6 of its start)"))
-        res.rows.append(row(s, "long_horizon", "rk4", "long_phase_lag_per_step", ph, p_th,
-                            abs(ph / p_th - 1) <= REL_DRIFT, mode=j + 1, theta=th, periods=periods,
-                            note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
+        res.rows.append(row(s, "long_horizon", meth, "long_phase_lag_per_step", ph, p_th,
+                            abs(ph / p_th - 1) <= REL_DRIFT if p_th != 0 else None, mode=j + 1, theta=th,
+                            periods=periods, note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
     err = np.asarray(d["rel_energy_error"], float)
-    res.rows.append(row(s, "long_horizon", "rk4", "energy_drift_per_period", err[-1] / periods, periods=periods,
+    res.rows.append(row(s, "long_horizon", meth, "energy_drift_per_period", err[-1] / periods, periods=periods,
                         theta=p["long_theta"], wall_s=wall, note=f"|E_end-E0|/E0 = {err[-1]:.3g} after {n} steps"))
-    res.findings.append(f"{s}: RK4 at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
-                        f"relative energy change {err[-1]:.3g} (RK4 dissipates: theta^6/72 per step per mode)")
+    (a_e, p_e), _ = leading_terms(tab)
+    lead = f" ({a_e:.4g} theta^{p_e} per step per mode" + (", lost" if a_e > 0 else ", gained") + ")"
+    res.findings.append(f"{s}: {meth} at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
+                        f"relative energy change {err[-1]:.3g}{lead}")
     res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy", "part": True,
-                      "data": {"label": f"rk4 (omega_max h = {p['long_theta']:g}, {periods:g} periods)",
-        "t": np.asarray(d["t"], float), "err": err}})
+                      "data": {"label": f"{meth} (omega_max h = {p['long_theta']:g}, {periods:g} periods)",
+                               "t": np.asarray(d["t"], float), "err": err}})
     return res
 
 
@@ -338,7 +380,7 @@ def _long_reference(ctx, solver):
     ok = run.ok
     res.rows.append(row(s, "long_horizon", solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
                         status="ok" if ok else run.status.value, periods=per, wall_s=run.wall_s, note=(
-                            f"rtol {rtol:g}, {per:g} periods (RK4: {periods:g}), {run.n_steps} steps, |E_end-E0|/E0 "
+                            f"rtol {rtol:g}, {per:g} periods ({ctx.method}: {periods:g}), {run.n_steps} steps, |E_end-E0|/E0 "
                             f"= {err[-1]:.3g}; {run.message}")))
     if ok:
         res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy",
@@ -353,13 +395,7 @@ def _assemble_long(scene, quick, res: StudyResult) -> None:
     pts = [pl["data"] for pl in parts if pl["kind"] == "drift_points"]
     if pts:
         d = pts[0]
-        th = d["theta"][np.isfinite(d["theta"]) & (d["theta"] > 0)]
-        lo = float(th.min()) / 2 if th.size else 1e-2
-        line = np.logspace(np.log10(lo), np.log10(0.6), 100)
-        res.plots.append({"kind": "drift", "scene": scene, "study": "long_horizon", "name": "drift", "data": {
-            "theta_line": line, "loss_theory": np.asarray(LH.rk4_energy_loss_per_step(line), float),
-            "lag_theory": np.asarray(LH.rk4_phase_lag_per_step(line), float),
-            "theta": d["theta"], "energy_loss": d["energy_loss"], "phase_lag": d["phase_lag"]}})
+        res.plots.append({"kind": "drift", "scene": scene, "study": "long_horizon", "name": "drift", "data": d})
     series = [pl["data"] for pl in parts if pl["kind"] == "energy_series"]
     if series:
         res.plots.append({"kind": "long_energy", "scene": scene, "study": "long_horizon", "name": "long_energy",
@@ -370,27 +406,39 @@ def _assemble_long(scene, quick, res: StudyResult) -> None:
 def _roundoff(ctx: Context, part) -> StudyResult:
     if (skip := _needs_linear(ctx, "roundoff")) is not None:
         return skip
-    res, s, m = StudyResult(), ctx.scene, ctx.model
+    res, s, m, meth = StudyResult(), ctx.scene, ctx.model, ctx.method
     w_hi, w_lo = _omegas(m)
     thetas = pick(ctx.params, "roundoff_theta", ctx.quick)
     t_end = 2 * math.pi / w_lo
-    h, err, paths = LH.roundoff_sweep(m, ctx.y0, t_end, [th / w_hi for th in thetas])
+    h, err, paths = LH.roundoff_sweep(m, ctx.y0, t_end, [th / w_hi for th in thetas], method=ctx.tab)
     for hi, ei in zip(h, err):
-        res.rows.append(row(s, "roundoff", "rk4", "error_at_t_end", ei, theta=hi * w_hi,
+        res.rows.append(row(s, "roundoff", meth, "error_at_t_end", ei, theta=hi * w_hi,
                             note=f"h = {hi:.6g} s; one slow period; max |q - q_exact| / max |q0|"))
     i = int(np.nanargmin(err))
     turned = bool(i < len(err) - 1 and err[-1] > err[i])
-    res.rows.append(row(s, "roundoff", "rk4", "best_h_s", h[i], math.nan, None, theta=h[i] * w_hi, note=(
+    # The turn-up is expected only where the sweep reaches the round-off level:
+    # the truncation error, extrapolated from the largest step with omega_max h
+    # <= 0.1 at the method's order, below sqrt(n) eps at the smallest step.
+    th = h * w_hi
+    j = int(np.argmax(np.where((th <= 0.1) & np.isfinite(err), h, -np.inf)))
+    trunc = float(err[j] * (h[-1] / h[j]) ** ctx.tab.order)
+    level = math.sqrt(t_end / h[-1]) * float(np.finfo(float).eps)
+    expect = trunc < level
+    res.rows.append(row(s, "roundoff", meth, "best_h_s", h[i], math.nan, None, theta=h[i] * w_hi, note=(
         f"error {err[i]:.3g} at omega_max h = {h[i] * w_hi:.3g}; one slow period; paths {sorted(set(paths))}")))
-    res.rows.append(row(s, "roundoff", "rk4", "roundoff_floor_error", err[i], math.nan, None, theta=h[i] * w_hi))
-    res.rows.append(row(s, "roundoff", "rk4", "error_turns_up_below_best_h", float(turned), 1.0, turned,
-                        note=f"error at smallest h ({h[-1]:.3g} s): {err[-1]:.3g}"))
+    res.rows.append(row(s, "roundoff", meth, "roundoff_floor_error", err[i], math.nan, None, theta=h[i] * w_hi))
+    res.rows.append(row(s, "roundoff", meth, "error_turns_up_below_best_h", float(turned), 1.0 if expect else 0.0,
+                        turned if expect else None, note=(
+                            f"error at smallest h ({h[-1]:.3g} s): {err[-1]:.3g}; order-{ctx.tab.order} truncation "
+                            f"extrapolated there {trunc:.3g} " + ("<" if expect else ">=") + f" round-off level "
+                            f"sqrt(n) eps {level:.3g}" + ("" if expect else ": no turn-up expected in this sweep"))))
     res.plots.append({"kind": "roundoff", "scene": s, "study": "roundoff", "name": "roundoff",
                       "data": {"h": np.asarray(h, float), "error": np.asarray(err, float), "h_best": float(h[i]),
-                               "omega_max": w_hi}})
-    res.findings.append(f"{s}: RK4 best step {h[i]:.3g} s (omega_max h = {h[i] * w_hi:.3g}) gives error "
+                               "omega_max": w_hi, "method": meth,
+                               "order": ctx.tab.order}})
+    res.findings.append(f"{s}: {meth} best step {h[i]:.3g} s (omega_max h = {h[i] * w_hi:.3g}) gives error "
                         f"{err[i]:.3g}; smaller steps lose to round-off" if turned else
-                        f"{s}: RK4 error still falling at the smallest h probed ({h[-1]:.3g} s)")
+                        f"{s}: {meth} error still falling at the smallest h probed ({h[-1]:.3g} s)")
     return res
 
 
@@ -405,7 +453,7 @@ def _cost_point(ctx: Context, study: str, x: float) -> StudyResult:
     target = ctx.params["target_error"]
     model, y0 = build(x)
     ratio, exc = ST.excited_ratio(model, y0)
-    recs = ST.cost_at_target(model, y0, target, COST_SOLVERS,
+    recs = ST.cost_at_target(model, y0, target, (ctx.method,) + COST_REFERENCES, fixed={ctx.method: ctx.tab},
                              skip=lambda sv: ST.skip_reason(sv, what, ratio, exc, ctx.quick),
                              rtol_ladder=ST.RTOL_LADDER_QUICK if ctx.quick else ST.RTOL_LADDER)
     for r in recs:
@@ -415,9 +463,9 @@ def _cost_point(ctx: Context, study: str, x: float) -> StudyResult:
                                 f"stiffness ratio {r['stiffness_ratio']:.3g}; setting {r['setting']:.3g}; "
                                 f"error {r['error']:.3g}; steps {r['n_steps']}; {r['note']}")))
     rk = recs[0]
-    if rk["status"] == "ok" and what == "ratio":
-        h_stab = 2 * math.sqrt(2) / rk["omega_max"]
-        res.rows.append(row(s, study, "rk4", "h_at_target_over_h_stab", rk["setting"] / h_stab, math.nan, None,
+    h_stab = B.theory_boundary(ctx.tab, rk["omega_max"])
+    if rk["status"] == "ok" and what == "ratio" and h_stab > 0:
+        res.rows.append(row(s, study, ctx.method, "h_at_target_over_h_stab", rk["setting"] / h_stab, math.nan, None,
                             target_error=target, **{what: x},
                             note="1 (x0.99) = step forced by stability, not accuracy"))
     ok = [r["status"] == "ok" for r in recs]
@@ -508,44 +556,46 @@ LARGE_N_TIMING = {False: (500, 3), True: (200, 3)}
 
 
 def _large_n(ctx: Context, part) -> StudyResult:
-    res, s = StudyResult(), ctx.scene
+    res, s, meth, tab = StudyResult(), ctx.scene, ctx.method, ctx.tab
     Ns = [int(v) for v in pick(ctx.params, "n_values", ctx.quick)]
     n_steps, repeats = LARGE_N_TIMING[ctx.quick]
     t_rk, b_rk, t_cv, calls, cv_steps = [], [], [], [], []
     for N in Ns:
-        t, per_step, _ = LN.rk4_cost(N, n_steps=n_steps, repeats=repeats)
+        t, per_step, _ = LN.step_cost(N, n_steps=n_steps, repeats=repeats, method=tab)
         t_rk.append(t)
         calls.append(per_step)
-        b_rk.append(LN.rk4_peak_bytes(N))
+        b_rk.append(LN.peak_bytes(N, method=tab))
         cv = LN.cvode_band_cost(N)
         t_cv.append(cv["wall_per_step"])
         cv_steps.append(cv["n_steps"])
-    fits = {"rk4_time": LN.fit_exponent(Ns, t_rk), "rk4_bytes": LN.fit_exponent(Ns, b_rk),
+    fits = {"time": LN.fit_exponent(Ns, t_rk), "bytes": LN.fit_exponent(Ns, b_rk),
             "cvode_time": LN.fit_exponent(Ns, t_cv)}
     for N, b, t, tc, k in zip(Ns, b_rk, t_rk, t_cv, cv_steps):
-        res.rows.append(row(s, "large_n", "rk4", "peak_bytes", b, n=N, note="tracemalloc peak of 3 generic-path steps"))
-        res.rows.append(row(s, "large_n", "rk4", "wall_per_step_s", math.nan, n=N, measured_timed=t,
+        res.rows.append(row(s, "large_n", meth, "peak_bytes", b, n=N, note="tracemalloc peak of 3 generic-path steps"))
+        res.rows.append(row(s, "large_n", meth, "wall_per_step_s", math.nan, n=N, measured_timed=t,
                             note=f"timing: min of {repeats} repeats of {n_steps} compiled-path steps"))
         res.rows.append(row(s, "large_n", "cvode-bdf", "steps", k, n=N,
                             note="one period of the lowest mode, rtol 1e-6, banded"))
         res.rows.append(row(s, "large_n", "cvode-bdf", "wall_per_step_s", math.nan, n=N, measured_timed=tc,
                             note="timing: one run"))
     timing = "timing on a shared machine: reported, not asserted (tests/test_stability.py checks it, slow)"
-    res.rows.append(row(s, "large_n", "rk4", "rhs_calls_per_step", max(calls), 4.0, all(c == 4 for c in calls),
+    per = float(tab.nfev_per_step)
+    res.rows.append(row(s, "large_n", meth, "rhs_calls_per_step", max(calls), per, all(c == per for c in calls),
                         note=f"each call O(N); N = {Ns}"))
-    res.rows.append(row(s, "large_n", "rk4", "peak_memory_exponent", fits["rk4_bytes"], 1.0,
-                        abs(fits["rk4_bytes"] - 1) <= 0.1, note=f"tracemalloc peak, N = {Ns}"))
-    res.rows.append(row(s, "large_n", "rk4", "cost_per_step_exponent", math.nan, 1.0, None,
-                        measured_timed=fits["rk4_time"],
+    res.rows.append(row(s, "large_n", meth, "peak_memory_exponent", fits["bytes"], 1.0,
+                        abs(fits["bytes"] - 1) <= 0.1, note=f"tracemalloc peak, N = {Ns}"))
+    res.rows.append(row(s, "large_n", meth, "cost_per_step_exponent", math.nan, 1.0, None,
+                        measured_timed=fits["time"],
                         note=f"wall per step, min of {repeats} repeats of {n_steps} steps, N = {Ns}; {timing}"))
     res.rows.append(row(s, "large_n", "cvode-bdf", "cost_per_step_exponent", math.nan, 1.0, None,
                         measured_timed=fits["cvode_time"],
                         note=f"banded solver, difference-quotient band Jacobian; {timing}"))
     res.plots.append({"kind": "large_n", "scene": s, "study": "large_n", "name": "large_n", "data": {
-        "n": np.array(Ns, float), "rk4_wall_per_step": np.array(t_rk, float), "rk4_peak_bytes": np.array(b_rk, float),
+        "n": np.array(Ns, float), "method": meth, "wall_per_step": np.array(t_rk, float),
+        "peak_bytes": np.array(b_rk, float),
         "cvode_wall_per_step": np.array(t_cv, float), "fits": {k: float(v) for k, v in fits.items()}}})
-    res.findings.append(f"{s}: up to N = {Ns[-1]}, RK4 time per step ~ N^{fits['rk4_time']:.2f}, memory ~ "
-                        f"N^{fits['rk4_bytes']:.2f}; CVODE-BDF (band) ~ N^{fits['cvode_time']:.2f}")
+    res.findings.append(f"{s}: up to N = {Ns[-1]}, {meth} time per step ~ N^{fits['time']:.2f}, memory ~ "
+                        f"N^{fits['bytes']:.2f}; CVODE-BDF (band) ~ N^{fits['cvode_time']:.2f}")
     return res
 
 
@@ -558,15 +608,15 @@ def _amplitude(ctx: Context, part) -> StudyResult:
                             note=f"amplitude {G.FOUR_SPRING_NEEDS}"))
         return res
     a = np.array(ctx.params["amplitudes"], float)
-    err = G.linearization_error(p, a)
+    err = G.linearization_error(p, a, method=ctx.tab)
     slope = G.amplitude_exponent(a[a >= 1e-5], err[a >= 1e-5])
     for ai, ei in zip(a, err):
-        res.rows.append(row(s, "amplitude", "rk4", "linearization_error", ei, math.nan, None, a_over_l=ai,
+        res.rows.append(row(s, "amplitude", ctx.method, "linearization_error", ei, math.nan, None, a_over_l=ai,
                             note="max over 5 periods of |q_nl - q_lin| / r0"))
-    res.rows.append(row(s, "amplitude", "rk4", "linearization_error_exponent", slope, 2.0, abs(slope - 2) <= 0.1,
+    res.rows.append(row(s, "amplitude", ctx.method, "linearization_error_exponent", slope, 2.0, abs(slope - 2) <= 0.1,
                         note="fit over 1e-5 <= a/l <= 1e-2; cubic terms of V cancel by symmetry"))
     res.plots.append({"kind": "amplitude", "scene": s, "study": "amplitude", "name": "amplitude",
-                      "data": {"a_over_l": a, "error": np.asarray(err, float), "slope": float(slope)}})
+                      "data": {"method": ctx.method, "a_over_l": a, "error": np.asarray(err, float), "slope": float(slope)}})
     for tol in (1e-3, 1e-2):
         ok = a[err <= tol]
         res.findings.append(f"{s}: the linear model stays within {tol:g} of the exact geometry up to "
@@ -584,14 +634,14 @@ def _singular(ctx: Context, part) -> StudyResult:
     T = 2 * math.pi / math.sqrt(2 * p["k"] / p["m"])
     h, t_end = T / 200, 2 * T
     off = ctx.params["singular_offset"]
-    out = G.singular_pass(p, off, h, t_end)
-    res.rows.append(row(s, "singular", "rk4", "closest_approach_m", out["d_min"], off,
+    out = G.singular_pass(p, off, h, t_end, method=ctx.tab)
+    res.rows.append(row(s, "singular", ctx.method, "closest_approach_m", out["d_min"], off,
                         out["status"] in ("singular", "ok", "unstable"), status=out["status"], offset=off,
                         note=out["message"]))
     res.findings.append(f"{s}: aimed at an anchor with offset {off:g} m: {out['message']}")
-    out = G.singular_pass(p, 0.0, h, t_end, start_on_anchor=True)
+    out = G.singular_pass(p, 0.0, h, t_end, start_on_anchor=True, method=ctx.tab)
     t_fail = out["result"].t_fail
-    res.rows.append(row(s, "singular", "rk4", "blowup_time_on_anchor_s", t_fail if t_fail is not None else math.nan,
+    res.rows.append(row(s, "singular", ctx.method, "blowup_time_on_anchor_s", t_fail if t_fail is not None else math.nan,
                         math.nan, out["status"] == "unstable", status=out["status"],
                         note="started exactly on the anchor (l, 0); " + out["message"]))
     return res
