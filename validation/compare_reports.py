@@ -6,7 +6,7 @@ For every CSV present in both directories (rows matched by position; tables
 of different shape are reported as such), prints, per numeric column, the
 largest relative difference ``|new - old| / |old|`` and the row where it
 occurs, and per text column the number of rows that differ. Timing columns
-(``wall_s``, ``compile_s``, ``rk4_wall_s``) are left out unless named with
+(``wall_s``, ``compile_s``, the trust table's times and time verdicts) are left out unless named with
 ``--columns``: they differ on every run. Read-only; exit 0, or 2 on bad input.
 """
 from __future__ import annotations
@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-TIMING = {"wall_s", "compile_s", "rk4_wall_s"}
+TIMING = {"wall_s", "compile_s", "wall_min", "wall_max", "time_s", "alt_time_s", "alt_compile_s",
+          "verdict_one_run", "verdict_amortized"}
 _KEYS = ("scene", "solver", "setting", "quantity", "study")
 
 

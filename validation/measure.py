@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.registry import UNDER_TEST
 
-from . import metrics
+
+from . import metrics, trust
+from .execute import problem
 from .plan import ORDER_TOL, TARGETS, RunSpec, under_test
 
 __all__ = ["Check", "FigureJob", "SceneTables", "measure", "ENERGY_RTOL", "ENERGY_ROUNDOFF_PER_STEP",
@@ -162,7 +163,10 @@ def _runs(scene, specs, records, res, draw):
         if "work_precision" in scene.outputs:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                                        "wall_s": tm["wall_s"], "nfev": v["nfev"], "n_steps": v["n_steps"],
-                                       "taylor_order": v["taylor_order"], "status": status})
+                                       "taylor_order": v["taylor_order"], "status": status,
+                                       "wall_min": tm.get("wall_min", tm["wall_s"]),
+                                       "wall_max": tm.get("wall_max", tm["wall_s"]),
+                                       "compile_s": tm["compile_s"]})
         if "energy" in scene.outputs:
             res.add("energy", _energy_row(scene, spec, rec, row, res))
             if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
@@ -199,37 +203,32 @@ def _energy_row(scene, spec, rec, row, res):
 
 
 def _cheapest(scene, res):
-    rows = res.tables.get("work_precision", [])
+    """``cheapest.csv``: the trust table of the method under test (:mod:`validation.trust`)."""
     under = under_test(scene)
-    best = metrics.cheapest(rows, TARGETS, cost="wall_s", under_test=under)
-    crossover = None
-    for b in best:
-        if crossover is None and not (b["rk4_setting"] is not None and b["solver"] == under):
-            crossover = b["target_error"]
-        res.add("cheapest", {"scene": scene.name, "target_error": b["target_error"],
-                             "solver": b["solver"] or "", "setting": b["setting"], "wall_s": b["cost"],
-                             "rk4_h": b["rk4_setting"], "rk4_wall_s": b["rk4_cost"],
-                             "rk4_is_cheapest": bool(under is not None and b["solver"] == under)})
     if under is None:
         return
-    who = "RK4" if under == UNDER_TEST else under
-    first = best[0]
-    if crossover is None:
-        res.findings.append(f"{scene.name}: {who} is the cheapest solver for every target error down to "
-                            f"{TARGETS[-1]:g}.")
-    elif first["solver"] is None:
-        res.findings.append(f"{scene.name}: no solver reaches a relative error of {TARGETS[0]:g}.")
-    elif crossover == TARGETS[0]:
-        rk4 = (f"{who} needs {first['rk4_cost'] / first['cost']:.3g}x its wall time "
-               f"(h = {first['rk4_setting']:g} s)" if first["rk4_cost"] is not None and first["cost"]
-               else f"{who} does not reach it")
-        res.findings.append(f"{scene.name}: {who} is not the cheapest solver for any target; at "
-                            f"{TARGETS[0]:g} the cheapest is {first['solver']} "
-                            f"({scene.method(first['solver']).setting_name} {first['setting']:g}, "
-                            f"compile time excluded); {rk4}.")
-    else:
-        res.findings.append(f"{scene.name}: {who} is the cheapest solver down to a relative error of "
-                            f"{TARGETS[TARGETS.index(crossover) - 1]:g} and stops being it at {crossover:g}.")
+    method = scene.method(under)
+    rows = res.tables.get("work_precision", [])
+    res.tables.setdefault("cheapest", [])
+    res.tables["cheapest"] += trust.trust_rows(
+        scene.name, rows, method, scene.t_end, _stable_step(scene, method), TARGETS,
+        setting_name=lambda sv: scene.method(sv).setting_name)
+
+
+def _stable_step(scene, method) -> float:
+    """The method's largest stable step (s) on the model's fastest mode (its
+    linearization's for a nonlinear model); inf when unknown."""
+    from rk4core.stability_function import imaginary_axis_boundary
+
+    if method.tableau is None:
+        return math.inf
+    try:
+        omega = np.asarray(problem(scene)[0].modes()[0], float)
+        b = imaginary_axis_boundary(method.tableau)
+    except Exception:  # noqa: BLE001 - no modes for this model: no stability cap
+        return math.inf
+    w = float(np.max(np.abs(omega))) if omega.size else 0.0
+    return b / w if w > 0 and b > 0 else math.inf
 
 
 def _tolerance_checks(scene, res):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import platform
+import re
 import sys
 from pathlib import Path
 
@@ -24,12 +25,11 @@ COLUMNS = {
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
                     "h_min", "h_max", "n_points", "t_end"],
     "modes": ["scene", "mode", "omega_rad_s", "freq_hz", "linearized"],
-    "work_precision": ["scene", "solver", "setting", "error_max", "error_rel", "wall_s", "nfev",
-                       "n_steps", "taylor_order", "status"],
+    "work_precision": ["scene", "solver", "setting", "error_max", "error_rel", "wall_s", "wall_min", "wall_max",
+                       "compile_s", "nfev", "n_steps", "taylor_order", "status"],
     "energy": ["scene", "solver", "setting", "drift_per_time", "theory_drift_per_time",
                "energy_drift_max", "passed", "status"],
-    "cheapest": ["scene", "target_error", "solver", "setting", "wall_s", "rk4_h", "rk4_wall_s",
-                 "rk4_is_cheapest"],
+    "cheapest": None,  # validation.trust.COLUMNS (filled below)
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],
     "stability": None,  # validation.stability.COLUMNS (filled below)
@@ -42,7 +42,7 @@ COLUMNS = {
 }
 
 #: Columns that hold timings (not reproducible); whole tables built on timings.
-TIMING = {"accuracy": {"wall_s", "compile_s"}, "work_precision": {"wall_s"},
+TIMING = {"accuracy": {"wall_s", "compile_s"}, "work_precision": {"wall_s", "wall_min", "wall_max", "compile_s"},
           "cheapest": None, "stability": None}
 
 
@@ -54,6 +54,16 @@ def _stability_columns():
 
 
 _stability_columns()
+
+
+def _trust_columns():
+    from validation.trust import COLUMNS as cols, TIMING_COLUMNS as timing
+
+    COLUMNS["cheapest"] = list(cols)
+    TIMING["cheapest"] = set(timing)
+
+
+_trust_columns()
 
 DESCRIPTIONS = {
     "accuracy": "one row per (scene, solver, setting): largest error against the reference over all "
@@ -70,9 +80,13 @@ DESCRIPTIONS = {
     "energy": "energy drift per unit time (E(T) - E0)/(|E0| T); for RK4 on linear models beside the "
               "exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
               "weighted by the modal energy fractions.",
-    "cheapest": "for each scene and target relative error (1e-3 ... 1e-12), the cheapest solver by "
-                "median wall time that reaches it, and RK4's cheapest run; `rk4_is_cheapest` "
-                "turning false marks the crossover.",
+    "cheapest": "the trust table: for each scene and target relative error (1e-3 ... 1e-12), the step the "
+                "method under test needs (from its error constant C h^p fitted on its runs, capped at 0.9 of "
+                "its stability limit, refused below the round-off level sqrt(n) eps), its RHS calls and "
+                "time, the cheapest other run reaching the target (by RHS calls), and three verdicts: "
+                "`verdict_rhs` (RHS calls, deterministic), `verdict_amortized` (time, compile excluded) and "
+                "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
+                "medians differ 3x and the repeats do not overlap (validation.trust).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n), and wave packets integrated by RK4 against the group velocity.",
     "modal_energy": "energy of the lowest linear modes over time (FPUT recurrence): per solver and mode, "
@@ -182,9 +196,96 @@ def _md_table(header, rows) -> list[str]:
     return lines
 
 
+def _g(x, unit="") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:.2g}{unit}"
+
+
+def trust_lines(rows) -> list[str]:
+    """The trust table of index.md: one line per scene, one cell per target
+    (from ``cheapest.csv``, :mod:`validation.trust`)."""
+    if not rows:
+        return []
+    targets = sorted({float(r["target_error"]) for r in rows}, reverse=True)
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    method = {r["scene"]: r["method"] for r in rows}
+    lines = ["| scene | method | " + " | ".join(f"{t:.0e}" for t in targets) + " |",
+             "|---|---|" + "---|" * len(targets)]
+    by = {(r["scene"], float(r["target_error"])): r for r in rows}
+    for sc in scenes:
+        cells = []
+        for t in targets:
+            r = by.get((sc, t))
+            if r is None:
+                cells.append("")
+                continue
+            h = r["h"]
+            step = (f"h {_g(h, ' s')}, {_g(r['rhs'])} calls" if isinstance(h, float) and math.isfinite(h)
+                    else f"no h ({r['h_source']})")
+            cells.append(f"{step}; calls: **{r['verdict_rhs']}**; time: {r['verdict_amortized']}"
+                         + (f" (1 run: {r['verdict_one_run']})" if r["verdict_one_run"] != r["verdict_amortized"]
+                            else ""))
+        lines.append(f"| {sc} | {method[sc]} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def limits_rows(stability_rows) -> list[dict]:
+    """The limits a user needs, one line each, from the stability study's
+    rows: the largest stable omega_max h, the round-off floor, the long-run
+    energy change and the cost at the stiffest point of each cost sweep."""
+    out = []
+    rows = list(stability_rows or [])
+    method = {}
+    for r in rows:
+        if r["study"] in ("roundoff", "long_horizon") and r["solver"] not in ("-", "heyoka", "cvode-bdf"):
+            method.setdefault(r["scene"], r["solver"])
+    for r in rows:
+        sc, q = r["scene"], r["quantity"]
+        m = method.get(sc, "rk4")
+        if q == "largest_stable_h_s" and r["solver"] == m and r["measured"] > 0:
+            out.append({"scene": sc, "limit": f"{m} stable up to", "value": f"omega_max h = {r['theta']:.4g}",
+                        "detail": f"h = {r['measured']:.4g} s (theory {r['theory']:.4g} s)"})
+        elif q == "roundoff_floor_error":
+            turned = any(x["scene"] == sc and x["quantity"] == "error_turns_up_below_best_h" and x["measured"] == 1
+                         for x in rows)
+            out.append({"scene": sc, "limit": f"{r['solver']} round-off floor" if turned else
+                        f"{r['solver']} smallest error reached", "value": f"error {r['measured']:.2g}",
+                        "detail": f"best omega_max h = {r['theta']:.3g}; " + (
+                            "smaller steps lose to round-off" if turned else
+                            "still falling at the smallest step probed (truncation, not round-off)")})
+        elif q == "energy_drift_per_period" and r["solver"] == m and math.isfinite(r["measured"]):
+            out.append({"scene": sc, "limit": f"{m} long-run energy change",
+                        "value": f"{r['measured'] * r['periods']:.3g} relative",
+                        "detail": f"over {r['periods']:.3g} slow periods at omega_max h = {r['theta']:.3g}"})
+    for study, col in (("stiffness", "ratio"), ("mass_ratio", "mu")):
+        pts = [r for r in rows if r["study"] == study and r["quantity"] == "nfev_at_error"]
+        for sc in dict.fromkeys(r["scene"] for r in pts):
+            mine = [r for r in pts if r["scene"] == sc]
+            ratio = {}
+            for r in mine:
+                m_ = re.search(r"stiffness ratio ([0-9.e+-]+)", r["note"] or "")
+                if m_:
+                    ratio[r[col]] = float(m_.group(1))
+            if not ratio:
+                continue
+            x = max(ratio, key=lambda k: (ratio[k], -abs(math.log(k)) if k > 0 else 0))
+            at = {r["solver"]: r for r in mine if r[col] == x}
+            m = method.get(sc, next(iter(at)))
+            ok = {k: v for k, v in at.items() if v["status"] == "ok"}
+            if m not in ok or len(ok) < 2:
+                continue
+            best = min((k for k in ok if k != m), key=lambda k: ok[k]["measured"])
+            out.append({"scene": sc, "limit": f"cost at stiffness ratio {ratio[x]:.3g}",
+                        "value": f"{m} {ok[m]['measured']:.3g} RHS calls vs {best} {ok[best]['measured']:.3g}",
+                        "detail": f"{study} {col} = {x:g}, target {ok[m]['target_error']:g}"})
+    return out
+
+
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
                 seconds, n_scenes=None, timing=None) -> Path:
-    """Write ``index.md``: failures first, findings, tables, figures, errata, versions."""
+    """Write ``index.md``: the trust table, the limits and the failures first;
+    then findings, tables, figures, errata, versions."""
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
     lines.append(f"Mode: **{mode}**, {n_scenes if n_scenes is not None else len(results)} scene(s), wall time {seconds:.0f} s. Each timed run is "
@@ -193,6 +294,24 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                  f"heyoka in quadruple precision (nonlinear models)."
                  + (f" Timed runs: {timing}." if timing else ""))
     lines.append("")
+    trust = trust_lines(tables.get("cheapest"))
+    if trust:
+        lines += ["## Can the method under test be trusted here, and is it the cheapest?", "",
+                  "Per scene and target relative error (error_max / max |y_ref| over the scene's horizon): the "
+                  "step the method needs (from its error constant C h^p fitted on the scene's runs, not limited "
+                  "to its step list; capped at 0.9 of its stability limit; \"no h (round-off)\" where sqrt(n) "
+                  "eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
+                  "run that reached the target: **calls** (deterministic), time amortized over many runs (compile "
+                  "excluded) and, where it differs, for one run (compile and start-up included). A time verdict is "
+                  "`tie` unless the medians differ 3x and the repeats do not overlap. Details: "
+                  "[cheapest.csv](cheapest.csv).", ""]
+        lines += trust
+        lines.append("")
+    limits = limits_rows(tables.get("stability"))
+    if limits:
+        lines += ["## Limits: stability, round-off, long horizons, stiffness", ""]
+        lines += _md_table(["scene", "limit", "value", "detail"], limits)
+        lines.append("")
     if failures:
         lines += ["## Failures", "", f"{len(failures)} expectation(s) did not hold:", ""]
         lines += [f"- {f}" for f in failures]

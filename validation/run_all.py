@@ -339,7 +339,9 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
         from validation import figures as fig
 
         try:
-            path, sentence = fig.crossover(out_dir, pd.DataFrame(tables["cheapest"]))
+            trust = pd.DataFrame(tables["cheapest"])  # the grid shows the RHS-call verdict (deterministic)
+            trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""))
+            path, sentence = fig.crossover(out_dir, trust[["scene", "target_error", "solver"]])
             extra.append(measure.SceneTables("all scenes", drawn=[(path, sentence)]))
         except Exception as e:  # noqa: BLE001
             if atomic.is_environment_error(e) or interrupt.pending():

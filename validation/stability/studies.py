@@ -227,7 +227,7 @@ def _boundary(ctx: Context, part) -> StudyResult:
         # no stable step in theory: the bisection's tolerance 1 + STABLE_TOL sets what it finds
         expect = h_th if h_th > 0 else B.tolerance_boundary(tab, w)
         ok = abs(h_star / expect - 1) <= REL_BOUNDARY if expect > 0 else h_star == 0.0
-        res.rows.append(row(s, "boundary", meth, "largest_stable_h_s", h_star, expect, ok, note=(
+        res.rows.append(row(s, "boundary", meth, "largest_stable_h_s", h_star, expect, ok, theta=h_star * w, note=(
             f"omega_max = {w:.6g} rad/s; bisection on rho(S(h)) <= 1 + {B.STABLE_TOL:g}, rtol "
             f"{ctx.params['bisection_rtol']:g}, {probes} probes"
             + ("" if h_th > 0 else "; |R(i theta)| > 1 for every theta > 0: expected is where the growth "

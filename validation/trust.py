@@ -1,0 +1,200 @@
+"""How far to trust the method under test, per target error: the step it needs,
+what that costs, the cheapest alternative and verdicts that survive a rerun.
+
+Pure functions of run rows (``work_precision`` rows: solver, setting,
+error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status); no
+integration. :mod:`validation.measure` builds ``cheapest.csv`` with
+:func:`trust_rows`, :mod:`validation.advise` uses the same error-constant
+model to predict a step before confirming it with one run.
+
+The step for a target
+    A fixed-step method of order ``p`` has ``error_rel(h) ~ C h^p`` in its
+    asymptotic range; ``C`` is fitted on the scene's runs whose relative
+    error lies between :data:`validation.metrics.ROUNDOFF_REL` and
+    :data:`validation.metrics.PREASYMPTOTIC_REL` (the median of
+    ``err / h^p``: robust to one point off the line), and the step for a
+    target is ``(target / C)^(1/p)``, not limited to the scene's step list.
+    It is capped at :data:`STABILITY_MARGIN` times the method's stability
+    limit on the fastest mode (``h_source = "stability"``), and flagged
+    (``h_source = "round-off"``) when the round-off level ``sqrt(n) eps`` of
+    its ``n`` steps exceeds the target: no step reaches it in double
+    precision (the round-off study measured RK4's floor at 7.6e-15 after
+    7.2e3 steps, where ``sqrt(n) eps = 1.9e-14``).
+
+Cost verdict (deterministic)
+    Right-hand-side evaluations: the method's ``n`` steps times its calls per
+    step against the cheapest alternative run that reached the target
+    (heyoka: Taylor steps x order, its own cost unit; see the README).
+
+Time verdicts (survive a rerun)
+    Time of the method at the predicted step: ``a + b n`` fitted on its runs
+    (median wall times), with the spread of the repeats (min, max) of its
+    run nearest in ``n``; the alternative's median, min and max. A side wins
+    only when its slowest repeat beats the other's fastest *and* the medians
+    differ by at least :data:`TIME_MARGIN`; otherwise ``tie``. ``one_run``
+    adds each side's compile and start-up time (``compile_s``: heyoka's JIT,
+    numba's first compile); ``amortized`` leaves it out (many runs of one
+    compiled model).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
+
+__all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "error_constant", "step_for", "roundoff_level",
+           "time_model", "time_verdict", "rhs_calls", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
+
+#: A time verdict needs the medians this far apart (and the repeats disjoint):
+#: between two --quick reports on the shared 2-core machine (one repeat per
+#: run), the wall time of the same run differed by up to 2.5x (median 1.2x,
+#: 99th percentile 2.2x over 220 runs; see the README, "Verdicts").
+TIME_MARGIN = 3.0
+#: The predicted step is capped at this fraction of the stability limit.
+STABILITY_MARGIN = 0.9
+TIE = "tie"
+_EPS = float(np.finfo(float).eps)
+
+COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h_source", "n_steps",
+           "rhs", "time_s", "compile_s", "alternative", "alt_setting", "alt_error_rel", "alt_rhs",
+           "alt_time_s", "alt_compile_s", "verdict_rhs", "verdict_one_run", "verdict_amortized", "note"]
+#: Columns that are timings (differ between runs; machine-dependent); the two
+#: time verdicts are derived from them with a margin and are compared between
+#: runs on one machine only.
+TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict_one_run", "verdict_amortized"}
+
+
+def error_constant(h, err, order: int) -> float:
+    """``C`` of ``err ~ C h^order`` (median of ``err / h^order`` over the
+    asymptotic points); NaN when none is asymptotic."""
+    h, err = np.asarray(h, float), np.asarray(err, float)
+    ok = np.isfinite(err) & (err > ROUNDOFF_REL) & (err < PREASYMPTOTIC_REL) & (h > 0)
+    return float(np.median(err[ok] / h[ok] ** order)) if ok.any() else math.nan
+
+
+def roundoff_level(n_steps: float) -> float:
+    """Relative round-off after ``n_steps`` steps, ``sqrt(n) eps`` (random walk)."""
+    return math.sqrt(max(float(n_steps), 1.0)) * _EPS
+
+
+def step_for(target: float, C: float, order: int, t_span: float, h_stab: float = math.inf):
+    """``(h, source, n_steps)``: the largest step with ``C h^order <= target``
+    over ``t_span`` s, capped at :data:`STABILITY_MARGIN` x ``h_stab``.
+    ``source``: ``"error constant"``, ``"stability"``, ``"round-off"`` (the
+    target is below the round-off level at that step: ``h`` is NaN) or
+    ``"no fit"``."""
+    if not (math.isfinite(C) and C > 0):
+        return math.nan, "no fit", 0
+    h = (target / C) ** (1.0 / order)
+    source = "error constant"
+    if math.isfinite(h_stab) and h > STABILITY_MARGIN * h_stab:
+        h, source = STABILITY_MARGIN * h_stab, "stability"
+    h = min(h, t_span)
+    n = int(math.ceil(t_span / h * (1 - 1e-12)))
+    if roundoff_level(n) > target:
+        return math.nan, "round-off", n
+    return t_span / n, source, n
+
+
+def time_model(rows):
+    """``f(n) -> (median, lo, hi)`` seconds for ``n`` steps of a fixed-step
+    method from its runs (``n_steps``, ``wall_s``, ``wall_min``,
+    ``wall_max``): ``a + b n`` by least squares on the medians (``a >= 0``),
+    the spread scaled from the run nearest in ``n``."""
+    rows = [r for r in rows if r.get("n_steps", 0) > 0 and np.isfinite(r.get("wall_s", math.nan))]
+    if not rows:
+        return lambda n: (math.nan, math.nan, math.nan)
+    n = np.array([r["n_steps"] for r in rows], float)
+    w = np.array([r["wall_s"] for r in rows], float)
+    if len(rows) >= 2 and np.ptp(n) > 0:
+        b, a = np.polyfit(n, w, 1)
+        if a < 0 or b <= 0:
+            a, b = 0.0, float(np.median(w / n))
+    else:
+        a, b = 0.0, float(w[0] / n[0])
+
+    def f(steps):
+        med = a + b * steps
+        near = rows[int(np.argmin(np.abs(np.log(n) - math.log(max(steps, 1)))))]
+        lo = med * near.get("wall_min", near["wall_s"]) / near["wall_s"]
+        hi = med * near.get("wall_max", near["wall_s"]) / near["wall_s"]
+        return float(med), float(lo), float(hi)
+
+    return f
+
+
+def time_verdict(a: str, ta, b: str, tb) -> str:
+    """``a``, ``b`` or :data:`TIE` from ``(median, lo, hi)`` times: a side wins
+    when its slowest repeat beats the other's fastest and the medians differ
+    by :data:`TIME_MARGIN`."""
+    fa, fb = all(np.isfinite(ta)), all(np.isfinite(tb))
+    if not (fa and fb):
+        return a if fa else (b if fb else TIE)
+    if ta[2] < tb[1] and tb[0] >= TIME_MARGIN * ta[0]:
+        return a
+    if tb[2] < ta[1] and ta[0] >= TIME_MARGIN * tb[0]:
+        return b
+    return TIE
+
+
+def rhs_calls(row) -> float:
+    """A run's cost in right-hand-side evaluations: ``nfev``, or for a Taylor
+    method (``taylor_order > 0``, heyoka) its steps times its order."""
+    order = row.get("taylor_order", 0) or 0
+    return float(row["n_steps"] * order) if order > 0 else float(row["nfev"])
+
+
+def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
+               setting_name=lambda s: "setting") -> list[dict]:
+    """One row per target (:data:`COLUMNS`): the step ``method`` (a
+    :class:`references.registry.Method`: name, order, RHS calls per step)
+    needs over ``t_span`` s, its cost, the
+    cheapest other run of ``rows`` reaching the target (by RHS calls), and the
+    three verdicts. ``h_stab``: the method's largest stable step on the
+    model's fastest mode (inf when unknown)."""
+    ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
+    per_step, name = int(method.nfev_per_step), method.name
+    mine = [r for r in ok if r["solver"] == name]
+    first = int(getattr(method.tableau, "nfev_first_step", per_step) or per_step)
+    order = int(method.order)
+    C = error_constant([r["setting"] for r in mine], [r["error_rel"] for r in mine], order)
+    timing = time_model(mine)
+    compile_m = max((r.get("compile_s", 0.0) or 0.0 for r in mine), default=0.0)
+    out = []
+    for target in targets:
+        h, source, n = step_for(target, C, order, t_span, h_stab)
+        rhs = (first + (n - 1) * per_step) if math.isfinite(h) else math.nan
+        tm = timing(n) if math.isfinite(h) else (math.nan,) * 3
+        alts = [r for r in ok if r["solver"] != name and r["error_rel"] <= target]
+        alt = min(alts, key=lambda r: (rhs_calls(r), r["setting"]), default=None)
+        row = {"scene": scene, "target_error": target, "method": name, "order": order, "error_constant": C,
+               "h": h, "h_source": source, "n_steps": n if math.isfinite(h) else 0, "rhs": rhs,
+               "time_s": tm[0], "compile_s": compile_m, "alternative": "", "alt_setting": math.nan,
+               "alt_error_rel": math.nan, "alt_rhs": math.nan, "alt_time_s": math.nan, "alt_compile_s": math.nan}
+        if alt is None:
+            reached = math.isfinite(h)
+            row.update(verdict_rhs=name if reached else "none", verdict_one_run=name if reached else "none",
+                       verdict_amortized=name if reached else "none",
+                       note="no other run of the scene reaches the target" + ("" if reached else
+                                                                            f"; {name}: {source}"))
+            out.append(row)
+            continue
+        ta = (alt["wall_s"], alt.get("wall_min", alt["wall_s"]), alt.get("wall_max", alt["wall_s"]))
+        # one run pays the solver's first compile: the largest compile_s of its runs
+        ca = max((r.get("compile_s", 0.0) or 0.0 for r in ok if r["solver"] == alt["solver"]), default=0.0)
+        row.update(alternative=alt["solver"], alt_setting=alt["setting"], alt_error_rel=alt["error_rel"],
+                   alt_rhs=rhs_calls(alt), alt_time_s=ta[0], alt_compile_s=ca)
+        if not math.isfinite(h):
+            row.update(verdict_rhs=alt["solver"], verdict_one_run=alt["solver"], verdict_amortized=alt["solver"],
+                       note=f"{name}: {source}")
+        else:
+            row["verdict_rhs"] = name if rhs < rhs_calls(alt) else alt["solver"]
+            row["verdict_amortized"] = time_verdict(name, tm, alt["solver"], ta)
+            row["verdict_one_run"] = time_verdict(name, tuple(x + compile_m for x in tm),
+                                                  alt["solver"], tuple(x + ca for x in ta))
+            row["note"] = (f"{name} at h = {h:.3g} s ({source}); {alt['solver']} "
+                           f"{setting_name(alt['solver'])} {alt['setting']:g} reached {alt['error_rel']:.2g}")
+        out.append(row)
+    return out
