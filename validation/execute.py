@@ -307,8 +307,10 @@ def _packet_spec(scene, spec, quick):
     kp0 = spec.setting * math.pi / d
     p = wavepacket.measure_group_velocity(kp0, m=m, k=k, d=d)
     return RunRecord(spec.key, status="ok" if p.success else "failed", values={
-        "kp0": kp0, "v_measured": float(p.v_measured), "v_theory": float(p.v_theory),
-        "rel_error": float(p.rel_error), "success": bool(p.success)})
+        "kp0": kp0, "sigma": float(p.sigma), "v_measured": float(p.v_measured),
+        "v_theory": float(p.v_theory), "v_spectral": float(p.v_spectral), "rel_error": float(p.rel_error),
+        "rel_error_spectral": float(p.rel_error_spectral), "spectral_offset": float(p.spectral_offset),
+        "rk4_offset": float(p.rk4_offset), "success": bool(p.success)})
 
 
 def _linearization_spec(scene, spec, quick):

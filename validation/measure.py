@@ -28,8 +28,10 @@ ENERGY_RTOL = 1e-6
 ENERGY_ROUNDOFF_PER_STEP = 10 * np.finfo(float).eps
 #: Adaptive solvers: tightening the tolerance may not raise the error more than this.
 TOLERANCE_SLACK = 10.0
-#: Wave packets: accepted relative error of the group velocity.
-PACKET_RTOL = 0.02
+#: Wave packets: accepted |centroid speed / spectral-mean group velocity - 1|
+#: (RK4's share at h = 0.02 s is <= 1.2e-4; the explained offset of the
+#: spectral mean from v_g(kp0), 4.9e-3, would fail it).
+PACKET_RTOL = 1e-3
 #: Finite chain against the dispersion relation: accepted relative error.
 DISPERSION_RTOL = 1e-10
 
@@ -344,18 +346,23 @@ def _dispersion(scene, specs, packets, records, res, draw):
             _failed(res, s, p)
             continue
         v = p.values
-        ok = bool(v["success"] and abs(v["rel_error"]) <= PACKET_RTOL)
+        ok = bool(v["success"] and abs(v["rel_error_spectral"]) <= PACKET_RTOL)
         res.add("dispersion", {"scene": scene.name, "quantity": "wave-packet group velocity", "index": s.setting,
-                               "kp_rad_m": v["kp0"], "measured": v["v_measured"], "theory": v["v_theory"],
-                               "rel_error": v["rel_error"], "passed": ok})
+                               "kp_rad_m": v["kp0"], "measured": v["v_measured"], "theory": v["v_spectral"],
+                               "rel_error": v["rel_error_spectral"], "passed": ok})
         drawn.append((v["kp0"], v["v_measured"]))
         res.check("wave-packet group velocity", ok,
                   f"{scene.name}: wave packet at kp0 = {s.setting:g} pi/d moves at {v['v_measured']:.5g} m/s, "
-                  f"v_g = {v['v_theory']:.5g} m/s", v["rel_error"], 0.0, PACKET_RTOL)
+                  f"its spectrum's mean v_g = {v['v_spectral']:.5g} m/s", v["rel_error_spectral"], 0.0, PACKET_RTOL)
         if ok:
-            res.findings.append(f"{scene.name}: a wave packet at kp0 = {s.setting:g} pi/d integrated by RK4 moves "
-                                f"at {v['v_measured']:.5g} m/s vs v_g = {v['v_theory']:.5g} m/s "
-                                f"({100 * v['rel_error']:+.2f}%).")
+            res.findings.append(
+                f"{scene.name}: a wave packet at kp0 = {s.setting:g} pi/d integrated by RK4 moves at "
+                f"{v['v_measured']:.6g} m/s vs {v['v_spectral']:.6g} m/s, the energy-weighted mean group velocity "
+                f"of its spectrum ({v['rel_error_spectral']:+.1e}; RK4's predicted -(omega h)^4/24 is "
+                f"{v['rk4_offset']:+.1e}). That mean is {100 * v['spectral_offset']:+.3f}% off v_g(kp0) = "
+                f"{v['v_theory']:.5g} m/s: -5 d^2/(16 sigma^2) for a Gaussian packet of width "
+                f"sigma = {v['sigma'] / rec.values['d']:g} d, whose energy ~ omega^2 favours the larger, slower "
+                f"wavenumbers.")
     if draw:
         v = rec.values
         res.figures.append(FigureJob(scene.name, "dispersion", {"m": v["m"], "k": v["k"], "d": v["d"],

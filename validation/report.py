@@ -88,7 +88,9 @@ DESCRIPTIONS = {
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
                 "medians differ 3x and the repeats do not overlap (validation.trust).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
-                  "omega(kp_n), and wave packets integrated by RK4 against the group velocity.",
+                  "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "
+                  "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
+                  "v_g(kp0) (1 - 5 d^2/(16 sigma^2) + ...) (v_g(kp0) itself is quoted in the findings).",
     "modal_energy": "energy of the lowest linear modes over time (FPUT recurrence): per solver and mode, "
                     "the fraction of the initial energy at the start, its minimum (and when), and its "
                     "peak (and when): for mode 1 its largest return after that minimum, for the "
