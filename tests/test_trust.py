@@ -62,15 +62,20 @@ def test_verdicts_survive_a_rerun(tmp_path):
 
 # -- the advisor ------------------------------------------------------------------------
 def _largest_step_meeting(p, method, target, h0, h_cap):
-    """Bisection (on log h) for the largest step whose error meets ``target``."""
+    """Bisection (on log h) for the largest step whose error meets ``target``,
+    among steps that divide the output spacing (as the advisor's do: off the
+    step grid the outputs would be interpolated, a third-order error)."""
+    def meets(h):
+        return p.run(method, p.on_grid(h))[0] <= target
+
     lo, hi = h0 / 8, min(8 * h0, h_cap)
-    if p.run(method, hi)[0] <= target:
-        return hi
-    assert p.run(method, lo)[0] <= target
+    if meets(hi):
+        return p.on_grid(hi)
+    assert meets(lo)
     for _ in range(14):
         mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if p.run(method, mid)[0] <= target else (lo, mid)
-    return lo
+        lo, hi = (mid, hi) if meets(mid) else (lo, mid)
+    return p.on_grid(lo)
 
 
 FAST = ["thesis-2dof-case1", "three-blocks", "pendulums-beats"]
