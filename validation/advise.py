@@ -98,11 +98,7 @@ class _Problem:
         self.t = scene.t_eval()
         self.y_ref = np.asarray(reference_solution(self.model, self.y0, self.t).y, float)
         self.scale = float(np.max(np.abs(self.y_ref)))
-        try:
-            omega = np.asarray(self.model.modes()[0], float)
-            self.omega_max = float(np.max(np.abs(omega))) if omega.size else math.nan
-        except Exception:  # noqa: BLE001 - a model without modes: no stability cap, no aliasing check
-            self.omega_max = math.nan
+        self.omega_max = trust.fastest_omega(self.model)  # NaN: no stability cap, no aliasing check
 
     def run(self, method, setting):
         """``(error_rel, rhs calls, wall s, status)`` of one run."""
@@ -116,10 +112,7 @@ class _Problem:
         return (err if status == "ok" else math.nan), rhs, run.wall_s, status
 
     def h_stab(self, method) -> float:
-        from rk4core.stability_function import imaginary_axis_boundary
-
-        b = imaginary_axis_boundary(method.tableau)
-        return b / self.omega_max if b > 0 and math.isfinite(self.omega_max) and self.omega_max > 0 else math.inf
+        return trust.stable_step(method, self.omega_max)
 
     def on_grid(self, h) -> float:
         """The largest step <= ``h`` that divides the output spacing."""
@@ -128,12 +121,11 @@ class _Problem:
 
 
 def _fixed_candidate(p: _Problem, method, target):
-    h = p.on_grid(min(max(p.scene.h) if p.scene.h else p.scene.output_dt, 0.9 * p.h_stab(method)))
+    h = p.on_grid(min(max(p.scene.h) if p.scene.h else p.scene.output_dt,
+                      trust.STABILITY_MARGIN * p.h_stab(method)))
     for _ in range(CALIBRATION_HALVINGS + 1):
         err, rhs, wall, status = p.run(method, h)
-        if status == "ok" and metrics.ROUNDOFF_REL < err < metrics.PREASYMPTOTIC_REL:
-            break
-        if status == "ok" and err <= metrics.ROUNDOFF_REL:
+        if status == "ok" and err < metrics.PREASYMPTOTIC_REL:  # asymptotic, or at the round-off floor
             break
         h = p.on_grid(h / 2)
     C = err / h ** method.order if status == "ok" and err > metrics.ROUNDOFF_REL else math.nan
@@ -146,10 +138,8 @@ def _fixed_candidate(p: _Problem, method, target):
                 "predicted_rhs": math.inf, "source": source, "calibration": [(h, err)]}
     h_t = p.on_grid(h_t)
     n = math.ceil(p.scene.t_end / h_t * (1 - 1e-12))
-    per = method.nfev_per_step
-    first = int(getattr(method.tableau, "nfev_first_step", per) or per)
     return {"method": method.name, "setting": h_t, "predicted_error": C * h_t ** method.order,
-            "predicted_rhs": float(first + (n - 1) * per), "source": source, "calibration": [(h, err)]}
+            "predicted_rhs": float(trust.fixed_rhs(method, n)), "source": source, "calibration": [(h, err)]}
 
 
 def _adaptive_candidate(p: _Problem, method, target):

@@ -213,24 +213,9 @@ def _cheapest(scene, res):
     rows = res.tables.get("work_precision", [])
     res.tables.setdefault("cheapest", [])
     res.tables["cheapest"] += trust.trust_rows(
-        scene.name, rows, method, scene.t_end, _stable_step(scene, method), TARGETS,
+        scene.name, rows, method, scene.t_end, trust.stable_step(method, trust.fastest_omega(problem(scene)[0])),
+        TARGETS,
         setting_name=lambda sv: scene.method(sv).setting_name)
-
-
-def _stable_step(scene, method) -> float:
-    """The method's largest stable step (s) on the model's fastest mode (its
-    linearization's for a nonlinear model); inf when unknown."""
-    from rk4core.stability_function import imaginary_axis_boundary
-
-    if method.tableau is None:
-        return math.inf
-    try:
-        omega = np.asarray(problem(scene)[0].modes()[0], float)
-        b = imaginary_axis_boundary(method.tableau)
-    except Exception:  # noqa: BLE001 - no modes for this model: no stability cap
-        return math.inf
-    w = float(np.max(np.abs(omega))) if omega.size else 0.0
-    return b / w if w > 0 and b > 0 else math.inf
 
 
 def _tolerance_checks(scene, res):

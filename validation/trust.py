@@ -45,7 +45,7 @@ import numpy as np
 from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
 
 __all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "error_constant", "step_for", "roundoff_level",
-           "time_model", "time_verdict", "rhs_calls", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
+           "time_model", "time_verdict", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
 
 #: A time verdict needs the medians this far apart (and the repeats disjoint):
 #: between two --quick reports on the shared 2-core machine (one repeat per
@@ -146,6 +146,37 @@ def rhs_calls(row) -> float:
     return float(row["n_steps"] * order) if order > 0 else float(row["nfev"])
 
 
+def fixed_rhs(method, n_steps: int) -> int:
+    """RHS calls of ``n_steps`` steps of the fixed-step ``method`` (a
+    :class:`references.registry.Method`): its first step's calls, then
+    ``nfev_per_step`` each (first-same-as-last reuse counted)."""
+    per = int(method.nfev_per_step)
+    first = int(getattr(method.tableau, "nfev_first_step", per) or per)
+    return first + (int(n_steps) - 1) * per
+
+
+def fastest_omega(model) -> float:
+    """Largest angular frequency (rad/s) of ``model``'s modes (its
+    linearization's for a nonlinear model); NaN when it has none."""
+    try:
+        omega = np.asarray(model.modes()[0], float)
+    except Exception:  # noqa: BLE001 - a model without modes
+        return math.nan
+    return float(np.max(np.abs(omega))) if omega.size else math.nan
+
+
+def stable_step(method, omega_max: float) -> float:
+    """The largest stable step (s) of ``method`` on a mode of ``omega_max``
+    rad/s: its imaginary-axis boundary over ``omega_max``; inf when unknown
+    (no tableau, no modes, or no stable interval on the imaginary axis)."""
+    from rk4core.stability_function import imaginary_axis_boundary
+
+    if method.tableau is None or not (math.isfinite(omega_max) and omega_max > 0):
+        return math.inf
+    b = imaginary_axis_boundary(method.tableau)
+    return b / omega_max if b > 0 else math.inf
+
+
 def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
                setting_name=lambda s: "setting") -> list[dict]:
     """One row per target (:data:`COLUMNS`): the step ``method`` (a
@@ -155,9 +186,8 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
     three verdicts. ``h_stab``: the method's largest stable step on the
     model's fastest mode (inf when unknown)."""
     ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
-    per_step, name = int(method.nfev_per_step), method.name
+    name = method.name
     mine = [r for r in ok if r["solver"] == name]
-    first = int(getattr(method.tableau, "nfev_first_step", per_step) or per_step)
     order = int(method.order)
     C = error_constant([r["setting"] for r in mine], [r["error_rel"] for r in mine], order)
     timing = time_model(mine)
@@ -165,7 +195,7 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
     out = []
     for target in targets:
         h, source, n = step_for(target, C, order, t_span, h_stab)
-        rhs = (first + (n - 1) * per_step) if math.isfinite(h) else math.nan
+        rhs = fixed_rhs(method, n) if math.isfinite(h) else math.nan
         tm = timing(n) if math.isfinite(h) else (math.nan,) * 3
         alts = [r for r in ok if r["solver"] != name and r["error_rel"] <= target]
         alt = min(alts, key=lambda r: (rhs_calls(r), r["setting"]), default=None)
