@@ -1,73 +1,147 @@
-"""Fixed-step integration with a ``scipy.integrate.solve_ivp``-like interface.
+"""Fixed-step integration as a superset of ``scipy.integrate.solve_ivp``.
 
-``solve(fun, t_span, y0, h=..., method="rk4")`` integrates ``dy/dt = fun(t, y)``
-with a fixed step. The returned :class:`FixedStepResult` mirrors scipy's
-``OdeResult``: ``t`` has shape (m,), ``y`` has shape (n, m). A numerical failure
-(a non-finite state, or one grown past ``max_growth`` times its scale) is a
-status and a message, never an exception; a bad argument, or a ``fun`` that
-returns something other than an array of the state's shape, is a
-``ValueError`` naming it.
+``solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False,
+events=None, vectorized=False, args=None, *, h=None, n_steps=None)``
+integrates ``dy/dt = fun(t, y)`` from ``t0`` to ``t1`` with a fixed step and
+returns a :class:`FixedStepResult`, which behaves as scipy's ``OdeResult``
+(attributes and ``res["t"]``) and adds what a fixed step has to report.
+
+Conventions
+-----------
+* Shapes: ``y0`` is (n,); ``result.t`` is (m,), ``result.y`` is (n, m), as
+  ``solve_ivp``. Times are in the units of ``t_span`` (seconds for every
+  shipped model), states in those of ``y0``.
+* The grid: ``N = ceil(|t1 - t0| / |h|)`` equal steps of ``(t1 - t0) / N``
+  (relative slack 1e-12: 10 / 0.1 is 100 steps), or ``N = n_steps``. Grid
+  time ``i`` is ``t0 + i (t1 - t0) / N``, the last one ``t1`` exactly.
+  ``h`` is a magnitude; a negative ``h`` is accepted when ``t1 < t0``
+  (backward) and refused when it contradicts the span.
+* ``fun`` is never evaluated outside ``t_span`` (scipy gh-17341): stage
+  times are clamped to ``t1``.
+* Failure is a status, never an exception: a state that stops being finite,
+  or grows past ``max_growth`` times its scale, ends the run with
+  ``status = -1`` and a one-line message. A bad argument, or a ``fun`` that
+  returns something other than an array of the state's shape, is a
+  ``ValueError`` naming it, in one line.
+* Options of ``solve_ivp`` that only an adaptive or implicit method uses
+  (``rtol``, ``atol``, ``first_step``, ``max_step``, ``min_step``, ``jac``,
+  ``jac_sparsity``, ``lband``, ``uband``) are refused, each with the reason;
+  other unknown keywords are refused too (``solve_ivp`` warns and ignores
+  them).
+
+The dense output (``dense_output=True``: ``result.sol``) and the event
+location are the method's cubic Hermite interpolant between steps
+(:mod:`rk4core.dense`, :mod:`rk4core.events`); off-grid ``t_eval`` points use
+the same polynomial.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .methods import Tableau, end_slope, get_method, rk_step, start_slope
-from .validate import (check_max_growth, check_output_size, check_step_args, check_t_eval, check_t_span,
-                       check_y0, check_y_scale)
+from .methods import METHODS, Tableau, end_slope, get_method, rk_step, start_slope
+from .validate import (boolean, check_max_growth, check_output_size, check_step_args, check_step_sign, check_t_eval,
+                       check_t_span, check_y0, check_y_scale)
 
 __all__ = ["solve", "FixedStepResult", "step_count", "grid_time", "grid_times", "growth_bound",
-           "unstable_message", "check_fun_value", "nfev_count"]
+           "unstable_message", "check_fun_value", "nfev_count", "ArgsError", "REFUSED_OPTIONS"]
 
 _SLACK = 1e-12  # relative slack when rounding (t1 - t0) / h up to a whole count
 _DBL_MAX = float(np.finfo(np.float64).max)  # bound of the instability test when growth is not tested
 
+MESSAGES = {0: "The solver successfully reached the end of the integration interval.",
+            1: "A termination event occurred."}
+
+_NO_JACOBIAN = "rk4core's methods are explicit and never use a Jacobian"
+#: ``solve_ivp`` options refused by :func:`solve`, with the reason given.
+REFUSED_OPTIONS = {
+    "rtol": "an error tolerance steers an adaptive step size; rk4core.solve estimates no error",
+    "atol": "an error tolerance steers an adaptive step size; rk4core.solve estimates no error",
+    "first_step": "every step, the first included, has the one size set by h or n_steps",
+    "max_step": "every step has the one size set by h or n_steps",
+    "min_step": "every step has the one size set by h or n_steps",
+    "jac": _NO_JACOBIAN,
+    "jac_sparsity": _NO_JACOBIAN,
+    "lband": _NO_JACOBIAN,
+    "uband": _NO_JACOBIAN,
+}
+_ADAPTIVE = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
+# OdeResult's keys first, in solve_ivp's order, then the fixed-step ones.
+_SCIPY_KEYS = ("t", "y", "sol", "t_events", "y_events", "nfev", "njev", "nlu", "status", "message", "success")
+
+
+class ArgsError(TypeError, ValueError):
+    """``args`` that cannot be unpacked: a ``TypeError`` as in ``solve_ivp``
+    and a ``ValueError`` as every other bad argument of :func:`solve`."""
+
 
 @dataclass
-class FixedStepResult:
+class FixedStepResult(Mapping):
     """Outcome of :func:`solve` (and of :func:`rk4core.fast.solve_model`).
+
+    Behaves as scipy's ``OdeResult``: every field is an attribute and a key
+    (``res.t``, ``res["t"]``, ``res.keys()``, ``dict(res)``); the keys start
+    with ``solve_ivp``'s, in its order.
 
     Attributes
     ----------
     t : ndarray, shape (m,)
         Output times. Grid time ``i`` is ``t0 + i h`` and the last one is
-        ``t1`` exactly.
+        ``t1`` exactly (or the time of the terminal event that stopped the
+        run). Decreasing for a backward run.
     y : ndarray, shape (n, m)
         States at ``t`` (float64, or complex128 for a complex ``y0``); on
         failure, only the times reached before the run stopped.
+    sol : HermiteSolution or None
+        With ``dense_output=True``, the continuous solution
+        (:class:`rk4core.dense.HermiteSolution`, an ``OdeSolution``), else
+        None.
+    t_events, y_events : list of ndarray, or None
+        With ``events``: per event, the times (shape (k,)) and the states
+        (shape (k, n); shape (0,) when none) where it occurred, in the order
+        found. None without ``events``, as ``solve_ivp``.
     nfev : int
-        Right-hand-side evaluations, :func:`nfev_count`: ``nfev_first_step +
-        (N - 1) nfev_per_step`` of the method (:class:`~rk4core.methods.Tableau`)
-        for ``N`` steps attempted (the step that failed included), plus the
-        dense-output slopes no stage provided (one per step holding off-grid
-        ``t_eval`` points for a method that is not FSAL).
+        Calls of ``fun``. Without events or dense output, :func:`nfev_count`:
+        ``nfev_first_step + (N - 1) nfev_per_step`` of the method
+        (:class:`~rk4core.methods.Tableau`) for ``N`` steps attempted (the
+        step that failed included), plus the dense-output slopes no stage
+        provided (one per step holding off-grid ``t_eval`` points for a
+        method that is not FSAL). With events or dense output, the calls
+        counted as made (see :func:`solve`, Notes).
+    njev, nlu : int
+        0: no Jacobian, no LU decomposition (kept for ``solve_ivp`` code).
     h : float
-        Step actually used, ``(t1 - t0) / n_steps``.
+        Step actually used, ``(t1 - t0) / n_steps`` (negative for a backward
+        run; 0.0 when ``t1 == t0`` and no step is taken).
     n_steps : int
-        Steps completed (fewer than requested when the run stopped).
+        Steps taken: fewer than the grid's when the run failed (the failed
+        step not included) or a terminal event stopped it (the step holding
+        the event included).
     success : bool
-        ``status == 0``.
+        ``status >= 0``.
     status : int
-        0: reached ``t1``. -1: stopped as unstable -- the state became
-        non-finite, or grew past ``max_growth`` times its scale (see
-        ``reason`` and :func:`solve`, "Instability").
+        0: reached ``t1``. 1: a terminal event stopped the run. -1: stopped as
+        unstable -- the state became non-finite, or grew past ``max_growth``
+        times its scale (see ``reason`` and :func:`solve`, "Instability").
     message : str
-        One line. On failure it names the cause ("state became non-finite at
-        t = ..." or "state grew past max_growth x its ... scale (|y[i]| = ...
-        > ...) at t = ..."), the step, the step count and ``h``.
+        One line: ``solve_ivp``'s messages for statuses 0 and 1. On failure it
+        names the cause ("state became non-finite at t = ..." or "state grew
+        past max_growth x its ... scale (|y[i]| = ... > ...) at t = ..."),
+        the step, the step count and ``h``.
     t_fail : float or None
         Grid time at the end of the step that failed (the time of the first
-        rejected state); None on success.
+        rejected state); None otherwise.
     dense : str
         How ``t_eval`` points were produced: ``"grid"`` (every one is a grid
         point) or ``"hermite"`` (cubic Hermite interpolation between steps).
     method : str
     reason : str
-        ``"ok"``, ``"non-finite"`` (a component became inf or NaN) or
-        ``"growth"`` (a finite component exceeded its bound).
+        ``"ok"``, ``"event"`` (a terminal event), ``"non-finite"`` (a component
+        became inf or NaN) or ``"growth"`` (a finite component exceeded its
+        bound).
     """
 
     t: np.ndarray
@@ -82,6 +156,29 @@ class FixedStepResult:
     dense: str = "grid"
     method: str = "rk4"
     reason: str = "ok"
+    sol: object = None
+    t_events: list | None = None
+    y_events: list | None = None
+    njev: int = 0
+    nlu: int = 0
+
+    # -- the OdeResult (dict-like) face -----------------------------------------------------------
+    def _keys(self):
+        names = [f.name for f in fields(self)]
+        return [k for k in _SCIPY_KEYS if k in names] + [k for k in names if k not in _SCIPY_KEYS]
+
+    def __getitem__(self, key):
+        if isinstance(key, str) and key in self._keys():
+            return getattr(self, key)
+        raise KeyError(key)
+
+    def __iter__(self):
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+    __hash__ = None
 
 
 def nfev_count(tab: Tableau, n_attempted: int) -> int:
@@ -115,13 +212,17 @@ def step_count(t_span, h: float) -> int:
 
 def grid_time(t0: float, t1: float, step: float, i: int, n: int) -> float:
     """Time of grid point ``i`` of ``n`` steps: ``t0 + i step``, never past
-    ``t1``, and exactly ``t1`` for ``i = n``."""
-    return t1 if i >= n else min(t0 + i * step, t1)
+    ``t1`` (in the direction of ``step``), and exactly ``t1`` for ``i = n``."""
+    if i >= n:
+        return t1
+    t = t0 + i * step
+    return (t if t <= t1 else t1) if step > 0 else (t if t >= t1 else t1)
 
 
 def grid_times(t0: float, t1: float, step: float, i, n: int) -> np.ndarray:
     """:func:`grid_time` of every index in the integer array ``i``."""
-    t = np.minimum(t0 + step * np.asarray(i, dtype=np.int64), t1)
+    t = t0 + step * np.asarray(i, dtype=np.int64)
+    t = np.minimum(t, t1) if step > 0 else np.maximum(t, t1)
     t[np.asarray(i) >= n] = t1
     return t
 
@@ -164,6 +265,25 @@ def growth_bound(y0: np.ndarray, max_growth: float | None, y_scale: np.ndarray |
         bound[:] = min(max_growth * scale, _DBL_MAX)
         return bound, 0.0
     return bound, float(max_growth)
+
+
+def past_bound(y_new, bound, pending: float):
+    """``(past, pending)``: whether ``y_new`` is past its growth bound (inf
+    and NaN included), and the pending growth factor after this state.
+
+    While ``pending`` is non-zero (``y0`` was all zero and no ``y_scale``
+    was given) the first non-zero state sets every bound in place to
+    ``min(pending * max_i |y_new_i|, DBL_MAX)``; see :func:`growth_bound`.
+    """
+    a = np.abs(y_new)
+    if not (a <= bound).all():  # NOT(|y_i| <= bound_i): also inf and NaN
+        return True, pending
+    if pending:
+        norm = float(np.max(a))
+        if norm > 0.0:
+            bound[:] = min(pending * norm, _DBL_MAX)
+            return False, 0.0
+    return False, pending
 
 
 def unstable_message(y_new, bound, t_fail, i, n, step, scale_from):
@@ -225,91 +345,250 @@ def check_fun_value(value, t, shape, dtype):
     return arr
 
 
-def _checked(fun, n: int, dtype):
+def _checked(fun, n: int, dtype, *, args=(), vectorized=False, t_floor=None):
     """``fun`` with every return value checked (shape, dtype) by
     :func:`check_fun_value`; an ndarray of the right shape and kind passes
-    at the cost of three attribute tests."""
+    at the cost of three attribute tests.
+
+    ``args`` are passed after ``(t, y)``; with ``vectorized`` ``fun`` is
+    called with ``y[:, None]`` (shape (n, 1)) and a value of shape (n, 1) is
+    taken as its column, as ``solve_ivp`` does; ``t_floor`` (a backward run's
+    ``t1``) clamps the stage times from below."""
     shape = (n,)
     ok_kinds = "iufc" if np.dtype(dtype).kind == "c" else "iuf"
 
-    def checked(t, y):
-        out = fun(t, y)
+    if not args and not vectorized and t_floor is None:  # the common case, one layer
+        def checked(t, y):
+            out = fun(t, y)
+            if type(out) is np.ndarray and out.shape == shape and out.dtype.kind in ok_kinds:
+                return out
+            return check_fun_value(out, t, shape, dtype)
+
+        return checked
+
+    def checked_general(t, y):
+        if t_floor is not None and t < t_floor:
+            t = t_floor
+        if vectorized:
+            out = fun(t, y[:, None], *args)
+            if out is not None and not (type(out) is np.ndarray and out.shape == shape):
+                try:
+                    arr = np.asarray(out)
+                except (TypeError, ValueError):
+                    arr = None
+                if arr is not None and arr.shape == (n, 1):
+                    out = arr[:, 0]
+        else:
+            out = fun(t, y, *args)
         if type(out) is np.ndarray and out.shape == shape and out.dtype.kind in ok_kinds:
             return out
         return check_fun_value(out, t, shape, dtype)
 
-    return checked
+    return checked_general
 
 
-def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
-          max_growth=1e8, y_scale=None) -> FixedStepResult:
+class _Once:
+    """``fun`` for one step of a run with events or dense output whose first
+    stage was already evaluated (an interpolant needed ``f(t_i, y_i)`` before
+    step ``i`` ran): returns that value for the call at ``(t_i, y_i)`` and
+    counts the calls it passes on."""
+
+    __slots__ = ("fun", "calls", "_t", "_y", "_f")
+
+    def __init__(self, fun, t, y, f):
+        self.fun = fun
+        self.calls = 0
+        self._t, self._y, self._f = t, y, f
+
+    def __call__(self, t, y):
+        if self._y is not None:
+            hit = t == self._t and (y is self._y or np.array_equal(y, self._y))
+            f, self._y, self._f = self._f, None, None
+            if hit:
+                return f
+        self.calls += 1
+        return self.fun(t, y)
+
+
+def _refuse_options(options) -> None:
+    for name in options:
+        if name in REFUSED_OPTIONS:
+            raise ValueError(f"`{name}` does not apply to rk4core.solve: {REFUSED_OPTIONS[name]} "
+                             f"(fixed step: give h or n_steps)")
+    if options:
+        names = ", ".join(f"`{k}`" for k in options)
+        raise ValueError(f"unknown option(s) {names} for rk4core.solve (solve_ivp warns about unknown options "
+                         f"and ignores them; rk4core.solve refuses them)")
+
+
+def _check_args(args) -> tuple:
+    if args is None:
+        return ()
+    try:
+        return tuple(args)  # as solve_ivp: any iterable is unpacked
+    except TypeError:
+        shown = str(args).replace("\n", " ")[:40]
+        raise ArgsError(f"Supplied 'args' cannot be unpacked. Please supply `args` as a tuple "
+                        f"(e.g. `args=({shown},)`)") from None
+
+
+def _get_method(method) -> Tableau:
+    if isinstance(method, str) and method in _ADAPTIVE:
+        raise ValueError(f"`method` = {method!r} is an adaptive method of scipy's solve_ivp; rk4core.solve takes "
+                         f"a fixed step with one of {sorted(METHODS)} or a Tableau")
+    if isinstance(method, type):
+        raise ValueError(f"`method` must be one of {sorted(METHODS)} or a Tableau, got the class "
+                         f"{method.__name__} (solve_ivp's OdeSolver classes are adaptive)")
+    return get_method(method)
+
+
+def _output_points(t_eval, t0, step, n):
+    """Step index and fraction of every ``t_eval`` point (the arithmetic of
+    the compiled path's ``_output_points``): ``idx``, ``theta``, ``on_grid``."""
+    s = (t_eval - t0) / step
+    idx = np.clip(np.floor(s + 1e-9).astype(np.int64), 0, n)
+    theta = s - idx
+    on_grid = np.abs(theta) <= 1e-9 * np.maximum(1.0, np.abs(s))
+    theta[on_grid] = 0.0
+    return idx, theta, on_grid
+
+
+def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events=None, vectorized=False,
+          args=None, *, h=None, n_steps=None, max_growth=1e8, y_scale=None, **options) -> FixedStepResult:
     """Integrate ``dy/dt = fun(t, y)`` over ``t_span`` with a fixed step.
+
+    A superset of ``scipy.integrate.solve_ivp`` for fixed-step methods: the
+    same positional arguments and result, plus ``h`` or ``n_steps`` (one of
+    them required) and the instability bound.
 
     Parameters
     ----------
     fun : callable
-        ``fun(t, y) -> ndarray`` of shape (n,), as in ``scipy.integrate.solve_ivp``.
+        ``fun(t, y, *args) -> ndarray`` of shape (n,), as in ``solve_ivp``.
         Every return value is checked: ``None``, a scalar, a wrong shape,
         strings, or complex values for a real ``y0`` raise ``ValueError``
         naming ``fun``, what it returned and what was expected. ``fun`` is
-        never called outside ``[t0, t1]``: stage times are
-        ``min(t_i + c_j h, t1)``.
+        never called outside ``t_span``: stage times are ``t_i + c_j h``
+        clamped to ``t1``.
     t_span : (float, float)
-        ``(t0, t1)`` with ``t1 > t0`` and ``t1 - t0`` finite.
+        ``(t0, t1)``, finite, ``t1 - t0`` finite. ``t1 < t0`` integrates
+        backward; ``t1 == t0`` takes no step (``result.t = [t0]``).
     y0 : array_like, shape (n,)
         Real or complex numbers (a complex ``y0`` integrates a complex state,
-        imaginary part kept, as in ``solve_ivp``); strings and booleans are
-        refused.
-    h : float, optional
-        Largest step; the count is ``ceil((t1 - t0) / h)`` and the step used,
-        ``(t1 - t0) / n_steps``, is reported as ``result.h``.
-    n_steps : int, optional
-        Number of steps. Exactly one of ``h`` and ``n_steps`` is given; the
-        count is at most ``rk4core.validate.MAX_STEPS`` (``10**10``), and the
-        output array (``n_steps + 1`` rows, or ``len(t_eval)``, x n
-        components x 8 bytes, 16 if complex) at most
-        ``rk4core.validate.MAX_OUTPUT_BYTES`` (``2**33`` bytes, 8 GiB), else
-        ``ValueError`` naming ``h``, ``n_steps`` or ``t_eval``.
-    t_eval : array_like, optional
-        Output times inside ``t_span``, increasing. Grid points are returned
-        exactly; other points by cubic Hermite interpolation of the step
-        endpoints (third order, uses the method's own slopes; ``result.dense``
-        says which). Default: every step.
-    method : str or Tableau
-        A name of ``rk4core.METHODS`` (``"rk4"``, ``"euler"``, ``"rk38"``,
-        ``"heun3"``, ``"ralston"``, ``"symplectic-euler"``,
+        imaginary part kept, as in ``solve_ivp``); strings, booleans and an
+        empty ``y0`` are refused.
+    method : str or Tableau, optional
+        A name of ``rk4core.METHODS`` (``"rk4"``, the default, ``"euler"``,
+        ``"rk38"``, ``"heun3"``, ``"ralston"``, ``"symplectic-euler"``,
         ``"stormer-verlet"``) or a :class:`~rk4core.methods.Tableau`
-        (:func:`~rk4core.methods.make_tableau`). A partitioned method
-        (``"symplectic-euler"``, ``"stormer-verlet"``) needs ``y = [q, v]``
-        (equal halves) of a separable second-order system ``dq/dt = v``,
+        (:func:`~rk4core.methods.make_tableau`). ``solve_ivp``'s adaptive
+        names (``"RK45"``, ...) are refused naming ``method``. A partitioned
+        method (``"symplectic-euler"``, ``"stormer-verlet"``) needs ``y = [q,
+        v]`` (equal halves) of a separable second-order system ``dq/dt = v``,
         ``dv/dt = a(q, t)``: it uses only the velocity half of ``fun``'s
         value, at the stages whose acceleration it needs, and takes a stage's
         position slope to be its velocity.
+    t_eval : array_like, optional
+        Output times inside ``t_span``, in its direction (non-decreasing, or
+        non-increasing for a backward run). Grid points are returned exactly;
+        other points by the cubic Hermite interpolant of their step
+        (:mod:`rk4core.dense`; ``result.dense`` says which). Default: every
+        grid point.
+    dense_output : bool, optional
+        Also return ``result.sol``, the continuous solution
+        (:class:`rk4core.dense.HermiteSolution`, an ``OdeSolution``): one
+        cubic Hermite polynomial per step from the step's end states and
+        slopes. Order 3 as a continuous extension (local error O(h^4)),
+        hence globally fourth order with RK4, like the grid values; see
+        :mod:`rk4core.dense`. Default False.
+    events : callable or list of callables, optional
+        Event functions ``event(t, y, *args) -> float`` with the optional
+        attributes ``terminal`` (bool, or a positive int: stop at that
+        occurrence) and ``direction`` (> 0, < 0, 0), as ``solve_ivp``
+        (:mod:`rk4core.events`). A sign change over a step is located by
+        ``brentq`` on the step's dense-output polynomial; ``result.t_events``
+        and ``result.y_events`` hold the findings, and a terminal event ends
+        the run there with ``status = 1``, its time and state being the last
+        of ``result.t``, ``result.y``.
+    vectorized : bool, optional
+        As ``solve_ivp``: ``fun`` accepts ``y`` of shape (n, k). A fixed-step
+        explicit method never needs several states at once (in ``solve_ivp``
+        the flag only speeds up finite-difference Jacobians), so ``fun`` is
+        then called, as ``solve_ivp``'s explicit methods do, with one column
+        ``y[:, None]`` (shape (n, 1)) and its value of shape (n, 1) (or (n,))
+        taken as the slope. Default False: ``y`` has shape (n,).
+    args : tuple, optional
+        Extra arguments passed to ``fun`` and to every event function after
+        ``(t, y)``. As ``solve_ivp``, any iterable is unpacked (a list works);
+        one that cannot be (``args=5``) raises :class:`ArgsError`, a
+        ``TypeError`` and ``ValueError`` whose message starts as scipy's
+        ("Supplied 'args' cannot be unpacked.").
+    h : float, keyword-only
+        Largest step magnitude (> 0; a negative ``h`` is accepted for a
+        backward span and refused, naming ``h``, for a forward one). The
+        count is ``N = ceil(|t1 - t0| / |h|)`` and the step used,
+        ``(t1 - t0) / N``, is ``result.h``.
+    n_steps : int, keyword-only
+        Number of steps. Exactly one of ``h`` and ``n_steps`` is given; the
+        count is at most ``rk4core.validate.MAX_STEPS`` (``10**10``), and the
+        output array (``n_steps + 1`` rows, or ``len(t_eval)``, x n
+        components x 8 bytes, 16 if complex; with events or dense output the
+        ``2 (n_steps + 1)`` rows of states and slopes kept for the
+        interpolants) at most ``rk4core.validate.MAX_OUTPUT_BYTES``
+        (``2**33`` bytes, 8 GiB), else ``ValueError`` naming ``h``,
+        ``n_steps`` or ``t_eval``.
     max_growth : float or None, keyword-only
         Growth factor (>= 1, dimensionless) past which the run is stopped as
         unstable; default 1e8. None keeps only the non-finite test.
     y_scale : array_like, shape (n,), optional, keyword-only
         Positive finite scale of each component (units of that component),
         replacing the default scale ``max_i |y0_i|``.
+    **options
+        Refused, each with a one-line ``ValueError`` naming it: ``rtol``,
+        ``atol``, ``first_step``, ``max_step``, ``min_step`` (a fixed step has
+        no error control and one step size: give ``h`` or ``n_steps``),
+        ``jac``, ``jac_sparsity``, ``lband``, ``uband`` (explicit methods use
+        no Jacobian), and any other keyword (``solve_ivp`` warns about
+        unknown options and ignores them; here a misspelt option is an
+        error, not a silent default).
 
     Returns
     -------
     FixedStepResult
+        ``t``, ``y``, ``sol``, ``t_events``, ``y_events``, ``nfev``,
+        ``njev`` (0), ``nlu`` (0), ``status``, ``message``, ``success`` as
+        ``solve_ivp``'s ``OdeResult`` (also as keys: ``res["t"]``), plus
+        ``h``, ``n_steps``, ``t_fail``, ``dense``, ``method``, ``reason``.
 
     Notes
     -----
-    Cost. ``result.nfev`` is the number of calls of ``fun``:
-    ``nfev_count(tab, N) = tab.nfev_first_step + (N - 1) tab.nfev_per_step``
-    for ``N`` steps attempted (``N = n_steps``, plus one when a step failed),
-    plus, with off-grid ``t_eval`` points, the dense-output slopes no stage
-    gave: the end slope ``f(t_{n+1}, y_{n+1})`` once per step holding such
-    points unless the method is first-same-as-last (FSAL: its last stage is
-    that slope), and the start slope only for a method without
-    ``tab.start_stage``. A FSAL method reuses its last stage's evaluation as
-    the next step's first (so RK4: ``4 N``, Stormer-Verlet: ``N + 1``); the
-    reused value was evaluated at ``t_n + h``, which for a ``t``-dependent
-    ``fun`` may differ from the grid time ``t_{n+1}`` by an ulp.
+    Cost. ``result.nfev`` is the number of calls of ``fun``. Without events
+    and dense output it is ``nfev_count(tab, N) = tab.nfev_first_step + (N -
+    1) tab.nfev_per_step`` for ``N`` steps attempted (``N = n_steps``, plus
+    one when a step failed), plus, with off-grid ``t_eval`` points, the
+    dense-output slopes no stage gave: the end slope ``f(t_{n+1}, y_{n+1})``
+    once per step holding such points unless the method is first-same-as-last
+    (FSAL: its last stage is that slope), and the start slope only for a
+    method without ``tab.start_stage``. A FSAL method reuses its last stage's
+    evaluation as the next step's first (so RK4: ``4 N``, Stormer-Verlet:
+    ``N + 1``); the reused value was evaluated at ``t_n + h``, which for a
+    ``t``-dependent ``fun`` may differ from the grid time ``t_{n+1}`` by an
+    ulp.
 
+    With events or dense output every step's state and start slope are kept,
+    and a slope an interpolant needs before the next step has computed it
+    (a step where an event changed sign) is computed once and reused as that
+    next step's first stage. The extra calls are then only the slopes no
+    stage gives: for RK4 one, ``f(t_N, y_N)`` at the end, with
+    ``dense_output`` (or an event or off-grid ``t_eval`` point in the last
+    step); for a method without a start stage one per slope needed.
+    ``nfev`` counts the calls as made. Event functions are not counted in
+    ``nfev`` (nor are they in ``solve_ivp``).
+
+    Backward integration. ``t1 < t0`` steps with ``(t1 - t0) / N < 0``; the
+    arithmetic is that of the forward run of the time-reversed problem
+    ``dz/ds = -fun(-s, z)`` from ``-t0`` to ``-t1``, so a backward run equals
+    that forward run, reversed, to round-off (bit for bit in practice).
 
     Instability. The run stops, with ``success=False``, ``status=-1``,
     ``t_fail`` and a one-line message, at the first step whose new state has
@@ -320,68 +599,101 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
     infinity norm of the first non-zero state reached). ``result.reason`` is
     ``"non-finite"`` when a component is inf or NaN, else ``"growth"``. The
     failure is a status, never an exception, and the output holds only the
-    states accepted before it.
+    states accepted before it (``result.sol`` only their steps).
+
+    Differences from ``solve_ivp``: the step is fixed (``h`` or ``n_steps``
+    required; no ``rtol``/``atol``); unknown options are refused, not
+    warned about; an empty ``y0`` is refused; ``t1 == t0`` returns the one
+    point ``t0`` (``solve_ivp`` returns it twice); a zero of an event
+    function exactly on a grid point is recorded once (:mod:`rk4core.events`);
+    a run that becomes non-finite or grows past ``max_growth`` ends with
+    ``status = -1`` where ``solve_ivp`` would shrink its step.
+
+    Examples
+    --------
+    >>> import numpy as np, rk4core
+
+    A ball thrown up at 10 m/s; ``args`` reach the event function too:
+
+    >>> def hit_ground(t, y, g): return y[0]
+    >>> hit_ground.terminal, hit_ground.direction = True, -1
+    >>> res = rk4core.solve(lambda t, y, g: [y[1], -g], (0.0, 10.0), [0.0, 10.0], args=(9.81,),
+    ...                     events=hit_ground, dense_output=True, h=0.01)
+    >>> res.status, round(float(res.t_events[0][0]), 9), bool(res["t"][-1] == res.t_events[0][0])
+    (1, 2.038735984, True)
+    >>> round(float(res.sol(1.0)[0]), 9)  # y(1) = 10 - 9.81 / 2
+    5.095
     """
-    tab: Tableau = get_method(method)
-    t0, t1 = check_t_span(t_span)
+    _refuse_options(options)
+    tab: Tableau = _get_method(method)
+    t0, t1 = check_t_span(t_span, allow_backward=True)
     y = check_y0(y0, allow_complex=True)
     n_comp = y.shape[0]
     if tab.partitioned and n_comp % 2:
         raise ValueError(f"`y0` must have even length for {tab.name!r} (y = [q, v]), got {n_comp}")
     max_growth = check_max_growth(max_growth)
     y_scale = check_y_scale(y_scale, n_comp)
-    n = check_step_args(t0, t1, h, n_steps, step_count)
-    step = (t1 - t0) / n
+    dense_output = boolean("dense_output", dense_output)
+    vectorized = boolean("vectorized", vectorized)
+    args = _check_args(args)
+    ev = None
+    if events is not None:
+        from .events import Events
+        ev = Events(events, args)
+    n = check_step_args(t0, t1, check_step_sign(h, t0, t1), n_steps, step_count)
+    if t1 == t0:
+        n = 0
+    step = (t1 - t0) / n if n else 0.0
     t_eval = check_t_eval(t_eval, t0, t1)
     dtype = y.dtype
-    grid_out = t_eval is None
-    if grid_out:
-        check_output_size("h" if h is not None else "n_steps", h if h is not None else n_steps,
-                          n + 1, n_comp, dtype.itemsize)
+    rich = dense_output or (ev is not None and len(ev) > 0)
+    step_name, step_value = ("h", h) if h is not None else ("n_steps", n_steps)
+    if t_eval is None:
+        check_output_size(step_name, step_value, n + 1, n_comp, dtype.itemsize)
     else:
         check_output_size("t_eval", f"<{t_eval.shape[0]} times>", t_eval.shape[0], n_comp, dtype.itemsize)
-    fun = _checked(fun, n_comp, dtype)
+    if rich:
+        check_output_size(step_name, step_value, 2 * (n + 1), n_comp, dtype.itemsize)
+    fun = _checked(fun, n_comp, dtype, args=args, vectorized=vectorized, t_floor=t1 if t1 < t0 else None)
+    if n == 0:
+        return _no_step(t0, y, t_eval, dense_output, ev, tab)
     bound, pending = growth_bound(y, max_growth, y_scale)
     scale_from = "given" if y_scale is not None else "initial"
+    t_max = t1 if t1 > t0 else None  # backward: the clamp is in `fun` (t_floor)
+    if rich:
+        return _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max, t_eval,
+                           dense_output, ev)
 
     k = np.empty((tab.n_stages, n_comp), dtype=dtype)
+    grid_out = t_eval is None
     if grid_out:
         ys = np.empty((n + 1, n_comp), dtype=dtype)
         ys[0] = y
     else:
         # Index of the step each output time falls in, and its position in it.
-        s = (t_eval - t0) / step
-        idx = np.clip(np.floor(s + 1e-9).astype(np.int64), 0, n)
-        theta = s - idx
-        on_grid = np.abs(theta) <= 1e-9 * np.maximum(1.0, np.abs(s))
-        theta[on_grid] = 0.0
+        idx, theta, on_grid = _output_points(t_eval, t0, step, n)
         dense = "grid" if on_grid.all() else "hermite"
         ys = np.empty((t_eval.shape[0], n_comp), dtype=dtype)
         out_ptr, _ = _emit(ys, 0, idx, theta, 0, y, None, step, fun, t0, t1, n, None, tab)
     nfev = 0
     reuse = False  # from the second step on, a FSAL method reuses its last stage
     status, reason, t_fail = 0, "ok", None
-    message = "The solver successfully reached the end of the integration interval."
+    message = MESSAGES[0]
     # A blow-up is reported through status/message, so the floating-point
     # warnings on the way to it (overflow, inf - inf, division by a zero length)
     # are not raised, even under -W error.
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for i in range(n):
             t = grid_time(t0, t1, step, i, n)
-            y_new = rk_step(fun, t, y, step, tab, k, t_max=t1, reuse=reuse)
+            y_new = rk_step(fun, t, y, step, tab, k, t_max=t_max, reuse=reuse)
             nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
             reuse = tab.fsal
-            a = np.abs(y_new)
-            if not (a <= bound).all():  # NOT(|y_i| <= bound_i): also inf and NaN
+            past, pending = past_bound(y_new, bound, pending)
+            if past:
                 status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
                 reason, message = unstable_message(y_new, bound, t_fail, i, n, step, scale_from)
                 n_done = i
                 break
-            if pending:
-                norm = float(np.max(a))
-                if norm > 0.0:  # the first non-zero state sets the scale
-                    bound[:] = min(pending * norm, _DBL_MAX)
-                    pending = 0.0
             if grid_out:
                 ys[i + 1] = y_new
             else:
@@ -398,8 +710,183 @@ def solve(fun, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4",
         t_out = t_eval[:out_ptr]
         y_out = ys[:out_ptr].T.copy()
     return FixedStepResult(
-        t=t_out, y=y_out, nfev=nfev, h=step, n_steps=n_done, success=status == 0,
+        t=t_out, y=y_out, nfev=nfev, h=step, n_steps=n_done, success=status >= 0,
         status=status, message=message, t_fail=t_fail, dense=dense, method=tab.name, reason=reason,
+        t_events=None if ev is None else [], y_events=None if ev is None else [],
+    )
+
+
+def _no_step(t0, y, t_eval, dense_output, ev, tab) -> FixedStepResult:
+    """``t1 == t0``: no step, no call of ``fun``; the state is ``y0``."""
+    m = 1 if t_eval is None else t_eval.shape[0]
+    t_out = np.array([t0]) if t_eval is None else t_eval.copy()
+    sol = None
+    if dense_output:
+        from .dense import HermiteSolution
+        sol = HermiteSolution([t0, t0], [t0], y[None, :].copy(), np.zeros((1, y.shape[0]), dtype=y.dtype))
+    t_events = y_events = None
+    if ev is not None:
+        t_events, y_events = ev.results()
+    return FixedStepResult(
+        t=t_out, y=np.repeat(y[:, None], m, axis=1), nfev=0, h=0.0, n_steps=0, success=True, status=0,
+        message=MESSAGES[0], method=tab.name, sol=sol, t_events=t_events, y_events=y_events,
+    )
+
+
+def _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max, t_eval, dense_output,
+                ev) -> FixedStepResult:
+    """The loop of :func:`solve` with events and/or dense output: every
+    step's state and start slope are kept for the Hermite interpolants."""
+    from .dense import HermiteSolution, hermite
+
+    n_comp = y.shape[0]
+    dtype = y.dtype
+    half = n_comp // 2
+    ys = np.empty((n + 1, n_comp), dtype=dtype)
+    ys[0] = y
+    fs = np.empty((n + 1, n_comp), dtype=dtype)  # f(t_i, y_i), where have[i]
+    have = bytearray(n + 1)
+    k = np.empty((tab.n_stages, n_comp), dtype=dtype)
+    s0 = tab.start_stage if not tab.partitioned else None  # k[s0] is f(t_i, y_i) (classical)
+    nfev = 0
+    kept = None  # (t_i, y_i, f) for step i's first stage
+
+    def slope(i, y_i, keep=False):
+        """f(t_i, y_i) by one call (kept for step i's first stage if ``keep``)."""
+        nonlocal nfev, kept
+        t_i = grid_time(t0, t1, step, i, n)
+        f = fun(t_i, y_i)
+        nfev += 1
+        if keep:
+            kept = (t_i, y_i, f)
+        if tab.partitioned:  # [v, a(q)], as start_slope
+            fs[i, :half] = y_i[half:]
+            fs[i, half:] = f[half:]
+        else:
+            fs[i] = f
+        have[i] = 1
+
+    def local(i):
+        """The interpolant of step i (the same arithmetic as HermiteSolution)."""
+        a = grid_time(t0, t1, step, i, n)
+        d = grid_time(t0, t1, step, i + 1, n) - a
+        y0_, y1_, f0_, f1_ = ys[i], ys[i + 1], fs[i], fs[i + 1]
+
+        def interp(t):
+            return hermite(np.array([(t - a) / d]), d, y0_, y1_, f0_, f1_)[0]
+
+        return interp
+
+    status, reason, t_fail = 0, "ok", None
+    message = MESSAGES[0]
+    t_stop = y_stop = None
+    reuse = False
+    g = ev.values(t0, y) if ev is not None else None
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for i in range(n):
+            t = grid_time(t0, t1, step, i, n)
+            if kept is None:
+                y_new = rk_step(fun, t, y, step, tab, k, t_max=t_max, reuse=reuse)
+                nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
+            else:
+                once = _Once(fun, *kept)
+                kept = None
+                y_new = rk_step(once, t, y, step, tab, k, t_max=t_max, reuse=reuse)
+                nfev += once.calls
+            reuse = tab.fsal
+            if not have[i]:
+                if s0 is not None:
+                    fs[i] = k[s0]
+                    have[i] = 1
+                else:
+                    f0 = start_slope(tab, y, k)
+                    if f0 is not None:
+                        fs[i] = f0
+                        have[i] = 1
+            past, pending = past_bound(y_new, bound, pending)
+            if past:
+                status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
+                reason, message = unstable_message(y_new, bound, t_fail, i, n, step, scale_from)
+                n_done = i
+                break
+            ys[i + 1] = y_new
+            if tab.fsal:
+                fs[i + 1] = end_slope(tab, y_new, k)
+                have[i + 1] = 1
+            y = y_new
+            if ev is not None:
+                t_new = grid_time(t0, t1, step, i + 1, n)
+                g_new = ev.values(t_new, y_new)
+                active = ev.active(g, g_new, t)
+                if active.size:
+                    if not have[i]:
+                        slope(i, ys[i])
+                    if not have[i + 1]:
+                        slope(i + 1, y_new, keep=True)
+                    stop = ev.handle(active, local(i), t, t_new)
+                    if stop is not None:
+                        t_stop, y_stop = stop
+                        status, reason, message = 1, "event", MESSAGES[1]
+                        n_done = i + 1
+                        break
+                g = g_new
+        else:
+            n_done = n
+
+        # Segments of the dense output: the steps done; a terminal event at the
+        # start of its step ends the run on that grid point.
+        n_seg = n_done
+        if status == 1 and t_stop == grid_time(t0, t1, step, n_done - 1, n):
+            n_seg = n_done - 1
+        if dense_output:
+            for i in range(n_seg + 1):
+                if not have[i]:
+                    slope(i, ys[i])
+        dense = "grid"
+        if t_eval is None:
+            last = n_done - 1 if status == 1 else n_done
+            t_out = grid_times(t0, t1, step, np.arange(last + 1), n)
+            y_out = ys[: last + 1].T.copy()
+            if status == 1 and t_stop != t_out[-1]:
+                t_out = np.append(t_out, t_stop)
+                y_out = np.concatenate((y_out, y_stop[:, None]), axis=1)
+        else:
+            idx, theta, on_grid = _output_points(t_eval, t0, step, n)
+            if status == 1:
+                keep = (t_eval <= t_stop) if t1 > t0 else (t_eval >= t_stop)
+            else:
+                keep = (idx < n_done) | ((idx == n_done) & (theta == 0.0))
+            m = int(np.argmin(keep)) if not keep.all() else keep.shape[0]  # t_eval is monotone: a prefix
+            idx, theta, on_grid = idx[:m], theta[:m], on_grid[:m]
+            off = np.nonzero(theta > 0.0)[0]
+            for j in np.unique(idx[off]):
+                for i in (j, j + 1):
+                    if not have[i]:
+                        slope(i, ys[i])
+            y_rows = ys[idx].copy()
+            if off.size:
+                dense = "hermite"
+                io = idx[off]
+                y_rows[off] = hermite(theta[off], step, ys[io], ys[io + 1], fs[io], fs[io + 1])
+            t_out = t_eval[:m]
+            y_out = np.ascontiguousarray(y_rows.T)
+
+    sol = None
+    if dense_output:
+        nodes = grid_times(t0, t1, step, np.arange(n_seg + 1), n)
+        ts = nodes.copy()
+        if status == 1 and n_seg > 0:
+            ts[-1] = t_stop
+        if n_seg < n:  # a shorter run: keep only what the interpolants use
+            ys, fs = ys[: n_seg + 1].copy(), fs[: n_seg + 1].copy()
+        sol = HermiteSolution(ts, nodes, ys, fs)
+    t_events = y_events = None
+    if ev is not None:
+        t_events, y_events = ev.results()
+    return FixedStepResult(
+        t=t_out, y=y_out, nfev=nfev, h=step, n_steps=n_done, success=status >= 0, status=status,
+        message=message, t_fail=t_fail, dense=dense, method=tab.name, reason=reason, sol=sol,
+        t_events=t_events, y_events=y_events,
     )
 
 

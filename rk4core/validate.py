@@ -16,7 +16,8 @@ from numbers import Complex, Number, Real
 import numpy as np
 
 __all__ = [
-    "check_t_span", "check_y0", "check_model_y0", "check_step_args", "check_t_eval", "check_output_times",
+    "check_t_span", "check_y0", "check_model_y0", "check_step_args", "check_step_sign", "check_t_eval",
+    "check_output_times",
     "check_output_size", "check_max_growth", "check_y_scale", "MAX_STEPS", "MAX_OUTPUT_BYTES",
     "positive", "finite", "nonnegative", "float_list", "choice", "boolean",
 ]
@@ -86,14 +87,19 @@ def float_list(name: str, value, *, length: int | None = None, min_length: int =
     return np.asarray(items, dtype=float)
 
 
-def check_t_span(t_span):
+def check_t_span(t_span, *, allow_backward: bool = False):
+    """``(t0, t1)`` as two finite floats whose difference is finite.
+
+    ``t1 > t0`` is required unless ``allow_backward`` (:func:`rk4core.solve`:
+    ``t1 < t0`` integrates backward, ``t1 == t0`` integrates nothing, as in
+    ``scipy.integrate.solve_ivp``)."""
     try:
         t0, t1 = t_span
     except (TypeError, ValueError):
         raise ValueError(f"`t_span` must be a pair (t0, t1), got {t_span!r}") from None
     t0 = finite("t_span[0]", t0)
     t1 = finite("t_span[1]", t1)
-    if not t1 > t0:
+    if not allow_backward and not t1 > t0:
         raise ValueError(f"`t_span` must have t1 > t0, got {t_span!r}")
     if not math.isfinite(t1 - t0):
         raise ValueError(f"`t_span` = ({t0!r}, {t1!r}) is too wide: t1 - t0 overflows float64")
@@ -165,21 +171,41 @@ def check_model_y0(model, y0) -> np.ndarray:
 
 def check_step_args(t0, t1, h, n_steps, step_count) -> int:
     """The number of steps from exactly one of ``h`` (``step_count((t0, t1), h)``)
-    and ``n_steps``, at most :data:`MAX_STEPS`."""
+    and ``n_steps``, at most :data:`MAX_STEPS`.
+
+    ``h`` is the step's magnitude (> 0); for a backward span (``t1 < t0``)
+    the count is ``step_count((t0, t1), -h)``. A signed ``h`` is first
+    resolved by :func:`check_step_sign`."""
     if (h is None) == (n_steps is None):
         raise ValueError(f"give exactly one of `h` and `n_steps`, got h={h!r}, n_steps={n_steps!r}")
     if h is not None:
         h = positive("h", h)
-        ratio = (t1 - t0) / h  # may overflow to inf for a subnormal h
+        ratio = abs(t1 - t0) / h  # may overflow to inf for a subnormal h
         if not ratio <= MAX_STEPS:
             raise ValueError(f"`h` = {h!r} implies {ratio:.3g} steps over t_span = ({t0!r}, {t1!r}), "
                              f"more than MAX_STEPS = {MAX_STEPS:.0e}; use a larger h")
-        return step_count((t0, t1), h)
+        return step_count((t0, t1), h if t1 >= t0 else -h)
     if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
         raise ValueError(f"`n_steps` must be an integer >= 1, got {n_steps!r}")
     if n_steps > MAX_STEPS:
         raise ValueError(f"`n_steps` = {n_steps!r} is more than MAX_STEPS = {MAX_STEPS:.0e}")
     return int(n_steps)
+
+
+def check_step_sign(h, t0, t1):
+    """``h`` of :func:`rk4core.solve` as the step's magnitude.
+
+    ``h > 0`` is the magnitude whatever the direction of ``t_span``; a
+    negative ``h`` is accepted when it matches a backward span (``t1 < t0``)
+    or an empty one (``t1 == t0``) and refused, naming ``h``, when it
+    contradicts a forward one. Anything that is not a real number is passed
+    on unchanged (:func:`check_step_args` refuses it naming ``h``)."""
+    if not _is_number(h) or not float(h) < 0.0:
+        return h
+    if t1 > t0:
+        raise ValueError(f"`h` = {h!r} is negative but t_span = ({t0!r}, {t1!r}) runs forward (t1 > t0); "
+                         f"give h > 0 (the step's magnitude) or a negative h only for t1 < t0")
+    return -float(h)
 
 
 def check_output_size(name: str, value, rows: int, n_components: int, itemsize: int = 8) -> None:
@@ -217,6 +243,10 @@ def check_y_scale(value, n: int) -> np.ndarray | None:
 
 
 def check_t_eval(t_eval, t0, t1):
+    """Output times inside ``t_span`` (a relative slack of 1e-12 of its
+    width, then clipped to it), non-decreasing for ``t1 >= t0`` and
+    non-increasing for a backward span ``t1 < t0`` (as in ``solve_ivp``,
+    which also wants them sorted in the direction of integration)."""
     if t_eval is None:
         return None
     try:
@@ -227,12 +257,16 @@ def check_t_eval(t_eval, t0, t1):
         raise ValueError(f"`t_eval` must be a non-empty 1-D array, got shape {t.shape}")
     if not np.all(np.isfinite(t)):
         raise ValueError("`t_eval` must be finite")
-    span = t1 - t0
-    if t.min() < t0 - 1e-12 * span or t.max() > t1 + 1e-12 * span:
+    lo, hi = (t0, t1) if t1 >= t0 else (t1, t0)
+    span = hi - lo
+    if t.min() < lo - 1e-12 * span or t.max() > hi + 1e-12 * span:
         raise ValueError(f"`t_eval` must lie within `t_span` = ({t0}, {t1})")
-    if np.any(np.diff(t) < 0):
-        raise ValueError("`t_eval` must be increasing")
-    return np.clip(t, t0, t1)
+    if t1 >= t0:
+        if np.any(np.diff(t) < 0):
+            raise ValueError("`t_eval` must be increasing")
+    elif np.any(np.diff(t) > 0):
+        raise ValueError(f"`t_eval` must be decreasing, as t_span = ({t0}, {t1}) runs backward (t1 < t0)")
+    return np.clip(t, lo, hi)
 
 
 def check_output_times(t_eval) -> np.ndarray:

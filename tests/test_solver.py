@@ -330,8 +330,9 @@ BAD_ARGS = [
     ("y0 2-D", dict(h=0.1, y0=[[1.0, 2.0]]), "`y0`"),
     ("y0 empty", dict(h=0.1, y0=[]), "`y0`"),
     ("y0 text", dict(h=0.1, y0="ab"), "`y0`"),
-    ("t1 == t0", dict(h=0.1, t_span=(1.0, 1.0)), "`t_span`"),
-    ("t1 < t0", dict(h=0.1, t_span=(1.0, 0.0)), "`t_span`"),
+    # t1 == t0 (no step) and t1 < t0 (backward) are valid since issue 15: tests/test_solve_ivp.py
+    ("h negative, span forward", dict(h=-0.1, t_span=(0.0, 1.0)), "`h` = -0.1 is negative"),
+    ("t_span three items", dict(h=0.1, t_span=(0.0, 1.0, 2.0)), "`t_span`"),
     ("t_span inf", dict(h=0.1, t_span=(0.0, np.inf)), "t_span"),
     ("t_span scalar", dict(h=0.1, t_span=1.0), "`t_span`"),
     ("t_eval below", dict(h=0.1, t_eval=[-0.1, 0.5]), "`t_eval`"),
