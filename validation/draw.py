@@ -12,7 +12,10 @@ __all__ = ["draw", "sweep_jobs", "sweep_figure"]
 
 
 def draw(job, out_dir, scenes_by_name) -> list:
-    """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``.
+    """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``, each
+    sentence a :class:`validation.figures.Caption` (a ``str`` with the
+    scene-specific facts; ``sentence.kind`` keys the figure kind's reading
+    guide in ``validation.figures.GENERIC_CAPTIONS``).
     The scene's own methods (``[methods.NAME]``) are drawn in their registry styles."""
     from . import figures as f
 
@@ -52,12 +55,13 @@ def _draw(job, out_dir, scenes_by_name) -> list:
 
 #: Quantities drawn against a swept parameter: (table, column, per-curve keys, y label, log y).
 SWEEP_QUANTITIES = (
-    ("accuracy", "error_rel", ("solver", "setting"), "max error / max |y_ref|", True),
-    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / |E0|", True),
+    ("accuracy", "error_rel", ("solver", "setting"),
+     "relative error\nmax |y - y_ref| / max |y_ref|", True),
+    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / |E0| (relative)", True),
     ("accuracy", "nfev", ("solver", "setting"), "RHS evaluations", True),
     ("convergence", "observed_order", ("solver", "quantity"), "observed order", False),
     ("modes", "omega_rad_s", ("mode",), "omega (rad/s)", True),
-    ("linearization", "error_rel_q", (), "linear model error / amplitude", True),
+    ("linearization", "error_rel_q", (), "linear model position error / amplitude (relative)", True),
 )
 
 
@@ -101,29 +105,38 @@ def sweep_jobs(scenes, results) -> list:
 
 def sweep_figure(out_dir, base, param, quantity, ylabel, logy, curves):
     """A measured quantity against a swept parameter (log x when the values
-    span more than a decade), one line per curve."""
+    span more than a decade), one line per curve; the legend (up to 12
+    curves) sits below the axes. Returns ``(Path, Caption)``, ``kind``
+    ``"sweep"``: the sentence names the points and the quantity's range."""
     from . import figures as f
 
     fig = f._new_figure(f.SIZE)
     f._suptitle(fig, f"{base}: {quantity} against {param}")
     ax = fig.subplots()
-    xs_all = []
+    xs_all, ys_all, seen = [], [], {}
     for label, pts in curves.items():
         x, y = np.array(pts, float).T
         xs_all += list(x)
-        color, marker = f.solver_style(label.split(",")[0])
-        ax.plot(x, y, marker=marker, color=color if color != "#7f7f7f" else None, lw=1.2, ms=4, label=label)
-    xs = np.array(xs_all)
-    if xs.size and np.all(xs > 0) and xs.max() / xs.min() > 10:
-        ax.set_xscale("log")
-    if logy and all(np.all(np.array(p)[:, 1] > 0) for p in curves.values()):
-        ax.set_yscale("log")
+        ys_all += list(y)
+        solver = label.split(",")[0]
+        color, marker = f.solver_style(solver)
+        ls = f._LINESTYLES[seen.get(solver, 0) % len(f._LINESTYLES)]  # a solver's settings told apart
+        seen[solver] = seen.get(solver, 0) + 1
+        ax.plot(x, y, marker=marker, color=color if color != "#7f7f7f" else None, lw=1.2, ms=4, ls=ls, label=label)
+    xs, ys = np.array(xs_all), np.array(ys_all)
+    log_x = bool(xs.size and np.all(xs > 0) and xs.max() / xs.min() > 10)
+    log_y = bool(logy and all(np.all(np.array(p)[:, 1] > 0) for p in curves.values()))
+    if log_x or log_y:
+        f._log_axes(ax, x=log_x, y=log_y)
+    ax.grid(True, which="major", alpha=0.3)
     ax.set_xlabel(param)
     ax.set_ylabel(ylabel)
-    ax.grid(True, which="both", alpha=0.3)
-    if len(curves) <= 12:
-        ax.legend(fontsize=7, loc="best", framealpha=0.8)
+    if len(curves) <= 12:  # more would crush the axes; the sentence says so
+        f._legend_below(fig)
     path = f._save(fig, out_dir, f"{f.slug(base)}_sweep_{f.slug(param)}_{f.slug(quantity)}")
-    sentence = (f"{quantity} against the swept parameter {param} over the points of the sweep {base}: "
-                f"one line per {'solver and setting' if len(curves) > 1 else 'quantity'}.")
-    return path, sentence
+    fin = ys[np.isfinite(ys)]
+    sentence = (f"{base}: {quantity} over {len(set(xs_all))} values of {param} ({xs.min():g} to {xs.max():g}), "
+                f"{len(curves)} curve(s), values {fin.min():.3g} to {fin.max():.3g}"
+                + ("" if len(curves) <= 12 else " (too many curves for a key: colour = solver, see the table)") + "."
+                if fin.size else f"{base}: no finite {quantity} to draw against {param}.")
+    return path, f.Caption(sentence, "sweep")

@@ -2,10 +2,14 @@
 
 Every public function draws one kind of figure from arrays or DataFrames,
 writes a PNG into ``out_dir`` and returns ``(path, sentence)``, where
-``sentence`` is one line telling a reader what to read from the figure (it goes
-into ``index.md``). Nothing here integrates, fits or measures: the runner
-computes, this module draws. The only numbers derived here are display aids
-(axis windows, SI prefixes, a running maximum, slope guides).
+``sentence`` is a :class:`Caption`: one line (a ``str``) of what is specific
+to the data drawn, whose ``kind`` keys the figure kind's generic reading
+guide in :data:`GENERIC_CAPTIONS` (``index.md`` prints that once per kind).
+Nothing here integrates, fits or measures: the runner computes, this module
+draws. The only numbers derived here are display aids (axis windows, SI
+prefixes, a running maximum, slope guides) and the facts the sentences quote
+from the data drawn (a path's principal axes, the initial state's modal
+content, peak values, ranges).
 
 Conventions
 -----------
@@ -16,11 +20,23 @@ Conventions
 * One colour and marker per solver across all figures (:data:`SOLVER_STYLE`);
   the exact/reference solution is black.
 * Sizes: :data:`SIZE` (7 x 4.5 in) at :data:`DPI` (120), i.e. 840 x 540 px;
-  the dispersion figure is :data:`SIZE_TALL` (7 x 6 in, 840 x 720 px).
+  the dispersion figure is :data:`SIZE_TALL` (7 x 6 in, 840 x 720 px); a
+  figure whose key needs more than :data:`_LEGEND_ROWS` rows grows by them.
 * File names are lowercase with underscores and start with the scene name made
   so (:func:`slug`): ``thesis-2dof-case1`` -> ``thesis_2dof_case1_displacement.png``.
 * Units are SI; small quantities get an SI prefix on the axis label (mm, mm/s,
   mrad) so tick labels stay plain numbers.
+* One style for every figure, the stability study's included
+  (:mod:`validation.stability.plots` draws with these helpers): a title on
+  every figure (:func:`_suptitle`), no text under :data:`FONT_MIN` (8 pt),
+  legends below the axes (:func:`_legend_below`, never over data), log axes
+  by :func:`_log_axes` (no minor tick labels; 1-2-5 ticks on short spans), and
+  :func:`_save` thins any axis whose tick labels still overlap after drawing.
+* Sentences: each function returns, beside its PNG, a :class:`Caption` (a
+  ``str``) holding only what is specific to the data drawn (numbers, solvers,
+  what the data shows), computed from the data; ``caption.kind`` names the
+  figure kind, whose reading guide, the same for every scene, is
+  ``GENERIC_CAPTIONS[caption.kind]``.
 
 References
 ----------
@@ -30,7 +46,6 @@ the corrected physics listed in DESIGN.md's errata.
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import re
 import textwrap
@@ -44,11 +59,15 @@ from PIL import Image
 from references.registry import BUILTIN, UNDER_TEST, resolve
 
 __all__ = ["scene_figures", "work_precision", "convergence", "energy_error", "dispersion",
-           "crossover", "slug", "SOLVER_STYLE", "SIZE", "SIZE_TALL", "DPI"]
+           "crossover", "slug", "SOLVER_STYLE", "SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "Caption",
+           "GENERIC_CAPTIONS"]
 
 SIZE = (7.0, 4.5)        # inches
 SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
 DPI = 120
+FONT_MIN = 8.0           # pt: no text smaller, anywhere
+FONT_SMALL = 8.0         # pt: legends, panel titles, annotations
+FONT_TITLE = 10.0        # pt: figure titles
 
 #: colour and marker of each built-in method (``references.registry``), the
 #: same in every figure; a scene's own methods get theirs from the registry
@@ -65,9 +84,101 @@ _LINESTYLES = ["-", "--", ":", "-."]
 _GUIDE_STYLES = ["--", ":", "-.", (0, (5, 1, 1, 1))]
 LONG_CHAIN = 10          # chains with more masses get a space-time image
 _ZOOM_PERIODS = 3        # the zoom panel shows this many slowest periods
+MAX_MODAL_DOF = 500      # modal content (a dense eigenproblem) only up to this size
+PX_PER_PERIOD = 8        # a space-time image needs this many pixels per period of the fastest excited mode
 
-# Set by tests to inspect each figure just before it is written.
+# Set by tests to inspect each figure just before it is written (drawn, layout done).
 _SAVE_HOOK = None
+
+
+class Caption(str):
+    """A figure's sentence for ``index.md``: a plain ``str`` with only what is
+    specific to the data drawn, plus ``kind``, the key of the figure kind's
+    generic reading guide in :data:`GENERIC_CAPTIONS`."""
+
+    def __new__(cls, text, kind):
+        if kind not in GENERIC_CAPTIONS:
+            raise ValueError(f"`kind` must be one of {', '.join(GENERIC_CAPTIONS)}, got {kind!r}")
+        obj = super().__new__(cls, text)
+        obj.kind = kind
+        return obj
+
+    def __reduce__(self):  # pickled across worker processes with its kind
+        return (Caption, (str(self), self.kind))
+
+
+#: One reading guide per figure kind, the same for every scene (``index.md``
+#: prints it once per kind); a function's returned :class:`Caption` holds the
+#: scene-specific sentence and ``caption.kind`` its key here.
+GENERIC_CAPTIONS = {
+    # scene trajectories (scene_figures)
+    "displacement": "Displacement of each mass (or point) against time: the whole run above and, when the run is "
+                    "longer than six periods of the slowest mode of the linearization, its first three periods "
+                    "below; later curves are thinner and dashed so coinciding curves stay visible.",
+    "velocity": "Velocity of each mass (or point) against time, laid out like the displacement figure.",
+    "springs": "Elongation of each drawn spring (its length minus its natural length) against time, laid out like "
+               "the displacement figure.",
+    "trajectory": "Path of the point in the x-y plane on equal axes (same scale in x and y); the black dot is the "
+                  "start.",
+    "paths": "Displacement path of each mass about its rest position, one panel per mass, equal axes and the same "
+             "scale in every panel (with more than 12 points: one panel of every point in the plane, anchors as "
+             "black crosses).",
+    "angles": "Angles against time, laid out like the displacement figure.",
+    "coordinates": "Generalized coordinates against time, laid out like the displacement figure.",
+    "space_time": "Space-time image of a long chain: mass index against time, colour = displacement (or velocity), "
+                  "red positive, blue negative, colours clipped at the 99.5th percentile; a wave or packet shows as "
+                  "a band whose slope is its speed in masses per second. When the whole run has too many "
+                  "oscillations for the image's pixels, the signed image shows the first seconds only and a "
+                  "second panel the amplitude max |value| per time bin over the whole run.",
+    "work_precision": "Error against wall time (left) and against right-hand-side evaluations (right), log-log, "
+                      "one line per solver: the lowest curve at a given cost is the cheapest solver for that "
+                      "accuracy, and where curves cross the best choice changes. A solver whose settings all cost "
+                      "about the same (within a factor 1.5) is drawn as points labelled with their setting instead "
+                      "of a line. heyoka makes no RHS calls: it is placed at Taylor steps x order. The error is the largest "
+                      "|y - y_ref| over output times and state components, over max |y_ref| (relative).",
+    "convergence": "Error against step size h, log-log, with slope guides (error ~ h^p for each expected order p, "
+                   "under the solver's points): a method parallel to its guide has that order; filled points are "
+                   "the range the order was fitted over, hollow ones lie outside it (pre-asymptotic or at the "
+                   "round-off floor). Error as in the work-precision figure.",
+    "energy_error": "Relative energy error |E(t) - E0| / |E0| against time, log-log (thick: running maximum, thin: "
+                    "instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set by "
+                    "(omega h)^6/72 per step), a flat band a bounded error (symplectic methods).",
+    "modal_energy": "Energy in each of the lowest linear modes as a fraction of the initial energy, against time: "
+                    "started in mode 1, an FPUT chain shares its energy with a few low modes and then returns "
+                    "almost all of it to mode 1 (the recurrence); a solver that reproduces the return time and "
+                    "height keeps the physics.",
+    "dispersion": "omega(kp), phase velocity omega/kp and group velocity d omega/d kp of the monatomic lattice over "
+                  "two Brillouin zones (the first shaded); dots: a finite chain's eigenfrequencies, which should sit "
+                  "on the curve; circles: group velocities measured from RK4 wave packets, to compare with v_g "
+                  "(not omega/kp, erratum 7).",
+    "crossover": "For each scene (row) and target relative error (column), the solver that reaches the target "
+                 "with the fewest right-hand-side evaluations, a count that is the same on every rerun (cell "
+                 "colour and its count, key below; 'none': no solver reached the target with the "
+                 "scene's settings): read where RK4 stops being the cheapest choice as the target tightens.",
+    "sweep": "A measured quantity against a swept scene parameter, one line per solver and setting (or per "
+             "quantity), over the points of the sweep.",
+    "stability_growth": "Amplitude growth factor per step of the fastest mode against omega_max h: lines are the "
+                        "methods' stability functions |R(i omega h)|, hollow markers are measured from integrated "
+                        "runs; a method is stable while its growth stays <= 1 (dotted: each method's boundary).",
+    "stability_drift": "Energy loss (left) and phase lag (right) per step against theta = omega h, log-log: the "
+                       "exact curves from the method's stability function (solid), their leading-order terms "
+                       "(dotted) and values measured from integrated runs (hollow markers).",
+    "stability_long_energy": "Relative energy error over the long horizon, log-log (thick: running maximum, thin: "
+                             "instantaneous): the fixed-step method dissipates steadily (slope 1) until its fast "
+                             "mode is gone, the adaptive references stay near their tolerances.",
+    "stability_roundoff": "Error after one slow period against the step, log-log: the truncation error falls "
+                          "along the slope-p guide down to the best step (star), below which accumulated round-off "
+                          "makes the error grow again.",
+    "stability_cost": "Cost of reaching the target error in one slow period (RHS evaluations left, wall time "
+                      "right) against the swept ratio, log-log, one curve per solver: the explicit methods' cost "
+                      "grows with omega_max, BDF's stays flat when the fast mode is not excited; missing points "
+                      "were skipped for cost or did not reach the target (stability.csv says which).",
+    "stability_large_n": "Wall time per step (left) and peak memory (right) against the chain length N, log-log: "
+                         "slopes near the dotted slope-1 line mean O(N) work and storage.",
+    "stability_amplitude": "Relative error of the linearized (small-oscillation) model against the initial "
+                           "amplitude, log-log, beside the slope-2 theory ((r/l)^2): read off the largest amplitude "
+                           "at which the cheap model is good enough.",
+}
 
 
 # -- shared helpers -------------------------------------------------------------
@@ -123,24 +234,153 @@ def _new_figure(size=SIZE, **kw) -> Figure:
 
 
 def _suptitle(fig, text):
-    fig.suptitle("\n".join(textwrap.wrap(str(text), 90)) or None, fontsize=10)
+    fig.suptitle("\n".join(textwrap.wrap(str(text), 90)) or None, fontsize=FONT_TITLE)
+
+
+_LEGEND_ROWS = 5  # legend rows below the axes that fit a figure of its nominal height
+
+
+def _legend_below(fig, handles=None, labels=None, *, ncol=None, title=None, width=None):
+    """The figure's legend below its axes (``outside lower center``, so it
+    never covers data), :data:`FONT_SMALL`, as many columns as fit the width."""
+    if handles is None:
+        handles, labels = [], []
+        for ax in fig.axes:
+            for h, lab in zip(*ax.get_legend_handles_labels()):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+    if not handles:
+        return None
+    if ncol is None:
+        longest = max(len(str(lab)) for lab in labels)
+        # ~0.62 em per character at 8 pt, plus the handle and the gap (~4 em)
+        per_col = (longest * 0.62 + 4.0) * FONT_SMALL / 72.0
+        avail = (width or fig.get_size_inches()[0]) - 0.3
+        ncol = max(1, min(len(handles), int(avail // per_col)))
+    rows = -(-len(handles) // ncol)
+    if rows > _LEGEND_ROWS:  # a tall key would squeeze the axes: the figure grows by its extra rows
+        w, h = fig.get_size_inches()
+        fig.set_size_inches(w, h + (rows - _LEGEND_ROWS) * 1.45 * FONT_SMALL / 72.0)
+    return fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=FONT_SMALL,
+                      frameon=False, title=title, title_fontsize=FONT_SMALL if title else None)
+
+
+def _log_tick_text(v, _pos=None):
+    """Plain numbers from 1e-3 to 1e6, ``a x 10^b`` outside."""
+    if not np.isfinite(v) or v <= 0:
+        return ""
+    if 1e-3 <= v < 1e6:
+        return f"{v:g}"
+    e = math.floor(math.log10(v) + 1e-9)
+    m = v / 10.0 ** e
+    return f"$10^{{{e}}}$" if abs(m - 1.0) < 1e-6 else f"${m:g}\\times10^{{{e}}}$"
+
+
+def _log_axes(ax, x=True, y=True):
+    """Log scales with the figures' grid and no minor tick labels; an axis
+    spanning under two decades gets major ticks at 1, 2, 5 x 10^k. Call after
+    the data are plotted (the span is read from the limits)."""
+    from matplotlib import ticker
+
+    for on, axis, set_scale, lim in ((x, ax.xaxis, ax.set_xscale, ax.get_xlim),
+                                     (y, ax.yaxis, ax.set_yscale, ax.get_ylim)):
+        if not on:
+            continue
+        set_scale("log")
+        lo, hi = sorted(lim())
+        axis.set_minor_formatter(ticker.NullFormatter())
+        if lo > 0 and math.log10(hi / lo) < 2:
+            axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(ticker.FuncFormatter(_log_tick_text))
+    ax.grid(which="major", alpha=0.3)
+    ax.grid(which="minor", alpha=0.1)
+
+
+def _tick_labels(ax, axis, renderer):
+    """Window extents of ``axis``'s visible, non-empty tick labels (major and
+    minor) whose tick lies inside the axes."""
+    box = ax.get_window_extent(renderer)
+    lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
+    out = []
+    for lab in axis.get_ticklabels(minor=False) + axis.get_ticklabels(minor=True):
+        if not lab.get_visible() or not lab.get_text().strip():
+            continue
+        e = lab.get_window_extent(renderer)
+        c = (e.x0 + e.x1) / 2 if axis is ax.xaxis else (e.y0 + e.y1) / 2
+        if lo - 1.0 <= c <= hi + 1.0:
+            out.append(e)
+    return out
+
+
+def _overlapping(extents, pad=0.5) -> bool:
+    """True when two of the boxes overlap by more than ``pad`` pixels."""
+    for i, a in enumerate(extents):
+        for b in extents[i + 1:]:
+            if min(a.x1, b.x1) - max(a.x0, b.x0) > pad and min(a.y1, b.y1) - max(a.y0, b.y0) > pad:
+                return True
+    return False
+
+
+def _thin_ticks(ax, axis, n_labels):
+    """Fewer tick labels on ``axis``: first none on minor ticks, then about
+    half the major ones."""
+    from matplotlib import ticker
+
+    if not isinstance(axis.get_minor_formatter(), ticker.NullFormatter) and axis.get_ticklabels(minor=True):
+        axis.set_minor_formatter(ticker.NullFormatter())
+        return
+    n = max(2, n_labels // 2)
+    if axis.get_scale() == "log":
+        axis.set_major_locator(ticker.LogLocator(base=10, numticks=n + 1))
+        axis.set_major_formatter(ticker.FuncFormatter(_log_tick_text))
+    elif axis.get_scale() == "linear":
+        axis.set_major_locator(ticker.MaxNLocator(nbins=n))
+
+
+def _finish(fig):
+    """Draw ``fig`` (layout included) with the house rules enforced: no text
+    under :data:`FONT_MIN`, white background, and axes whose tick labels
+    overlap thinned until they do not (at most three redraws)."""
+    from matplotlib.text import Text
+
+    fig.patch.set_facecolor("white")
+    fig.patch.set_alpha(1.0)
+    for t in fig.findobj(Text):
+        if t.get_fontsize() < FONT_MIN:
+            t.set_fontsize(FONT_MIN)
+    fig.canvas.draw()
+    for _ in range(3):
+        renderer = fig.canvas.get_renderer()
+        crowded = []
+        for ax in fig.axes:
+            if not ax.get_visible():
+                continue
+            for axis in (ax.xaxis, ax.yaxis):
+                ext = _tick_labels(ax, axis, renderer)
+                if _overlapping(ext):
+                    crowded.append((ax, axis, len(ext)))
+        if not crowded:
+            return
+        for ax, axis, n in crowded:
+            _thin_ticks(ax, axis, n)
+        fig.canvas.draw()
 
 
 def _save(fig, out_dir, stem) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{stem}.png"
+    _finish(fig)
     if _SAVE_HOOK is not None:
         _SAVE_HOOK(fig, path)
-    # Fixed canvas (no bbox_inches), so the pixel size is size * DPI. Rendered to
-    # RGB, then stored as a 256-colour palette PNG: a third of the bytes, and
-    # plots have few colours.
-    fig.patch.set_alpha(1.0)
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=DPI, format="png", facecolor="white")
-    with Image.open(buf) as im:
-        pal = im.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-        pal.save(path, format="PNG", optimize=True)
+    # Fixed canvas (no bbox_inches), so the pixel size is size * DPI. The canvas
+    # drawn by _finish is stored as a 256-colour palette PNG: a third of the
+    # bytes, and plots have few colours.
+    w, h = fig.canvas.get_width_height()
+    rgba = Image.frombuffer("RGBA", (w, h), bytes(fig.canvas.buffer_rgba()), "raw", "RGBA", 0, 1)
+    pal = rgba.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    pal.save(path, format="PNG", optimize=True)
     return path
 
 
@@ -160,6 +400,11 @@ def _fmt(x) -> str:
     return f"{x:.3g}"
 
 
+def _fmt_t(x) -> str:
+    """A time in s: four significant digits, whole seconds from 1000 s, no exponent below 1e6."""
+    return f"{x:.4g}" if abs(x) < 1000 else (f"{x:.0f}" if abs(x) < 1e6 else f"{x:.3g}")
+
+
 def _check_trajectory(model, t, y):
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -170,18 +415,163 @@ def _check_trajectory(model, t, y):
     return t, y
 
 
-def _zoom_end(model, t):
+def _modes_of(model):
+    """``(omega, phi)`` of the model's linearization, or None when it has none
+    (or is too large for a dense eigenproblem in a figure)."""
+    if model.n_dof > MAX_MODAL_DOF:
+        return None
+    try:
+        omega, phi = model.modes()
+    except (NotImplementedError, ValueError, AttributeError, TypeError, np.linalg.LinAlgError):
+        return None
+    omega, phi = np.asarray(omega, dtype=float), np.asarray(phi, dtype=float)
+    if omega.ndim != 1 or phi.shape != (model.n_dof, omega.size) or not np.isfinite(omega).all():
+        return None
+    return omega, phi
+
+
+def _zoom_end(modes, t):
     """End of a window of ``_ZOOM_PERIODS`` periods of the slowest non-zero mode
     of the linearization, or None when that covers most of the horizon."""
-    try:
-        omega, _ = model.modes()
-    except (NotImplementedError, ValueError, np.linalg.LinAlgError):
+    if modes is None:
         return None
-    omega = omega[omega > 0]
+    omega = modes[0][modes[0] > 0]
     if omega.size == 0:
         return None
     t_end = t[0] + _ZOOM_PERIODS * 2.0 * math.pi / float(omega.min())
     return t_end if t_end < t[0] + 0.5 * (t[-1] - t[0]) else None
+
+
+def _modal_energies(model, modes, y):
+    """Energy in each linear mode, shape (modes,) or (modes, m) for states
+    ``y`` of shape (2n,) or (2n, m): ``E_k = (b_k^2 + omega_k^2 a_k^2) / 2``
+    with ``a = phi^T M q``, ``b = phi^T M v`` (``phi`` mass-normalised)."""
+    omega, phi = modes
+    n = model.n_dof
+    mass = np.asarray(model.mass, dtype=float)
+    y = np.asarray(y, dtype=float)
+    col = y.ndim == 1
+    y2 = y[:, None] if col else y
+    a, b = phi.T @ (mass[:, None] * y2[:n]), phi.T @ (mass[:, None] * y2[n:])
+    e = 0.5 * (b ** 2 + omega[:, None] ** 2 * a ** 2)
+    return e[:, 0] if col else e
+
+
+def _modal_fractions(model, modes, y0):
+    """Fraction of the initial state's energy in each linear mode (ascending
+    frequency); None without modes."""
+    if modes is None or np.asarray(model.mass).shape != (model.n_dof,) or not np.isfinite(y0).all():
+        return None
+    e = _modal_energies(model, modes, y0)
+    total = float(e.sum())
+    return e / total if np.isfinite(total) and total > 0 else None
+
+
+def _share_over_run(model, modes, t, y, idx, max_points=4000):
+    """``(lowest share, its time)`` of the modes ``idx`` in the linear modal
+    energy along the run (finite states, at most ``max_points`` of them)."""
+    step = max(1, t.size // max_points)
+    ts, ys = t[::step], y[:, ::step]
+    ok = np.isfinite(ys).all(axis=0)
+    if not ok.any():
+        return None
+    e = _modal_energies(model, modes, ys[:, ok])
+    tot = e.sum(axis=0)
+    share = np.where(tot > 0, e[idx].sum(axis=0) / np.where(tot > 0, tot, 1.0), 1.0)
+    i = int(np.argmin(share))
+    return float(share[i]), float(ts[ok][i])
+
+
+def _modal_text(model, modes, t, y) -> tuple[str, bool]:
+    """``(text, single)``: what the modal content of the run says about the
+    motion drawn -- the initial state's modes (one frequency, or which modes
+    and whether they beat) and, for a one-frequency start, whether that mode
+    keeps its energy over the run (a nonlinear model may share it) -- and
+    whether the motion drawn is one frequency throughout. Modes of equal
+    frequency count as one frequency. ``("", False)`` without modes."""
+    frac = _modal_fractions(model, modes, y[:, 0])
+    if frac is None:
+        return "", False
+    omega = modes[0]
+    groups = []  # [omega, fraction, first mode number, mode indices]
+    for k in np.argsort(omega, kind="stable"):
+        if groups and abs(omega[k] - groups[-1][0]) <= 1e-9 * max(1.0, omega[k]):
+            groups[-1][1] += frac[k]
+            groups[-1][3].append(int(k))
+        else:
+            groups.append([float(omega[k]), float(frac[k]), int(k) + 1, [int(k)]])
+    groups.sort(key=lambda g: -g[1])
+    lin = "" if getattr(model, "linear", False) else " of the linearization"
+    w, f, k, idx = groups[0]
+    if f >= 0.999:
+        start = (f"the initial state is {100 * f:.1f}% rigid motion{lin} (zero frequency)" if w == 0.0 else
+                 f"the initial state is {100 * f:.1f}% mode {k}{lin} (omega = {w:.4g} rad/s)")
+        low = _share_over_run(model, modes, t, y, idx)
+        if low is None or low[0] >= 0.99:
+            kept = f", which keeps at least {100 * low[0]:.1f}% of the energy over the run" if low else ""
+            return f"{start}{kept}: one frequency, so no beats and no exchange between modes", True
+        return (f"{start}, but its share of the linear modal energy falls to {100 * low[0]:.0f}% at t = "
+                f"{_fmt_t(low[1])} s: the nonlinearity passes energy to other modes"), False
+    main = [g for g in groups if g[1] >= 0.01]
+    if len(main) > 4:  # a broadband start: say how broad, not which modes
+        w_sig = [g[0] for g in main]
+        return (f"the initial energy is spread over {len(groups)} modes{lin} ({len(main)} of them hold >= 1% each, "
+                f"the largest {100 * f:.1f}%; {min(w_sig):.3g} to {max(w_sig):.3g} rad/s)"), False
+    text = (f"initial energy by mode{lin}: "
+            + ", ".join(f"mode {k} ({w:.3g} rad/s) {100 * f:.1f}%" for w, f, k, _ in main))
+    if len(main) >= 2 and main[1][1] >= 0.1:
+        dw = abs(main[0][0] - main[1][0])
+        if 0 < dw <= 0.2 * max(main[0][0], main[1][0]):
+            text += (f"; modes {main[0][2]} and {main[1][2]} beat with period 2 pi/|delta omega| = "
+                     f"{_fmt_t(2 * math.pi / dw)} s")
+        else:
+            text += "; their frequencies are too far apart to beat"
+    return text, False
+
+
+def _fast_omega(model, modes, y0):
+    """Frequency (rad/s) below which 99% of the initial energy lies: the
+    fastest mode the figure must resolve; None without modes."""
+    frac = _modal_fractions(model, modes, y0)
+    if frac is None:
+        return None
+    order = np.argsort(modes[0])
+    cum = np.cumsum(frac[order])
+    w = float(modes[0][order][min(int(np.searchsorted(cum, 0.99)), order.size - 1)])
+    return w if w > 0 else None
+
+
+def _legible_end(model, modes, t, y0):
+    """End of the first part of the run that a space-time image can show
+    without aliasing (at least :data:`PX_PER_PERIOD` pixels per period of the
+    fastest excited mode), or None when the whole run is legible."""
+    w = _fast_omega(model, modes, y0)
+    if w is None:
+        return None
+    axes_px = 0.75 * SIZE[0] * DPI
+    span = axes_px * (2.0 * math.pi / w) / PX_PER_PERIOD
+    if span >= 0.8 * (t[-1] - t[0]) or np.count_nonzero(t <= t[0] + span) < 3:
+        return None
+    return t[0] + span
+
+
+def _path_shape(x, y):
+    """``(ratio, major, minor, angle_deg)`` of a path's finite points: the
+    ratio of its principal axes (0 for a straight segment), their extents
+    (peak-to-peak along each axis) and the major axis' angle to x; None
+    without two finite points."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 2:
+        return None
+    p = np.vstack([x[ok], y[ok]])
+    p = p - p.mean(axis=1, keepdims=True)
+    lam, vec = np.linalg.eigh(p @ p.T / p.shape[1])
+    major_dir, minor_dir = vec[:, 1], vec[:, 0]
+    along, across = major_dir @ p, minor_dir @ p
+    major, minor = float(np.ptp(along)), float(np.ptp(across))
+    ratio = math.sqrt(max(lam[0], 0.0) / lam[1]) if lam[1] > 0 else 0.0
+    angle = math.degrees(math.atan2(major_dir[1], major_dir[0])) % 180.0
+    return ratio, major, minor, angle
 
 
 # -- scene figures (thesis Figs 4.1-4.20) ---------------------------------------
@@ -202,12 +592,12 @@ def _time_series(title, what, t, series, unit, zoom_end, ylabel):
         ax.grid(alpha=0.3)
         ax.axhline(0.0, color="0.5", lw=0.5)
     axes[0].set_xlim(t[0], t[-1])
-    axes[0].set_title(f"whole run, 0 to {_fmt(t[-1])} s", fontsize=9, loc="left")
+    axes[0].set_title(f"whole run, 0 to {_fmt_t(t[-1])} s", fontsize=FONT_SMALL + 1, loc="left")
     if zoom_end is not None:
         axes[1].set_xlim(t[0], zoom_end)
-        axes[1].set_title(f"first {_fmt(zoom_end - t[0])} s", fontsize=9, loc="left")
+        axes[1].set_title(f"first {_fmt_t(zoom_end - t[0])} s", fontsize=FONT_SMALL + 1, loc="left")
     axes[-1].set_xlabel("time t (s)")
-    leg = fig.legend(loc="outside lower center", ncol=min(len(series), 5), fontsize=8, frameon=False)
+    leg = _legend_below(fig)
     for handle in leg.legend_handles:
         handle.set_linewidth(2.0)  # thin curves' colours must still read in the key
     return fig
@@ -218,7 +608,6 @@ def _path_panel(ax, x, y, factor, u, label_x, label_y, color="#1f77b4"):
     ax.plot(factor * x[0], factor * y[0], "o", color="k", ms=4, label="start")
     ax.set_xlabel(f"{label_x} ({u})")
     ax.set_ylabel(f"{label_y} ({u})")
-    ax.set_aspect("equal", adjustable="datalim")
     ax.grid(alpha=0.3)
 
 
@@ -228,35 +617,71 @@ def _xy_path(title, x, y, unit="m", what="trajectory in the x-y plane"):
     factor, u = _si(np.concatenate([x, y]), unit)
     ax = fig.subplots()
     _path_panel(ax, x, y, factor, u, "x", "y")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.margins(0.04)
+    ax.set_aspect("equal", adjustable="datalim")
+    _legend_below(fig)
     return fig
 
 
-def _space_time(title, what, t, values, unit, label):
-    """Image of ``values`` (n_masses, m): mass index vs time, colour = value."""
+def _space_time(title, what, t, values, unit, label, t_window=None, period=None):
+    """Image of ``values`` (n_masses, m): mass index vs time, colour = value;
+    with ``t_window``, that image covers ``t <= t_window`` only and a second
+    panel shows the amplitude ``max |value|`` per time bin (at least two
+    ``period`` s long, so the envelope does not alias) over the whole run."""
     fig = _new_figure()
-    _suptitle(fig, f"{title}: {what}")
     factor, u = _si(values, unit)
+    n = values.shape[0]
+    if t_window is None:
+        _suptitle(fig, f"{title}: {what}")
+        ax = fig.subplots()
+        _signed_image(fig, ax, t, factor * values, label, u, n)
+        ax.set_xlabel("time t (s)")
+        return fig
+    _suptitle(fig, f"{title}: {what}, first {_fmt_t(t_window - t[0])} s and amplitude over the whole run")
+    ax_s, ax_a = fig.subplots(2, 1)
+    keep = t <= t_window
+    _signed_image(fig, ax_s, t[keep], factor * values[:, keep], label, u, n)
+    ax_s.set_title(f"first {_fmt_t(t_window - t[0])} s: signed {label}", fontsize=FONT_SMALL + 1, loc="left")
+    # amplitude per time bin: bins of >= 2 fast periods and >= 2 pixels, so nothing aliases
+    n_bins = min(t.size, 320)
+    if period:
+        n_bins = max(2, min(n_bins, int((t[-1] - t[0]) / (2.0 * period))))
+    edges = np.linspace(0, t.size, n_bins + 1).astype(int)
+    starts = np.unique(edges[:-1])
+    mag = np.abs(factor * values)
+    env = np.fmax.reduceat(np.where(np.isfinite(mag), mag, np.nan), starts, axis=1)
+    t_mid = t[np.minimum(starts, t.size - 1)]
+    finite = env[np.isfinite(env)]
+    vmax = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+    vmax = vmax if vmax > 0 else 1.0
+    im = ax_a.pcolormesh(np.append(t_mid, t[-1]), np.arange(0.5, n + 1.0), env, cmap="viridis", vmin=0.0,
+                         vmax=vmax, shading="flat")
+    fig.colorbar(im, ax=ax_a, label=f"max |{label}| ({u})",
+                 extend="max" if finite.size and finite.max() > vmax * (1 + 1e-9) else "neither")
+    ax_a.set_title(f"whole run, 0 to {_fmt_t(t[-1])} s: amplitude max |{label}| per time bin",
+                   fontsize=FONT_SMALL + 1, loc="left")
+    ax_a.set_ylabel("mass index n")
+    ax_a.set_xlabel("time t (s)")
+    return fig
+
+
+def _signed_image(fig, ax, t, values, label, u, n):
     mag = np.abs(values[np.isfinite(values)])
     # Colour limit at the 99.5th percentile: a short initial kick must not wash
     # out the waves that follow (values beyond it are clipped, the bar says so).
-    vmax = factor * float(np.percentile(mag, 99.5)) if mag.size else 0.0
-    peak = factor * float(mag.max()) if mag.size else 0.0
+    vmax = float(np.percentile(mag, 99.5)) if mag.size else 0.0
+    peak = float(mag.max()) if mag.size else 0.0
     vmax = vmax if vmax > 0 else (peak if peak > 0 else 1.0)
-    ax = fig.subplots()
-    n = values.shape[0]
     dt = np.diff(t)
-    if np.allclose(dt, dt.mean(), rtol=1e-6, atol=0.0):
-        im = ax.imshow(factor * values, origin="lower", aspect="auto", cmap="RdBu_r",
-                       vmin=-vmax, vmax=vmax, interpolation="nearest",
+    if t.size > 1 and np.allclose(dt, dt.mean(), rtol=1e-6, atol=0.0):
+        im = ax.imshow(values, origin="lower", aspect="auto", cmap="RdBu_r", vmin=-vmax, vmax=vmax,
+                       interpolation="antialiased",
                        extent=(t[0] - dt.mean() / 2, t[-1] + dt.mean() / 2, 0.5, n + 0.5))
     else:
-        im = ax.pcolormesh(t, np.arange(1, n + 1), factor * values, cmap="RdBu_r",
-                           vmin=-vmax, vmax=vmax, shading="nearest")
-    ax.set_xlabel("time t (s)")
+        im = ax.pcolormesh(t, np.arange(1, n + 1), values, cmap="RdBu_r", vmin=-vmax, vmax=vmax,
+                           shading="nearest")
     ax.set_ylabel("mass index n")
     fig.colorbar(im, ax=ax, label=f"{label} ({u})", extend="both" if peak > vmax * (1 + 1e-9) else "neither")
-    return fig
 
 
 _LAYOUTS = ("line", "plane", "angles", "coordinates")
@@ -311,101 +736,170 @@ def _spring_elongations(d, q):
     return out
 
 
-def _sentence(head, tail=""):
-    """``head`` with ``": tail"`` when there is one, ended by a full stop."""
+def _sentence(head, *tails):
+    """``head`` with ``": tail; tail"`` for the non-empty tails, ended by a full stop."""
+    tail = "; ".join(t for t in tails if t)
     return f"{head}: {tail}." if tail else f"{head}."
 
 
+def _peak(series, unit):
+    """``"4.9 mm (x2)"``: the largest finite |value| of ``[(label, values)]`` and whose it is."""
+    best, who = -1.0, ""
+    for label, v in series:
+        a = np.abs(np.asarray(v, dtype=float))
+        a = a[np.isfinite(a)]
+        if a.size and a.max() > best:
+            best, who = float(a.max()), str(label).split(" (")[0]
+    if best < 0:
+        return "no finite value"
+    factor, u = _si([best], unit)
+    return f"{factor * best:.3g} {u} ({who})"
+
+
+def _span_text(ctx):
+    t, zoom = ctx["t"], ctx["zoom"]
+    return f"0 to {_fmt_t(t[-1])} s" + (f", first {_fmt_t(zoom - t[0])} s below" if zoom else "")
+
+
+def _hint(ctx, modal, single):
+    """The modal content, then the drawing's caption unless the start is one
+    frequency (the caption describes the model in general, e.g. beats or
+    mode exchange, which a single-mode start does not show)."""
+    return (modal, "" if single else ctx["caption"])
+
+
 def _line_specs(ctx):
-    title, t, q, v, n, zoom, ref, cap, zoom_txt = (ctx[k] for k in (
-        "title", "t", "q", "v", "n", "zoom", "ref", "caption", "zoom_txt"))
+    title, t, q, v, n, ref, unit = (ctx[k] for k in ("title", "t", "q", "v", "n", "ref", "unit"))
+    modal, single = ctx["modal"]
     if n > LONG_CHAIN:
+        win, period = ctx["window"], ctx["fast_period"]
+        if win is None:
+            shown = f"the whole run ({ctx['fast_txt']})"
+        else:
+            shown = (f"the signed image shows the first {_fmt_t(win - t[0])} s only (the fastest excited mode, "
+                     f"{ctx['fast_txt']}, would alias over the whole run), the amplitude panel the whole run")
+        head = f"{n}-mass chain, 0 to {_fmt_t(t[-1])} s{ref}"
         return [
-            ("displacement", lambda: _space_time(title, "displacement of each mass", t, q, ctx["unit"],
-                                                 "displacement"),
-             _sentence(f"Space-time image of the {n}-mass chain's displacements{ref} (mass index vs time, red "
-                       f"right, blue left; colours clipped at the 99.5th percentile)",
-                       cap or "a wave or packet shows as a band whose slope is its speed in masses per second")),
-            ("velocity", lambda: _space_time(title, "velocity of each mass", t, v, f"{ctx['unit']}/s", "velocity"),
-             f"Space-time image of the {n}-mass chain's velocities (mass index vs time); "
-             f"read it beside the displacement image."),
+            ("displacement", "space_time",
+             lambda: _space_time(title, "displacement of each mass", t, q, unit, "displacement", win, period),
+             _sentence(head, shown, f"largest |displacement| {_peak([('', q)], unit).split(' (')[0]}", modal,
+                       ctx["caption"])),
+            ("velocity", "space_time",
+             lambda: _space_time(title, "velocity of each mass", t, v, f"{unit}/s", "velocity", win, period),
+             _sentence(head, shown, f"largest |velocity| {_peak([('', v)], unit + '/s').split(' (')[0]}")),
         ]
     labels, vlabels = _chain_labels(ctx["mass"])
+    head = f"{_count(n, 'mass').capitalize()}, {_span_text(ctx)}{ref}"
     return [
-        ("displacement", lambda: _time_series(title, "displacement of each mass", t,
-                                              list(zip(labels, q)), ctx["unit"], zoom, "displacement"),
-         _sentence(f"Displacement of each of the {n} masses vs time{zoom_txt}{ref}",
-                   cap or f"read the superposition of the {n} normal modes (beats when two are close)")),
-        ("velocity", lambda: _time_series(title, "velocity of each mass", t,
-                                          list(zip(vlabels, v)), f"{ctx['unit']}/s", zoom, "velocity"),
-         f"Velocity of each of the {n} masses vs time{zoom_txt}{ref}."),
+        ("displacement", "displacement",
+         lambda: _time_series(title, "displacement of each mass", t, list(zip(labels, q)), unit, ctx["zoom"],
+                              "displacement"),
+         _sentence(head, *_hint(ctx, modal, single))),
+        ("velocity", "velocity",
+         lambda: _time_series(title, "velocity of each mass", t, list(zip(vlabels, v)), f"{unit}/s", ctx["zoom"],
+                              "velocity"),
+         _sentence(head, f"largest speed {_peak(list(zip(vlabels, v)), unit + '/s')}")),
     ]
 
 
+def _trajectory_text(x, y, unit, caption):
+    """What the path drawn is, from its principal axes: a straight segment
+    (ratio under 0.01; the drawing's caption, which may promise a curve, is
+    then left out) or a curve filling a region."""
+    shape = _path_shape(np.asarray(x, float), np.asarray(y, float))
+    if shape is None:
+        return "no finite path to draw"
+    ratio, major, minor, angle = shape
+    factor, u = _si([major], unit)
+    if major == 0.0:
+        return "the point does not move"
+    if ratio < 0.01:
+        return (f"the path is a straight segment {factor * major:.3g} {u} long at {angle:.0f} deg to the x axis "
+                f"(principal-axis ratio {ratio:.2g}): the motion stays on one line, so no ellipse or curve is drawn")
+    return _sentence_tail(f"the path fills {factor * major:.3g} x {factor * minor:.3g} {u} along its principal "
+                          f"axes (ratio {ratio:.2f}, major axis at {angle:.0f} deg to x)", caption)
+
+
+def _sentence_tail(*parts):
+    return "; ".join(p for p in parts if p)
+
+
 def _plane_specs(ctx):
-    d, title, t, q, v, zoom, ref, cap, zoom_txt, unit = (ctx[k] for k in (
-        "drawing", "title", "t", "q", "v", "zoom", "ref", "caption", "zoom_txt", "unit"))
+    d, title, t, q, v, zoom, ref, cap, unit = (ctx[k] for k in (
+        "drawing", "title", "t", "q", "v", "zoom", "ref", "caption", "unit"))
     labels = list(d.point_labels) + [f"point {i + 1}" for i in range(len(d.point_labels), len(d.points))]
     if len(d.points) > 1:
         n = len(d.points)
-        return [("paths", lambda: _plane_paths(title, d, q, labels),
-                 _sentence(f"Displacement path of each of the {_count(n, 'mass')} about its rest position (equal "
-                           f"axes, same scale in every panel){ref}" if n <= MAX_PATH_PANELS else
-                           f"Paths of the {n} points in the plane (rest position plus displacement, equal axes; "
-                           f"anchors: black crosses){ref}", cap))]
+        moves = [(labels[i], np.hypot(q[ix] - q[ix][0], q[iy] - q[iy][0])) for i, (ix, iy) in enumerate(d.points)]
+        head = (f"{_count(n, 'mass').capitalize()}{ref}" if n <= MAX_PATH_PANELS else
+                f"{n} points in the plane{ref}")
+        return [("paths", "paths", lambda: _plane_paths(title, d, q, labels),
+                 _sentence(head, f"largest distance from the start {_peak(moves, d.unit)}", cap))]
     (ix, iy), (rx, ry) = d.points[0], d.reference[0]
     who = labels[0]
     at_origin = rx == 0.0 and ry == 0.0
     pos = "position" if at_origin else "displacement"
+    span = _span_text(ctx)
     specs = [
-        ("displacement", lambda: _time_series(title, f"{pos} of the {who}", t, [("x", q[ix]), ("y", q[iy])],
-                                              unit, zoom, pos),
-         f"{pos.capitalize()} x, y of the {who}{'' if at_origin else ' from its rest position'} vs "
-         f"time{zoom_txt}{ref}."),
-        ("velocity", lambda: _time_series(title, f"velocity of the {who}", t, [("vx", v[ix]), ("vy", v[iy])],
-                                          f"{unit}/s", zoom, "velocity"),
-         f"Velocity of the {who} vs time{zoom_txt}{ref}."),
+        ("displacement", "displacement",
+         lambda: _time_series(title, f"{pos} of the {who}", t, [("x", q[ix]), ("y", q[iy])], unit, zoom, pos),
+         _sentence(f"{pos.capitalize()} x, y of the {who}{'' if at_origin else ' from its rest position'}, "
+                   f"{span}{ref}", f"largest |{pos}| {_peak([('x', q[ix]), ('y', q[iy])], unit)}")),
+        ("velocity", "velocity",
+         lambda: _time_series(title, f"velocity of the {who}", t, [("vx", v[ix]), ("vy", v[iy])],
+                              f"{unit}/s", zoom, "velocity"),
+         _sentence(f"Velocity of the {who}, {span}{ref}",
+                   f"largest speed component {_peak([('vx', v[ix]), ('vy', v[iy])], unit + '/s')}")),
     ]
     if d.springs:
         note = d.extra.get("rest_note")
         anchored = sum(1 for a, b, _ in d.springs if max(int(a), int(b)) >= len(d.points))
         specs.append(
-            ("springs", lambda: _time_series(title, "spring elongations (length - natural length)", t,
-                                             _spring_elongations(d, q), unit, zoom, "elongation"),
-             f"Elongation (length - natural length{'; ' + note if note else ''}) of each of the "
-             f"{_count(len(d.springs), 'spring')}{f' ({anchored} of them anchored)' if anchored else ''} vs "
-             f"time{zoom_txt}{ref}."))
+            ("springs", "springs",
+             lambda: _time_series(title, "spring elongations (length - natural length)", t,
+                                  _spring_elongations(d, q), unit, zoom, "elongation"),
+             _sentence(f"{_count(len(d.springs), 'spring').capitalize()}"
+                       f"{f' ({anchored} of them anchored)' if anchored else ''}, {span}{ref}",
+                       note, f"largest |elongation| {_peak(_spring_elongations(d, q), unit)}")))
     specs.append(
-        ("trajectory", lambda: _xy_path(title, q[ix], q[iy], unit,
-                                        what=d.extra.get("path_title", "trajectory in the x-y plane")),
-         f"Path of the {who} in the x-y plane (equal axes){ref}" + (f"; {cap}." if cap else ".")))
+        ("trajectory", "trajectory",
+         lambda: _xy_path(title, q[ix], q[iy], unit, what=d.extra.get("path_title", "trajectory in the x-y plane")),
+         _sentence(f"Path of the {who}{ref}", _trajectory_text(q[ix], q[iy], unit, cap))))
     return specs
 
 
 def _series_specs(ctx, stem, what, ylabel):
-    d, n, title, t, q, zoom, ref, cap, zoom_txt = (ctx[k] for k in (
-        "drawing", "n", "title", "t", "q", "zoom", "ref", "caption", "zoom_txt"))
+    d, n, title, t, q, zoom, ref = (ctx[k] for k in ("drawing", "n", "title", "t", "q", "zoom", "ref"))
+    modal, single = ctx["modal"]
     names = list(d.point_labels) if len(d.point_labels) == n else list(ctx["coord_names"])
-    head = (f"Angles {', '.join(names)} vs time{zoom_txt}{ref}" if stem == "angles" else
-            f"Generalized coordinates of {ctx['name']} vs time{zoom_txt}{ref}")
-    return [(stem, lambda: _time_series(title, what, t, list(zip(names, q)), d.unit, zoom, ylabel),
-             _sentence(head, cap))]
+    head = (f"Angles {', '.join(names)}, {_span_text(ctx)}{ref}" if stem == "angles" else
+            f"Coordinates of {ctx['name']}, {_span_text(ctx)}{ref}")
+    return [(stem, stem, lambda: _time_series(title, what, t, list(zip(names, q)), d.unit, zoom, ylabel),
+             _sentence(head, *_hint(ctx, modal, single)))]
 
 
 def _scene_specs(scene_name, model, t, y, title):
-    """``[(stem_suffix, builder, sentence)]`` chosen from ``model.drawing()``
-    (never from the model's name); builders are zero-argument callables
-    returning a Figure (built one at a time)."""
+    """``[(stem_suffix, kind, builder, sentence)]`` chosen from
+    ``model.drawing()`` (never from the model's name); builders are
+    zero-argument callables returning a Figure (built one at a time)."""
     d = model.drawing()
     _check_drawing(model, d)
     n = model.n_dof
-    zoom = None if (d.layout == "line" and n > LONG_CHAIN) else _zoom_end(model, t)
+    modes = _modes_of(model)
+    long_line = d.layout == "line" and n > LONG_CHAIN
+    zoom = None if long_line else _zoom_end(modes, t)
     thesis = d.extra.get("thesis")
     ctx = {"drawing": d, "title": title, "t": t, "q": y[:n], "v": y[n:], "n": n, "zoom": zoom,
            "ref": f" ({thesis})" if thesis else "", "caption": d.caption.strip().rstrip("."),
-           "zoom_txt": f", whole run above and the first {_fmt(zoom - t[0])} s below" if zoom else "",
            "unit": d.unit, "mass": np.asarray(model.mass, dtype=float), "name": model.name,
-           "coord_names": list(getattr(model, "coord_names", None) or [f"q{i + 1}" for i in range(n)])}
+           "coord_names": list(getattr(model, "coord_names", None) or [f"q{i + 1}" for i in range(n)]),
+           "modal": _modal_text(model, modes, t, y)}
+    if long_line:
+        ctx["window"] = _legible_end(model, modes, t, y[:, 0])
+        w = _fast_omega(model, modes, y[:, 0])
+        ctx["fast_period"] = 2 * math.pi / w if w else None
+        ctx["fast_txt"] = (f"99% of the initial energy below {w:.3g} rad/s, period {2 * math.pi / w:.3g} s"
+                           if w else "modal content unknown")
     if d.layout == "line":
         return _line_specs(ctx)
     if d.layout == "plane":
@@ -428,14 +922,14 @@ def _chain_labels(masses):
     return ([f"x{i + 1}{tail[i]}" for i in range(n)], [f"v{i + 1}{tail[i]}" for i in range(n)])
 
 
-def _plane_paths(title, d, q, labels):
+def _plane_paths(title, d, q, labels, margin=0.06):
     """Displacement path of each point of the drawing about its reference
-    position: one panel each (same scale), or, with more than
-    :data:`MAX_PATH_PANELS` points, one panel of every point's path in the
-    plane with the anchors."""
+    position: one panel each, every panel centred on its own path, all on one
+    scale (equal axes) and sized to the data, so no panel is mostly empty; or,
+    with more than :data:`MAX_PATH_PANELS` points, one panel of every point's
+    path in the plane with the anchors."""
     n = len(d.points)
     fig = _new_figure()
-    disp = np.concatenate([q[[ix, iy]] for ix, iy in d.points])
     if n > MAX_PATH_PANELS:
         _suptitle(fig, f"{title}: paths of the {n} points in the plane")
         nodes = _node_positions(d, q)
@@ -445,13 +939,33 @@ def _plane_paths(title, d, q, labels):
             _path_panel(ax, x, y, factor, u, "x", "y", color=_COORD_COLORS[i % len(_COORD_COLORS)])
         for ax_, ay_ in d.anchors:
             ax.plot(factor * ax_, factor * ay_, "x", color="k", ms=6)
+        ax.margins(0.04)
+        ax.set_aspect("equal", adjustable="datalim")
+        _legend_below(fig)
         return fig
     _suptitle(fig, f"{title}: displacement paths of the {_count(n, 'mass')}")
-    factor, u = _si(disp, d.unit)
-    lim = 1.05 * factor * float(np.nanmax(np.abs(disp[np.isfinite(disp)]))) if np.isfinite(disp).any() else 1.0
-    lim = lim if lim > 0 else 1.0
-    cols = n if n <= 4 else math.ceil(math.sqrt(n))
-    axes = np.atleast_1d(fig.subplots(math.ceil(n / cols), cols, sharex=True, sharey=True)).ravel()
+    factor, u = _si(np.concatenate([q[[ix, iy]] for ix, iy in d.points]), d.unit)
+    boxes = []
+    for ix, iy in d.points:
+        x, y = factor * q[ix], factor * q[iy]
+        ok = np.isfinite(x) & np.isfinite(y)
+        boxes.append((float(x[ok].min()), float(x[ok].max()), float(y[ok].min()), float(y[ok].max()))
+                     if ok.any() else (-1.0, 1.0, -1.0, 1.0))
+    wy = max(max(b[3] - b[2] for b in boxes), 1e-300)
+    wx = [max(b[1] - b[0], 0.3 * wy, 1e-300) for b in boxes]
+    titles = [f"{labels[i]}, rest at ({_fmt(rx)}, {_fmt(ry)}) {d.unit}" for i, (rx, ry) in enumerate(d.reference)]
+    if n <= 4:  # one row, each panel as wide as its path needs on the common scale
+        rows, cols = 1, n
+        avail = SIZE[0] - 0.8 - 0.45 * n  # inches for the panels (labels, ticks and gaps off)
+        for _ in range(3):  # ... and never narrower than its title
+            per_unit = avail / sum(wx)
+            wx = [max(w, (0.56 * len(tt) * FONT_SMALL / 72.0) / per_unit) for w, tt in zip(wx, titles)]
+        axes = fig.subplots(1, n, squeeze=False, gridspec_kw={"width_ratios": wx}).ravel()
+    else:
+        cols = math.ceil(math.sqrt(n))
+        rows = math.ceil(n / cols)
+        axes = fig.subplots(rows, cols, squeeze=False).ravel()
+        wx = [max(wx)] * n
     for i, ax in enumerate(axes):
         if i >= n:
             ax.set_visible(False)
@@ -459,14 +973,23 @@ def _plane_paths(title, d, q, labels):
         ix, iy = d.points[i]
         _path_panel(ax, q[ix], q[iy], factor, u, f"x{i + 1} - rest", "y - rest",
                     color=_COORD_COLORS[i % len(_COORD_COLORS)])
-        ax.set_xlim(-lim, lim)
-        ax.set_ylim(-lim, lim)
-        ax.set_aspect("equal", adjustable="box")
-        rx, ry = d.reference[i]
-        ax.set_title(f"{labels[i]}, rest at ({_fmt(rx)}, {_fmt(ry)}) {d.unit}", fontsize=8)
+        ax.set_title(titles[i], fontsize=FONT_SMALL)
         if i % cols:
             ax.set_ylabel("")
-    axes[0].legend(loc="upper left", fontsize=7)
+    _legend_below(fig)
+    axes = axes[:n]
+    centres = [((b[0] + b[1]) / 2, (b[2] + b[3]) / 2) for b in boxes]
+    for ax, (cx, cy), w in zip(axes, centres, wx):  # provisional limits, for the layout
+        ax.set_xlim(cx - w * (0.5 + margin), cx + w * (0.5 + margin))
+        ax.set_ylim(cy - wy * (0.5 + margin), cy + wy * (0.5 + margin))
+    fig.canvas.draw()  # lays the panels out; their sizes set the common scale
+    fw, fh = fig.get_size_inches()
+    size = [(ax.get_position().width * fw, ax.get_position().height * fh) for ax in axes]
+    scale = max(max(w * (1 + 2 * margin) / sw, wy * (1 + 2 * margin) / sh) for w, (sw, sh) in zip(wx, size))
+    for ax, (cx, cy), (sw, sh) in zip(axes, centres, size):
+        ax.set_xlim(cx - scale * sw / 2, cx + scale * sw / 2)
+        ax.set_ylim(cy - scale * sh / 2, cy + scale * sh / 2)
+        ax.set_aspect("equal", adjustable="box")
     return fig
 
 
@@ -486,7 +1009,10 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
         * ``"line"`` with at most 10 masses: displacement and velocity of each
           mass vs time (``_displacement``, ``_velocity``); with more masses,
           space-time images (mass index vs time, colour = displacement /
-          velocity), same two names;
+          velocity), same two names; when the whole run has more oscillations
+          of the fastest excited mode than the image can resolve, the signed
+          image shows the first part of the run and a second panel the
+          amplitude over the whole run;
         * ``"plane"`` with one point: its x, y and velocity vs time
           (``_displacement``, ``_velocity``), the elongation ``|P_b - P_a| -
           rest`` of each of the drawing's springs when it has any
@@ -498,8 +1024,6 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
         * ``"angles"``: the angles vs time (``_angles``);
         * ``"coordinates"``: the coordinates vs time (``_coordinates``).
 
-        Sentences quote the drawing's ``caption``, ``extra["thesis"]`` (the
-        thesis figures reproduced) and ``extra["rest_note"]``.
         Time series show the whole run and, below it, the first three periods of
         the slowest non-zero mode of the linearization (omitted when that is
         more than half the run).
@@ -512,8 +1036,15 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
 
     Returns
     -------
-    list of (Path, str)
-        Each PNG and the one-line sentence for ``index.md``.
+    list of (Path, Caption)
+        Each PNG and its scene-specific sentence (``caption.kind``: the
+        figure kind in :data:`GENERIC_CAPTIONS`). Sentences are computed from
+        the data: the initial state's modal content (one frequency, or which
+        modes and whether they beat), a path's shape from its principal axes,
+        peak values, the window shown; they quote ``extra["thesis"]`` and
+        ``extra["rest_note"]``, and the drawing's ``caption`` only where the
+        data do not contradict it (not for a single-mode start, not for a
+        path that is a straight line).
 
     Raises
     ------
@@ -524,9 +1055,9 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
     t, y = _check_trajectory(model, t, y)
     stem = slug(scene_name)
     out = []
-    for suffix, build, sentence in _scene_specs(scene_name, model, t, y, title):
+    for suffix, kind, build, sentence in _scene_specs(scene_name, model, t, y, title):
         fig = build()
-        out.append((_save(fig, out_dir, f"{stem}_{suffix}"), sentence))
+        out.append((_save(fig, out_dir, f"{stem}_{suffix}"), Caption(sentence, kind)))
     return out
 
 
@@ -556,6 +1087,45 @@ def _require(df, name, cols):
         raise ValueError(f"`{name}` is missing column `{missing[0]}` (has {list(df.columns)})")
 
 
+#: Axis label of the error the work-precision and convergence figures draw:
+#: relative when the data carry ``error_rel`` (``error_max / max |y_ref|``,
+#: dimensionless), else the absolute ``error_max``, whose components keep
+#: their own SI units (positions in m, velocities in m/s).
+ERROR_LABELS = {
+    "error_rel": "relative error\nmax |y - y_ref| / max |y_ref|",
+    "error_max": "max |y - y_ref| (each component\nin its unit: m, m/s, rad, rad/s)",
+}
+#: A solver whose costs on a panel span less than this factor is drawn there
+#: as points labelled with their settings (a line would read as a wall).
+SAME_COST = 1.5
+
+
+def _error_column(df):
+    """``"error_rel"`` when the frame has finite relative errors, else ``"error_max"``."""
+    if "error_rel" in df.columns and np.isfinite(np.asarray(df["error_rel"], dtype=float)).any():
+        return "error_rel"
+    return "error_max"
+
+
+def _setting_name(solver):
+    try:
+        return resolve(solver, _LOCAL).setting_name
+    except (ValueError, AttributeError):
+        return "setting"
+
+
+def _label_settings(ax, x, y, settings, name, color):
+    """Each point's setting beside it (skipping points within half a decade
+    of error of the last labelled one, so labels do not collide)."""
+    last = None
+    for xi, yi, s in sorted(zip(x, y, settings), key=lambda r: r[1]):
+        if last is not None and abs(math.log10(yi / last)) < 0.5:
+            continue
+        ax.annotate(f"{name} {s:g}", (xi, yi), xytext=(6, 0), textcoords="offset points", va="center",
+                    ha="left", fontsize=FONT_SMALL, color=color)
+        last = yi
+
+
 def work_precision(out_dir, scene_name, df) -> tuple[Path, str]:
     """Work-precision diagram: error against wall time and against RHS evaluations.
 
@@ -565,31 +1135,38 @@ def work_precision(out_dir, scene_name, df) -> tuple[Path, str]:
     scene_name : str
     df : pandas.DataFrame
         Columns ``solver``, ``setting`` (h in s, or rtol), ``error_max``,
-        ``wall_s`` (s), ``nfev``; optional ``status`` (rows other than ``ok``
-        are dropped), ``n_steps`` and ``taylor_order``. Rows with a missing or
-        non-positive error or time are dropped (they cannot be placed on log axes).
+        ``wall_s`` (s), ``nfev``; optional ``error_rel`` (drawn instead of
+        ``error_max`` when present: relative, dimensionless), ``status``
+        (rows other than ``ok`` are dropped), ``n_steps`` and
+        ``taylor_order``. Rows with a missing or non-positive error or time
+        are dropped (they cannot be placed on log axes).
 
     Returns
     -------
-    (Path, str)
+    (Path, Caption)
+        ``kind`` ``"work_precision"``.
 
     Notes
     -----
     heyoka's Taylor integrator makes no RHS calls: when ``n_steps`` and
     ``taylor_order`` are given it is placed on the right panel at steps x order
     (and its legend entry says so); otherwise rows with ``nfev`` <= 0 or NaN
-    are left off that panel only, and the legend says which.
+    are left off that panel only, and the legend says which. A solver whose
+    costs on a panel span less than :data:`SAME_COST` is drawn there as
+    points, each labelled with its setting.
     """
     _require(df, "df", ["solver", "setting", "error_max", "wall_s", "nfev"])
-    d = _ok_rows(df, ["error_max", "wall_s"])
+    ycol = _error_column(df)
+    d = _ok_rows(df, [ycol, "wall_s"])
     fig = _new_figure()
     _suptitle(fig, f"{scene_name}: work-precision (lower left is better)")
     ax_t, ax_n = fig.subplots(1, 2, sharey=True)
-    notes = []
+    notes, as_points = [], []
     for solver in _in_palette_order(d["solver"].unique()):
         rows = d[d["solver"] == solver].sort_values("setting", ascending=False)
         color, marker = solver_style(solver)
-        err = rows["error_max"].to_numpy(float)
+        err = rows[ycol].to_numpy(float)
+        wall, settings = rows["wall_s"].to_numpy(float), rows["setting"].to_numpy(float)
         cost, label = rows["nfev"].to_numpy(float), solver
         if not (np.isfinite(cost) & (cost > 0)).any() and {"n_steps", "taylor_order"} <= set(rows.columns):
             cost = rows["n_steps"].to_numpy(float) * rows["taylor_order"].to_numpy(float)
@@ -600,33 +1177,47 @@ def work_precision(out_dir, scene_name, df) -> tuple[Path, str]:
             notes.append(solver)
         elif not good.all():
             label = f"{solver} ({(~good).sum()} point(s) without nfev)"
-        ax_t.plot(rows["wall_s"].to_numpy(float), err, marker=marker, color=color, ms=5, lw=1.2, label=label)
-        if good.any():
-            ax_n.plot(cost[good], err[good], marker=marker, color=color, ms=5, lw=1.2)
+        name = _setting_name(solver)
+        for ax, x, y, s, lab in ((ax_t, wall, err, settings, label), (ax_n, cost[good], err[good], settings[good], None)):
+            if x.size == 0:
+                continue
+            flat = x.size >= 2 and x.max() / x.min() < SAME_COST
+            ax.plot(x, y, marker=marker, color=color, ms=5, lw=1.2, ls="none" if flat else "-", label=lab)
+            if flat:
+                _label_settings(ax, x, y, s, name, color)
+                if ax is ax_n or not good.any():
+                    as_points.append(f"{solver} ({x.size} settings, {name} {_fmt(s.max())} to {_fmt(s.min())}, "
+                                     f"all at {_fmt(x.min())}-{_fmt(x.max())} "
+                                     f"{'s' if ax is ax_t else ('steps x order' if 'Taylor' in label else 'RHS calls')})")
     for ax, xl in ((ax_t, "wall time (s)"), (ax_n, "right-hand-side evaluations nfev")):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        _log_axes(ax)
         ax.set_xlabel(xl)
-        ax.grid(which="major", alpha=0.3)
-        ax.grid(which="minor", alpha=0.1)
-    ax_t.set_ylabel("max error over time and components")
+    ax_t.set_ylabel(ERROR_LABELS[ycol])
     if len(d):
-        fig.legend(loc="outside lower center", ncol=min(4, d["solver"].nunique()), fontsize=8, frameon=False)
+        _legend_below(fig)
     path = _save(fig, out_dir, f"{slug(scene_name)}_work_precision")
+    parts = []
+    if len(d):
+        e = d[ycol].to_numpy(float)
+        parts.append(f"{d['solver'].nunique()} solvers, {len(d)} runs; {'relative ' if ycol == 'error_rel' else ''}"
+                     f"errors {e.min():.2g} to {e.max():.2g}, wall times {_fmt(d['wall_s'].min())} to "
+                     f"{_fmt(d['wall_s'].max())} s")
+    if as_points:
+        parts.append("drawn as points, settings labelled: " + ", ".join(as_points))
     dropped = len(df) - len(d)
-    extra = f" {dropped} failed or error-free run(s) are not drawn." if dropped else ""
-    extra += f" {', '.join(notes)} appear(s) in the wall-time panel only (no RHS count)." if notes else ""
-    sentence = (f"Error against wall time (left) and against right-hand-side evaluations (right), one line per "
-                f"solver, log-log: the lowest curve at a given cost is the cheapest solver for that accuracy, "
-                f"and where curves cross the best choice changes.{extra}")
-    return path, sentence
+    if dropped:
+        parts.append(f"{dropped} failed or error-free run(s) not drawn")
+    if notes:
+        parts.append(f"{', '.join(notes)} in the wall-time panel only (no RHS count)")
+    sentence = _sentence(f"{scene_name}", *parts) if parts else f"{scene_name}: no run to draw."
+    return path, Caption(sentence, "work_precision")
 
 
 # -- convergence ----------------------------------------------------------------
 def _guide(ax, slope, x_anchor, y_anchor, x_range, style, label):
     """Line ``y = y_anchor (x / x_anchor)^slope`` over ``x_range``."""
     x = np.array(x_range, dtype=float)
-    ax.plot(x, y_anchor * (x / x_anchor) ** slope, style, color="0.35", lw=1.0, label=label,
+    ax.plot(x, y_anchor * (x / x_anchor) ** slope, ls=style, color="0.35", lw=1.0, label=label,
             gid=f"guide_slope_{slope:g}")
 
 
@@ -638,8 +1229,9 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
     out_dir : path-like
     scene_name : str
     points : pandas.DataFrame
-        Columns ``solver``, ``h`` (s), ``error_max``. Non-positive or NaN
-        errors are left off.
+        Columns ``solver``, ``h`` (s), ``error_max``; optional ``error_rel``
+        (``error_max / max |y_ref|``), drawn instead when present, so the
+        axis is dimensionless. Non-positive or NaN errors are left off.
     fits : pandas.DataFrame
         Columns ``solver``, ``observed_order``, ``h_min``, ``h_max`` (s): the
         least-squares order and the step range it was fitted over. Points
@@ -647,7 +1239,8 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
 
     Returns
     -------
-    (Path, str)
+    (Path, Caption)
+        ``kind`` ``"convergence"``.
 
     Notes
     -----
@@ -655,28 +1248,32 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
     the RK4 points over their step range, through a third of the error at
     their smallest step inside the fit range; the slope-1 guide likewise under
     Euler's (or symplectic Euler's), when present. Without RK4 points the
-    slope-4 guide is anchored on the first solver's.
+    slope-4 guide is anchored on the first solver's. The legend is below the
+    axes: it never covers points or guides.
     """
     _require(points, "points", ["solver", "h", "error_max"])
     _require(fits, "fits", ["solver", "observed_order", "h_min", "h_max"])
-    p = _ok_rows(points, ["h", "error_max"])
+    ycol = _error_column(points)
+    p = _ok_rows(points, ["h", ycol])
     fig = _new_figure()
     _suptitle(fig, f"{scene_name}: convergence of the error with the step size")
     ax = fig.subplots()
     fit_of = {r.solver: r for r in fits.itertuples()}
-    orders = []
+    orders, hollow = [], 0
     for solver in _in_palette_order(p["solver"].unique()):
         rows = p[p["solver"] == solver].sort_values("h")
-        h, e = rows["h"].to_numpy(float), rows["error_max"].to_numpy(float)
+        h, e = rows["h"].to_numpy(float), rows[ycol].to_numpy(float)
         color, marker = solver_style(solver)
         f = fit_of.get(solver)
         if f is not None and np.isfinite(f.observed_order):
             inside = (h >= f.h_min * (1 - 1e-9)) & (h <= f.h_max * (1 + 1e-9))
             label = f"{solver}: order {f.observed_order:.2f} (fit h {_fmt(f.h_min)}-{_fmt(f.h_max)} s)"
-            orders.append(f"{solver} {f.observed_order:.2f}")
+            orders.append(f"{solver} {f.observed_order:.2f} (fit h {_fmt(f.h_min)}-{_fmt(f.h_max)} s)")
         else:
             inside = np.ones_like(h, dtype=bool)
             label = f"{solver} (no fit)"
+            orders.append(f"{solver} not fitted")
+        hollow += int((~inside).sum())
         ax.plot(h, e, "-", color=color, lw=1.0, label=label)
         ax.plot(h[inside], e[inside], marker, color=color, ms=6, ls="none")
         ax.plot(h[~inside], e[~inside], marker, mfc="none", color=color, ms=6, ls="none")
@@ -697,26 +1294,24 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
             in_fit = sel[(sel["h"] >= f.h_min * (1 - 1e-9)) & (sel["h"] <= f.h_max * (1 + 1e-9))]
             sel = in_fit if len(in_fit) else sel
         anchor = sel.sort_values("h").iloc[0]
-        _guide(ax, slope, float(anchor["h"]), float(anchor["error_max"]) / 3.0, h_range, style,
+        _guide(ax, slope, float(anchor["h"]), float(anchor[ycol]) / 3.0, h_range, style,
                f"slope {slope} guide (error ~ h^{slope})")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
+    _log_axes(ax)
     ax.set_xlabel("step size h (s)")
-    ax.set_ylabel("max error over time and components")
-    ax.grid(which="major", alpha=0.3)
-    ax.grid(which="minor", alpha=0.1)
-    ax.legend(loc="lower right", fontsize=8)  # large h with small error: empty for any consistent method
+    ax.set_ylabel(ERROR_LABELS[ycol])
+    _legend_below(fig)
     path = _save(fig, out_dir, f"{slug(scene_name)}_convergence")
-    got = "; observed orders: " + ", ".join(orders) if orders else ""
-    guides = ", ".join(f"slope {o} ({'/'.join(m)})" for o, m in sorted(by_order.items(), reverse=True))
-    sentence = (f"Max error against step size h, log-log, with slope guides ({guides}): a method parallel to its "
-                f"guide has that order; filled points are the fitted range, hollow "
-                f"ones lie outside it (pre-asymptotic or at the round-off floor){got}.")
-    return path, sentence
+    guides = ", ".join(f"slope {o} under {'/'.join(m)}" for o, m in sorted(by_order.items(), reverse=True))
+    sentence = _sentence(f"{scene_name}", "observed orders " + ", ".join(orders) if orders else "no point to draw",
+                         f"guides: {guides}" if guides else "",
+                         f"{hollow} hollow point(s) outside the fitted ranges" if hollow else "every point inside "
+                         "its fitted range")
+    return path, Caption(sentence, "convergence")
 
 
 # -- energy error ---------------------------------------------------------------
-def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence=None) -> tuple[Path, str]:
+def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence=None,
+                 kind="energy_error") -> tuple[Path, str]:
     """Relative energy error ``|E(t) - E0| / |E0|`` of several runs on log-log axes.
 
     Parameters
@@ -728,13 +1323,16 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
         A label starting with a solver name (``"rk4 h=0.01"``) takes that
         solver's colour; labels of the same solver get different line styles.
     title, stem, sentence : str, optional
-        The figure's title, file stem and reading (defaults: the scene's
-        energy-error figure); the stability study's long-horizon figure
-        passes its own.
+        The figure's title, file stem and specific sentence (defaults: the
+        scene's energy-error figure; the sentence, by default, gives the
+        range of the running maxima at the end of the run); the stability
+        study's long-horizon figure passes its own title and stem.
+    kind : str
+        The figure kind (key of :data:`GENERIC_CAPTIONS`) of the returned caption.
 
     Returns
     -------
-    (Path, str)
+    (Path, Caption)
 
     Notes
     -----
@@ -750,6 +1348,7 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
     ax = fig.subplots()
     seen: dict[str, int] = {}
     floor = np.inf
+    final = []  # (last finite running maximum, its time, label)
     for label, (t, err) in series.items():
         t, err = np.asarray(t, dtype=float), np.abs(np.asarray(err, dtype=float))
         if t.shape != err.shape or t.ndim != 1:
@@ -767,24 +1366,28 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
         ax.plot(t[show], env[show], color=color, lw=1.6, ls=ls, label=str(label))
         if np.isfinite(env[show]).any():
             floor = min(floor, float(np.nanmin(env[show])))
+            last = np.flatnonzero(np.isfinite(env) & show)[-1]
+            final.append((float(env[last]), float(t[last]), str(label)))
     ax.set_xscale("log")
     ax.set_yscale("log")
     if np.isfinite(floor):
         # The instantaneous error dips to zero twice a period; do not let those
         # dips stretch the axis below the smallest envelope value.
         ax.set_ylim(bottom=max(floor / 10.0, 1e-18))
+    _log_axes(ax)
     ax.set_xlabel("time t (s)")
-    ax.set_ylabel("|E(t) - E0| / |E0|")
-    ax.grid(which="major", alpha=0.3)
-    ax.grid(which="minor", alpha=0.1)
+    ax.set_ylabel("|E(t) - E0| / |E0| (relative)")
     if series:
-        fig.legend(loc="outside lower center", fontsize=8, ncol=min(4, len(series)), frameon=False,
-                   title="thick: running maximum, thin: instantaneous value", title_fontsize=7)
+        _legend_below(fig, title="thick: running maximum, thin: instantaneous value")
     path = _save(fig, out_dir, stem or f"{slug(scene_name)}_energy_error")
-    sentence = sentence or ("Relative energy error against time, log-log (thick: running maximum, thin: "
-                            "instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set "
-                            "by (omega h)^6/72 per step), a flat band a bounded error (symplectic methods).")
-    return path, sentence
+    if sentence is None:
+        if final:
+            lo, hi = min(final), max(final)
+            sentence = (f"{scene_name}: at the end of the run the running maximum ranges from {lo[0]:.2g} "
+                        f"({lo[2]}, t = {_fmt(lo[1])} s) to {hi[0]:.2g} ({hi[2]}, t = {_fmt(hi[1])} s).")
+        else:
+            sentence = f"{scene_name}: no finite non-zero energy error to draw."
+    return path, Caption(sentence, kind)
 
 
 def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
@@ -802,6 +1405,12 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
         solid, the others dashed), modes take colours.
     omega : ndarray, shape (modes,)
         The modes' angular frequencies (rad/s), for the legend.
+
+    Returns
+    -------
+    (Path, Caption)
+        ``kind`` ``"modal_energy"``; the sentence gives, per series, how low
+        mode 1's share falls and how high it comes back, and when.
     """
     if not isinstance(series, dict) or not series:
         raise ValueError("`series` must be a non-empty dict label -> (modes, m) array")
@@ -810,6 +1419,7 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
     _suptitle(fig, f"{scene_name}: energy in the lowest modes (FPUT recurrence)")
     ax = fig.subplots()
     colors = plt_colors(len(omega))
+    facts = []
     for s_i, (label, frac) in enumerate(series.items()):
         frac = np.asarray(frac, dtype=float)
         if frac.shape != (len(omega), t.size):
@@ -818,17 +1428,21 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
             ax.plot(t, frac[j], color=colors[j], lw=1.4 if s_i == 0 else 1.0,
                     ls=_LINESTYLES[s_i % len(_LINESTYLES)],
                     label=f"mode {j + 1} ({omega[j]:.3g} rad/s), {label}")
+        f1 = np.where(np.isfinite(frac[0]), frac[0], np.nan) if frac.shape[0] else np.array([np.nan])
+        if np.isfinite(f1).any():
+            i = int(np.nanargmin(f1))
+            back = f1[i:]
+            k = i + int(np.nanargmax(back)) if np.isfinite(back).any() else i
+            facts.append(f"{label}: mode 1 falls to {100 * f1[i]:.0f}% at t = {_fmt_t(t[i])} s"
+                         + (f" and returns to {100 * f1[k]:.0f}% at t = {_fmt_t(t[k])} s" if k > i else
+                            " (no return within the run)"))
     ax.set_xlabel("time t (s)")
     ax.set_ylabel("E_k(t) / E(0)")
     ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", fontsize=7, ncol=2, frameon=False)
+    _legend_below(fig)
     path = _save(fig, out_dir, f"{slug(scene_name)}_modal_energy")
-    sentence = ("Energy in the lowest linear modes against time, as a fraction of the initial energy: "
-                "started in mode 1, an FPUT chain shares its energy with a few low modes and then returns "
-                "almost all of it to mode 1 (the recurrence); a solver that reproduces the return time "
-                "and height keeps the physics, one that does not has lost it.")
-    return path, sentence
+    return path, Caption(_sentence(f"{scene_name}", *facts), "modal_energy")
 
 
 def plt_colors(n):
@@ -864,7 +1478,9 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
 
     Returns
     -------
-    (Path, str)
+    (Path, Caption)
+        ``kind`` ``"dispersion"``; the sentence gives the lattice's constants and
+        each packet's measured group velocity against v_g.
 
     Notes
     -----
@@ -922,18 +1538,25 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
     axes[-1].set_xticks(np.arange(-2, 3) * kz, [r"$-2\pi/d$", r"$-\pi/d$", "0", r"$\pi/d$", r"$2\pi/d$"])
     axes[-1].set_xlim(-2 * kz, 2 * kz)
     axes[-1].set_xlabel(f"wavenumber $k_p$ (rad/m; $\\pi/d$ = {_fmt(kz)} rad/m)")
-    fig.legend(loc="outside lower center", ncol=2, fontsize=7.5, frameon=False)
+    _legend_below(fig)
     stem = f"{slug(scene_name)}_dispersion" if scene_name else "dispersion"
     path = _save(fig, out_dir, stem)
-    sentence = ("omega(kp), phase and group velocity of the monatomic lattice over two Brillouin zones (first "
-                "shaded)" + (f"; dots: the {n_fin}-mass chain's eigenfrequencies, which should sit on the "
-                             f"curve" if n_fin else "")
-                + (f"; circles: group velocities measured from {len(pk)} RK4 wave packet(s), to compare "
-                   f"with v_g = d omega/d kp (not omega/kp, erratum 7)" if len(pk) else "") + ".")
-    return path, sentence
+    facts = [f"m = {_fmt(m)} kg, k = {_fmt(k)} N/m, d = {_fmt(d)} m, omega_0 = {w0:.4g} rad/s"]
+    if n_fin:
+        facts.append(f"dots: the {n_fin}-mass chain's eigenfrequencies")
+    for kp0, v in pk:
+        vg = float(group_velocity(np.array([kp0]), m, k, d)[0])
+        facts.append(f"packet at kp0 = {kp0 / kz:.3g} pi/d: measured {v:.5g} m/s against v_g = {vg:.5g} m/s "
+                     f"({100 * (v - vg) / vg:+.2f}%)" if vg else f"packet at kp0 = {kp0 / kz:.3g} pi/d: "
+                     f"measured {v:.5g} m/s")
+    return path, Caption(_sentence(f"{scene_name or 'Monatomic lattice'}", *facts), "dispersion")
 
 
 # -- crossover (optional) ---------------------------------------------------------
+CROSSOVER_NONE = "none: no solver reached this target with the scene's settings"
+_ROW_IN = 0.36           # inches per scene row of the crossover grid (two 8-pt lines)
+
+
 def crossover(out_dir, df) -> tuple[Path, str]:
     """Which solver is cheapest for each scene and target error, as a coloured grid.
 
@@ -943,39 +1566,60 @@ def crossover(out_dir, df) -> tuple[Path, str]:
     df : pandas.DataFrame
         One row per (scene, target): columns ``scene``, ``target_error`` (or
         ``target``), ``solver`` (the cheapest one reaching the target; empty
-        or NaN when none does) and optionally ``wall_s`` (its cost, s).
+        or NaN when none does) and optionally its cost: ``rhs`` (right-hand-side
+        calls; the grid then ranks by RHS calls, as the trust table's
+        ``verdict_rhs``) or else ``wall_s`` (s; ranked by wall time).
 
     Returns
     -------
-    (Path, str)
+    (Path, Caption)
+        ``kind`` ``"crossover"``; the sentence counts the cells per solver.
+
+    Notes
+    -----
+    The figure is :data:`SIZE` wide and at least :data:`SIZE` tall, taller
+    with many scenes (:data:`_ROW_IN` per row) so every cell's text stays at
+    8 pt; a key below names each colour's solver and explains "none".
     """
+    from matplotlib.patches import Patch
+
     tcol = "target_error" if "target_error" in df.columns else "target"
     _require(df, "df", ["scene", tcol, "solver"])
     scenes = list(dict.fromkeys(df["scene"]))
     targets = sorted(set(df[tcol].astype(float)), reverse=True)
-    fig = _new_figure(SIZE)
-    _suptitle(fig, "cheapest solver for each target error (wall time)")
+    height = max(SIZE[1], 1.9 + _ROW_IN * len(scenes))
+    fig = _new_figure((SIZE[0], height))
+    by_rhs = "rhs" in df.columns or "wall_s" not in df.columns
+    _suptitle(fig, "cheapest solver for each target error " + ("(fewest RHS calls)" if by_rhs else "(wall time)"))
     ax = fig.subplots()
+    counts: dict = {}
     for r in df.itertuples():
         i, j = scenes.index(r.scene), targets.index(float(getattr(r, tcol)))
         solver = r.solver if isinstance(r.solver, str) and r.solver else None
+        counts[solver] = counts.get(solver, 0) + 1
         color = solver_style(solver)[0] if solver else "#ffffff"
         ax.add_patch(_rect(j, i, color, alpha=0.45 if solver else 1.0))
         txt = solver or "none"
-        cost = getattr(r, "wall_s", None)
+        cost = getattr(r, "rhs" if by_rhs else "wall_s", None)
         if solver and cost is not None and np.isfinite(cost):
-            txt += f"\n{cost:.2g} s"
-        ax.text(j, i, txt, ha="center", va="center", fontsize=6.5 if len(scenes) > 10 else 8)
+            txt += f"\n{cost:.2g} RHS" if by_rhs else f"\n{cost:.2g} s"
+        ax.text(j, i, txt, ha="center", va="center", fontsize=FONT_SMALL, linespacing=1.0)
     ax.set_xlim(-0.5, len(targets) - 0.5)
     ax.set_ylim(len(scenes) - 0.5, -0.5)
     ax.set_xticks(range(len(targets)), [f"{t:.0e}" for t in targets])
-    ax.set_yticks(range(len(scenes)), scenes, fontsize=7 if len(scenes) > 10 else 8)
+    ax.set_yticks(range(len(scenes)), scenes, fontsize=FONT_SMALL)
     ax.set_xlabel("target relative error (error_max / max |y_ref|)")
     ax.tick_params(length=0)
+    solvers = _in_palette_order([s for s in counts if s])
+    handles = [Patch(facecolor=solver_style(s)[0], alpha=0.45, edgecolor="0.6", label=s) for s in solvers]
+    if None in counts:
+        handles.append(Patch(facecolor="#ffffff", edgecolor="0.6", label=CROSSOVER_NONE))
+    _legend_below(fig, handles, [h.get_label() for h in handles], title="cell colour: the cheapest solver")
     path = _save(fig, out_dir, "crossover")
-    sentence = ("For each scene (row) and target error (column), the solver that reaches the target in the least "
-                "wall time: read where RK4 stops being the cheapest choice as the target tightens.")
-    return path, sentence
+    tally = ", ".join(f"{s} {counts[s]}" for s in solvers) + (f", none {counts[None]}" if None in counts else "")
+    sentence = (f"{len(scenes)} scenes x {len(targets)} targets ({_fmt(targets[0])} to {_fmt(targets[-1])}); "
+                f"cells per cheapest solver: {tally}." if targets else "No scene or target to draw.")
+    return path, Caption(sentence, "crossover")
 
 
 def _rect(x, y, color, alpha):

@@ -259,7 +259,7 @@ def _convergence(scene, specs, records, res, draw):
             errs.append(v["error_max"])
             scale, T = v["scale"], v["t_end"]
         fit = metrics.fit_order(hs, errs, scale)
-        points += [{"solver": method, "h": h, "error_max": e} for h, e in zip(hs, errs)]
+        points += [{"solver": method, "h": h, "error_max": e, "error_rel": e / scale} for h, e in zip(hs, errs)]
         expected = float(scene.method(method).order)
         passed = fit.passed(expected, ORDER_TOL)
         row = {"scene": scene.name, "solver": method, "quantity": "order in h", "observed_order": fit.order,

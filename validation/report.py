@@ -284,6 +284,38 @@ def limits_rows(stability_rows) -> list[dict]:
     return out
 
 
+def _figure_lines(results, out_dir) -> list[str]:
+    """The figures section: each figure kind's reading guide once
+    (``validation.figures.GENERIC_CAPTIONS``, in the order kinds first
+    appear), then per scene one line per figure with its own sentence."""
+    from validation.figures import GENERIC_CAPTIONS
+
+    per_scene, kinds = [], {}
+    for r in results:
+        drawn = getattr(r, "drawn", None)
+        drawn = drawn if drawn is not None else r.figures
+        if drawn:
+            per_scene.append((r.scene, drawn))
+            for _, sentence in drawn:
+                kind = getattr(sentence, "kind", None)
+                if kind in GENERIC_CAPTIONS:
+                    kinds.setdefault(kind, GENERIC_CAPTIONS[kind])
+    lines = []
+    if kinds:
+        lines += ["### How to read each kind of figure", ""]
+        lines += [f"- **{kind}**: {guide}" for kind, guide in kinds.items()]
+        lines.append("")
+    for scene, drawn in per_scene:
+        lines += [f"### {scene}", ""]
+        for path, sentence in drawn:
+            rel = Path(path).relative_to(out_dir) if Path(path).is_absolute() else Path(path)
+            kind = getattr(sentence, "kind", None)
+            lines.append(f"- [{Path(path).name}]({rel.as_posix()})" + (f" ({kind})" if kind else "")
+                         + f": {sentence}")
+        lines.append("")
+    return lines
+
+
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
                 seconds, n_scenes=None, timing=None) -> Path:
     """Write ``index.md``: the trust table, the limits and the failures first;
@@ -326,16 +358,7 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
     for name, path in table_paths.items():
         lines.append(f"- [{path.name}]({path.name}): {DESCRIPTIONS.get(name, '')}")
     lines += ["", "## Figures", ""]
-    for r in results:
-        drawn = getattr(r, "drawn", None)
-        drawn = drawn if drawn is not None else r.figures
-        if not drawn:
-            continue
-        lines += [f"### {r.scene}", ""]
-        for path, sentence in drawn:
-            rel = Path(path).relative_to(out_dir) if Path(path).is_absolute() else Path(path)
-            lines.append(f"- [{Path(path).name}]({rel.as_posix()}): {sentence}")
-        lines.append("")
+    lines += _figure_lines(results, out_dir)
     lines += ["## Errata of the thesis", "",
               "Printed values beside the values the harness computes (`references.errata`, the same "
               "closed forms and eigenproblems that feed the tables above).", ""]

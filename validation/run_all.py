@@ -340,8 +340,9 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
 
         try:
             trust = pd.DataFrame(tables["cheapest"])  # the grid shows the RHS-call verdict (deterministic)
-            trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""))
-            path, sentence = fig.crossover(out_dir, trust[["scene", "target_error", "solver"]])
+            trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""),
+                                 rhs=trust["rhs"].where(trust["verdict_rhs"] == trust["method"], trust["alt_rhs"]))
+            path, sentence = fig.crossover(out_dir, trust[["scene", "target_error", "solver", "rhs"]])
             extra.append(measure.SceneTables("all scenes", drawn=[(path, sentence)]))
         except Exception as e:  # noqa: BLE001
             if atomic.is_environment_error(e) or interrupt.pending():
@@ -376,7 +377,8 @@ def _draw_all(results, sweep_jobs, out_dir, by_name, pools):
     for job in sweep_jobs:
         sweeps.setdefault(job.scene, measure.SceneTables(f"sweep {job.scene}"))
     work = [(r, j) for r in results for j in r.figures] + [(sweeps[j.scene], j) for j in sweep_jobs]
-    items = [(j, out_dir, by_name.get(j.scene) if j.kind == "state" else None) for _, j in work]
+    # Every job gets its scene: state figures build the model from it, all draw its own methods' styles.
+    items = [(j, out_dir, by_name.get(j.scene)) for _, j in work]
     if pools is not None and len(items) > 1:
         outs = pools.map(_draw_job, items)
     else:

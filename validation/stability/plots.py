@@ -1,12 +1,13 @@
 """Drawing of the stability study's plot descriptions: the only module of the
 study that imports matplotlib (through :mod:`validation.figures`, whose style
-it shares: size, dpi, solver colours and markers, a title on every figure,
-file names ``<scene>_stability_<name>.png``).
+it shares: size, dpi, fonts (nothing under 8 pt), solver colours and markers,
+a title on every figure, legends below the axes, log axes, file names
+``<scene>_stability_<name>.png``).
 
 A plot description is plain data made by :func:`validation.stability.run_unit`
 or :func:`validation.stability.assemble`: ``{"kind", "scene", "study",
 "name", "data"}``. :func:`draw` computes nothing but display aids (axis
-windows, guide lines).
+windows, guide lines) and the numbers its sentence quotes from the data.
 """
 from __future__ import annotations
 
@@ -25,21 +26,12 @@ def _stem(plot) -> str:
 
 
 def _log_axes(ax, x=True, y=True):
-    """Log scales, the figures' grid, and no minor tick labels; an axis
-    spanning under two decades gets plain major ticks at 1, 2, 5 x 10^k."""
-    from matplotlib import ticker
+    """The figures' log axes (:func:`validation.figures._log_axes`)."""
+    F._log_axes(ax, x=x, y=y)
 
-    for on, axis, lim in ((x, ax.xaxis, ax.get_xlim), (y, ax.yaxis, ax.get_ylim)):
-        if not on:
-            continue
-        (ax.set_xscale if axis is ax.xaxis else ax.set_yscale)("log")
-        lo, hi = sorted(lim())
-        axis.set_minor_formatter(ticker.NullFormatter())
-        if lo > 0 and math.log10(hi / lo) < 2:
-            axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-            axis.set_major_formatter(ticker.FormatStrFormatter("%g"))
-    ax.grid(which="major", alpha=0.3)
-    ax.grid(which="minor", alpha=0.1)
+
+def _caption(text, kind):
+    return F.Caption(text, f"stability_{kind}")
 
 
 def _growth(plot, out_dir):
@@ -47,9 +39,10 @@ def _growth(plot, out_dir):
     fig = F._new_figure()
     F._suptitle(fig, f"{plot['scene']}: growth per step of the fastest mode against omega h")
     ax = fig.subplots()
+    line = np.asarray(d["theta_line"], float)
     for meth, g in d["theory"].items():
         color, marker = F.solver_style(meth)
-        ax.plot(d["theta_line"], g, color=color, lw=1.2, label=f"{meth} theory")
+        ax.plot(line, g, color=color, lw=1.2, label=f"{meth} theory")
         ax.plot(d["theta"], d["measured"][meth], marker, mfc="none", color=color, ls="none", ms=6,
                 label=f"{meth} measured")
     ax.axhline(1.0, color="0.35", lw=0.8, ls="-", label="growth 1")
@@ -60,11 +53,24 @@ def _growth(plot, out_dir):
     ax.grid(which="major", alpha=0.3)
     ax.set_xlabel("omega_max h")
     ax.set_ylabel("growth factor per step")
-    fig.legend(loc="outside lower center", ncol=3, fontsize=7, frameon=False)
+    F._legend_below(fig)
     path = F._save(fig, out_dir, _stem(plot))
-    return path, ("Amplitude growth per step of the fastest mode against omega*h: RK4 stays <= 1 up to 2.83, "
-                  "symplectic Euler is exactly 1 up to 2, explicit Euler exceeds 1 for every step; circles are "
-                  "measured from integrated runs, lines the stability functions.")
+    facts = []
+    for meth, g in d["theory"].items():
+        g = np.asarray(g, float)
+        if meth in d["boundary"]:
+            bits = [f"{meth} stable up to omega h = {d['boundary'][meth]:.3g}"]
+        elif np.all(g[line > 0] > 1.0):
+            bits = [f"{meth} grows (> 1) at every step"]
+        else:
+            bits = [meth]
+        meas = np.asarray(d["measured"][meth], float)
+        th = np.interp(np.asarray(d["theta"], float), line, g)
+        ok = np.isfinite(meas) & np.isfinite(th) & (th > 0)
+        if ok.any():
+            bits.append(f"measured within {100 * np.max(np.abs(meas[ok] / th[ok] - 1)):.2g}% of theory")
+        facts.append(", ".join(bits))
+    return path, _caption(F._sentence(f"{plot['scene']}", *facts), "growth")
 
 
 def _drift(plot, out_dir):
@@ -76,11 +82,12 @@ def _drift(plot, out_dir):
     color, marker = F.solver_style(meth)
     line = d["theta_line"]
     (a_e, p_e), (a_p, p_p) = d["loss_leading"], d["lag_leading"]
-    for ax, th_curve, lead, pts, ylabel, lab, lab_lead in (
+    facts = []
+    for ax, th_curve, lead, pts, ylabel, lab, lab_lead, what in (
             (ax_e, d["loss_theory"], a_e * line**p_e, d["energy_loss"], "relative energy loss per step",
-             "theory 1 - |R(i theta)|^2", f"leading order {a_e:.4g} theta^{p_e}"),
+             "loss: theory 1 - |R(i theta)|^2", f"loss: leading order {a_e:.4g} theta^{p_e}", "energy loss"),
             (ax_p, d["lag_theory"], a_p * line**p_p, d["phase_lag"], "phase lag per step (rad)",
-             "theory theta - arg R(i theta)", f"leading order {a_p:.4g} theta^{p_p}")):
+             "lag: theory theta - arg R(i theta)", f"lag: leading order {a_p:.4g} theta^{p_p}", "phase lag")):
         # log axes show magnitudes: a negative loss is a gain, a negative lag a lead
         neg = bool(np.nanmax(th_curve) <= 0)
         ax.plot(line, np.abs(th_curve), "-", color=color, lw=1.2, label=lab)
@@ -90,20 +97,23 @@ def _drift(plot, out_dir):
         _log_axes(ax)
         ax.set_xlabel("theta = omega_max h")
         ax.set_ylabel(ylabel.replace("loss", "gain").replace("lag", "lead") if neg else ylabel)
-        ax.legend(fontsize=7, loc="upper left")
+        th = np.interp(np.asarray(d["theta"], float), np.asarray(line, float), np.abs(np.asarray(th_curve, float)))
+        meas = np.abs(np.asarray(pts, float))
+        ok = np.isfinite(meas) & (th > 0)
+        if ok.any():
+            facts.append(f"measured {what} within {100 * np.max(np.abs(meas[ok] / th[ok] - 1)):.2g}% of theory "
+                         f"at theta {np.min(np.asarray(d['theta'])[ok]):.3g}-{np.max(np.asarray(d['theta'])[ok]):.3g}")
+    F._legend_below(fig)
     path = F._save(fig, out_dir, _stem(plot))
-    return path, (f"{meth} loses energy and phase at the rates its stability function predicts per step: "
-                  "measured circles on the exact curves (solid), the leading-order terms dotted.")
+    facts.append(f"leading terms {a_e:.4g} theta^{p_e} (loss) and {a_p:.4g} theta^{p_p} (lag)")
+    return path, _caption(F._sentence(f"{plot['scene']}: {meth}", *facts), "drift")
 
 
 def _long_energy(plot, out_dir):
     series = {label: (sd["t"], sd["err"]) for label, sd in plot["data"]["series"].items()}
     return F.energy_error(
-        out_dir, plot["scene"], series, stem=_stem(plot),
-        title=f"{plot['scene']}: relative energy error over the long horizon, the method and references",
-        sentence=("Relative energy error over the long horizon, log-log: the fixed-step method dissipates "
-                  "steadily (slope 1: 1 - |R(i theta)|^2 per step per mode until the fast mode is gone), heyoka "
-                  "stays near its tolerance, CVODE-BDF (a shorter run, for cost) drifts at its own rate."))
+        out_dir, plot["scene"], series, stem=_stem(plot), kind="stability_long_energy",
+        title=f"{plot['scene']}: relative energy error over the long horizon, the method and references")
 
 
 def _roundoff(plot, out_dir):
@@ -113,54 +123,91 @@ def _roundoff(plot, out_dir):
     F._suptitle(fig, f"{plot['scene']}: {meth} error after one slow period against the step (round-off floor)")
     ax = fig.subplots()
     color, marker = F.solver_style(meth)
-    h, err = d["h"], d["error"]
+    h, err = np.asarray(d["h"], float), np.asarray(d["error"], float)
     order = int(d["order"])
     ax.plot(h, err, "-", color=color, marker=marker, ms=5, lw=1.2, label=f"{meth} error at t_end")
     i = int(np.nanargmin(err))
     ax.plot([d["h_best"]], [err[i]], "*", color="k", ms=14, ls="none", label=f"best h = {d['h_best']:.3g} s")
     ok = np.isfinite(err) & (err > 0)
     if ok.sum() >= 1:
-        j = int(np.argmax(np.where(ok, h, -np.inf)))  # anchor the slope-4 guide at the largest step
+        j = int(np.argmax(np.where(ok, h, -np.inf)))  # anchor the slope guide at the largest step
         xs = np.array([h[ok].min(), h[j]])
         ax.plot(xs, err[j] * (xs / h[j]) ** order, "--", color="0.35", lw=1.0,
                 label=f"slope {order} (truncation, h^{order})")
-    _log_axes(ax)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
     ax.set_ylim(bottom=max(float(np.nanmin(np.where(ok, err, np.nan))) / 10, 1e-18) if ok.any() else None)
+    _log_axes(ax)
     ax.set_xlabel("step size h (s)")
-    ax.set_ylabel("max |q - q_exact| / max |q0|")
-    ax.legend(fontsize=8, loc="lower right")
+    ax.set_ylabel("max |q - q_exact| / max |q0| (relative)")
+    F._legend_below(fig)
     path = F._save(fig, out_dir, _stem(plot))
-    return path, (f"{meth} error against step: slope {order} down to the star (best h), below which accumulated "
-                  "round-off makes the error grow again.")
+    facts = [f"smallest error {err[i]:.2g} at h = {d['h_best']:.3g} s"]
+    if ok.any():
+        facts.append(f"error {err[j]:.2g} at the largest step h = {h[j]:.3g} s")
+        small = ok & (h < d["h_best"])
+        if small.any():
+            k = int(np.argmin(np.where(small, h, np.inf)))
+            facts.append(f"and {err[k]:.2g} at the smallest, h = {h[k]:.3g} s (round-off)")
+    return path, _caption(F._sentence(f"{plot['scene']}: {meth}", *facts), "roundoff")
+
+
+def _fold(x, ratio, tol=1e-9):
+    """For each point, whether it is the mirror (``x < 1``) of a point ``1/x``
+    with the same stiffness ratio: the same system, masses swapped and time
+    rescaled, drawn at ``1/x``. Returns a boolean mask (True: mirrored)."""
+    x, ratio = np.asarray(x, float), np.asarray(ratio, float)
+    mirrored = np.zeros(x.shape, bool)
+    for i in np.flatnonzero(x < 1):
+        partner = np.isclose(x, 1.0 / x[i], rtol=tol) & np.isclose(ratio, ratio[i], rtol=1e-6)
+        mirrored[i] = bool(partner.any())
+    return mirrored
 
 
 def _cost(plot, out_dir):
     d = plot["data"]
     fig = F._new_figure()
-    F._suptitle(fig, f"{plot['scene']}: cost of reaching error {d['target_error']:g} against the "
-                     f"{'spring' if d['what'] == 'ratio' else 'mass'} ratio")
+    what = "spring" if d["what"] == "ratio" else "mass"
+    x = np.asarray(d["x"], float)
+    mirrored = _fold(x, d["stiffness_ratio"]) if d["what"] != "ratio" else np.zeros(x.shape, bool)
+    folded = bool(mirrored.any())
+    F._suptitle(fig, f"{plot['scene']}: cost of reaching error {d['target_error']:g} (relative, one slow period) "
+                     f"against the {what} ratio")
     ax_n, ax_t = fig.subplots(1, 2, sharex=True)
+    xd = np.where(mirrored, 1.0 / x, x)
+    main = ~mirrored
+    facts = []
     for solver in F._in_palette_order(list(d["nfev"])):
         color, marker = F.solver_style(solver)
-        x = d["x"]
         n, w = np.asarray(d["nfev"][solver], float), np.asarray(d["wall_s"][solver], float)
         lab = solver + (" (steps x Taylor order)" if solver == "heyoka" else "")
         if not np.isfinite(n).any():
             lab += " (not run / not reached)"
-        ax_n.plot(x, n, "-", color=color, marker=marker, ms=5, lw=1.2, label=lab)
-        ax_t.plot(x, w, "-", color=color, marker=marker, ms=5, lw=1.2)
+        order = np.argsort(xd[main])
+        for ax, y in ((ax_n, n), (ax_t, w)):
+            ax.plot(xd[main][order], y[main][order], "-", color=color, marker=marker, ms=5, lw=1.2,
+                    label=lab if ax is ax_n else None)
+            if folded:  # the mirrored points, on the curve when the costs agree
+                ax.plot(xd[mirrored], y[mirrored], marker, mfc="none", color=color, ms=9, ls="none")
+        fin = np.isfinite(n)
+        if fin.any():
+            k = int(np.nanargmax(np.where(fin, xd, np.nan)))
+            facts.append(f"{solver} {n[k]:.3g}")
     for ax, yl in ((ax_n, "right-hand-side evaluations"), (ax_t, "wall time of the run (s)")):
         _log_axes(ax)
-        ax.set_xlabel(d["xlabel"])
+        ax.set_xlabel("mass ratio max(mu, 1/mu)" if folded else d["xlabel"])
         ax.set_ylabel(yl)
-    fig.legend(loc="outside lower center", ncol=4, fontsize=7, frameon=False)
+    F._legend_below(fig, title=("hollow: mu < 1 drawn at 1/mu (masses swapped: the same stiffness ratio)"
+                                if folded else None))
     path = F._save(fig, out_dir, _stem(plot))
-    r = d["stiffness_ratio"]
-    return path, (f"Cost of reaching error {d['target_error']:g} in one slow period against the "
-                  f"{'spring' if d['what'] == 'ratio' else 'mass'} ratio (omega_max/omega_min "
-                  f"{np.nanmin(r):.3g} to {np.nanmax(r):.3g}): the explicit methods' cost grows with omega_max; "
-                  f"BDF's stays flat when the fast mode is not excited; missing points were skipped for cost or "
-                  f"did not reach the target (see stability.csv).")
+    r = np.asarray(d["stiffness_ratio"], float)
+    head = (f"{plot['scene']}: target {d['target_error']:g}, {what} ratio {x.min():g} to {x.max():g} "
+            f"(omega_max/omega_min {np.nanmin(r):.3g} to {np.nanmax(r):.3g})")
+    parts = [f"RHS evaluations at the largest ratio: {', '.join(facts)}" if facts else "no solver reached the target"]
+    if folded:
+        parts.append(f"{int(mirrored.sum())} point(s) mu < 1 folded onto 1/mu, where the same stiffness ratio gives "
+                     f"the same system")
+    return path, _caption(F._sentence(head, *parts), "cost")
 
 
 def _large_n(plot, out_dir):
@@ -169,29 +216,31 @@ def _large_n(plot, out_dir):
     fig = F._new_figure()
     F._suptitle(fig, f"{plot['scene']}: cost per step and memory against chain length N")
     ax_t, ax_b = fig.subplots(1, 2, sharex=True)
-    N = d["n"]
+    N = np.asarray(d["n"], float)
     meth = d["method"]
     c_rk, m_rk = F.solver_style(meth)
     c_cv, m_cv = F.solver_style("cvode-bdf")
-    ax_t.plot(N, d["wall_per_step"], "-", color=c_rk, marker=m_rk, label=f"{meth} (slope {fits['time']:.2f})")
+    ax_t.plot(N, d["wall_per_step"], "-", color=c_rk, marker=m_rk, label=f"time: {meth} (slope {fits['time']:.2f})")
     ax_t.plot(N, d["cvode_wall_per_step"], "-", color=c_cv, marker=m_cv,
-              label=f"cvode-bdf band (slope {fits['cvode_time']:.2f})")
+              label=f"time: cvode-bdf band (slope {fits['cvode_time']:.2f})")
     ax_b.plot(N, d["peak_bytes"], "-", color=c_rk, marker=m_rk,
-              label=f"{meth} peak bytes (slope {fits['bytes']:.2f})")
+              label=f"memory: {meth} peak bytes (slope {fits['bytes']:.2f})")
     for ax, y in ((ax_t, d["wall_per_step"]), (ax_b, d["peak_bytes"])):
         ax.plot(N, y[0] * N / N[0], ":", color="0.35", lw=1.0, label="slope 1 (O(N))")
         _log_axes(ax)
         ax.set_xlabel("N masses")
-        ax.legend(fontsize=7)
     ax_t.set_ylabel("wall time per step (s)")
     ax_b.set_ylabel("peak bytes (tracemalloc)")
+    F._legend_below(fig)
     path = F._save(fig, out_dir, _stem(plot))
-    return path, "Cost per step and memory against chain length N: slopes near 1 (dotted) mean O(N) work and storage."
+    return path, _caption(
+        f"{plot['scene']}: N = {N.min():g} to {N.max():g}; fitted slopes {meth} time {fits['time']:.2f}, "
+        f"cvode-bdf time {fits['cvode_time']:.2f}, {meth} memory {fits['bytes']:.2f}.", "large_n")
 
 
 def _amplitude(plot, out_dir):
     d = plot["data"]
-    a, err = d["a_over_l"], d["error"]
+    a, err = np.asarray(d["a_over_l"], float), np.asarray(d["error"], float)
     fig = F._new_figure()
     F._suptitle(fig, f"{plot['scene']}: error of the linearized model against amplitude")
     ax = fig.subplots()
@@ -204,11 +253,15 @@ def _amplitude(plot, out_dir):
         ax.plot(a, err[sel][i] * (a / a[sel][i]) ** 2, ":", color="0.35", lw=1.0, label="slope 2 ((r/l)^2, theory)")
     _log_axes(ax)
     ax.set_xlabel("initial amplitude / l")
-    ax.set_ylabel("max |q_nl - q_lin| / r0 over 5 periods")
-    ax.legend(fontsize=8, loc="upper left")
+    ax.set_ylabel("max |q_nl - q_lin| / r0 over 5 periods (relative)")
+    F._legend_below(fig)
     path = F._save(fig, out_dir, _stem(plot))
-    return path, ("Relative error of the small-oscillation model over 5 periods against amplitude: grows like "
-                  "(r/l)^2; read off the largest amplitude at which the cheap model is good enough.")
+    facts = [f"measured slope {d['slope']:.2f}"]
+    for level in (1e-2, 1e-4):
+        below = sel & (err <= level)
+        if below.any():
+            facts.append(f"error <= {level:g} up to a/l = {a[below].max():.3g}")
+    return path, _caption(F._sentence(f"{plot['scene']}: a/l = {a.min():.3g} to {a.max():.3g}", *facts), "amplitude")
 
 
 KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "roundoff": _roundoff, "cost": _cost,
@@ -216,9 +269,10 @@ KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "round
 
 
 def draw(plot: dict, out_dir) -> tuple[Path, str]:
-    """Draw one plot description into ``out_dir``: ``(path, sentence)``.
-    ValueError for a kind it does not know (e.g. a unit's part that
-    :func:`validation.stability.assemble` has not merged)."""
+    """Draw one plot description into ``out_dir``: ``(path, caption)``, the
+    caption a :class:`validation.figures.Caption` of kind ``"stability_" +
+    plot["kind"]``. ValueError for a kind it does not know (e.g. a unit's
+    part that :func:`validation.stability.assemble` has not merged)."""
     kind = plot.get("kind") if isinstance(plot, dict) else None
     if kind not in KINDS:
         raise ValueError(f"`plot` kind {kind!r} is not drawable (kinds: {', '.join(KINDS)}; parts are merged by "
