@@ -1,38 +1,32 @@
 """Scene files: one physical situation and what to measure on it (DESIGN.md "Scenes").
 
-A scene is a TOML file::
+Every key a scene file may hold -- type, unit, default, an example -- is in
+``docs/scene-reference.md``, generated from :mod:`validation.scene_schema`,
+where the document's structure is declared once (pydantic, strict: TOML types
+kept, unknown keys refused; a union on ``model``). A short scene::
 
     name = "thesis-2dof-case1"          # [a-z0-9_-], unique; figure names start with it
-    description = "Table 4.1: ..."
     model = "chain"                     # a key of rk4core.models.MODELS, or "package.module:Class"
-    quick = true                        # optional: part of the --quick subset
     [params]                            # the model's parameters (rk4core.make_model)
+    masses = [0.815, 3.099]
+    springs = [41.5, 138.0, 157.8]
     [initial]
-    x = [...]                           # generalized coordinates (m or rad), flat
-    v = [...]                           # their time derivatives (optional: zeros)
-    # or, instead of x: mode = 2 (1-based, ascending omega) [and amplitude]:
-    # x = amplitude * phi[:, mode-1], the mass-normalised mode shape (Code 02)
+    x = [0.005, 0.005]                  # or mode = 2 [and amplitude]: a normal mode (Code 02)
     [run]
     t_end = 100.0                       # s
-    h = [...]                           # fixed steps (s) for rk4 / euler / symplectic-euler
-    tolerances = [...]                  # rtol of the adaptive solvers, in (0, 1)
-    solvers = [...]                     # built-in methods (references.registry.BUILTIN)
-                                        # and the scene's own [methods.NAME]
-    outputs = [...]                     # OUTPUTS below
-    output_dt = 0.1                     # optional: spacing of the output grid (s)
-    max_output_points = 100000          # optional: decimate the output grid to at most
-                                        # this many points (every k-th point, t_end kept)
-    [convergence]                       # optional, see validation.plan
-    t_end = 0.5
-    theta = [0.4, 0.2, 0.1, 0.05]       # omega_max * h of the RK4 sweep
-    theta_euler = [...]                 # ... of the Euler / symplectic Euler sweep
-    [methods.NAME]                      # optional: the scene's own method (references.registry):
-    A = [["0", "0"], ["1/2", "0"]]      #   a tableau (numbers or rational strings; c from the
-    b = ["0", "1"]                      #   row sums unless given; A_v/b_v: partitioned), or
-                                        #   python = "pkg.mod:step" / command = [argv], with order
-    [stability]                         # optional, validated by validation.stability
-    [sweep]                             # optional: one scene per point, see "Sweeps" below
-    "params.masses[1]" = [0.5, 1.0, 3.099, 10.0]
+    h = [0.1, 0.01]                     # fixed steps (s) of the fixed-step methods
+    solvers = ["rk4", "euler"]          # built-ins and the scene's own [methods.NAME]
+                                        # outputs: default, every output that applies
+
+:func:`scene_from_dict` validates the document with
+:data:`validation.scene_schema.SCENE`, then checks here what a schema cannot
+express: the model (a user's model imported and its parameters checked
+against its constructor), the parameters' model (rk4core builds it), ``x``
+and ``v`` against the model's degrees of freedom, a mode's shape, the solvers
+a scene's own methods add, ``h`` and ``tolerances`` present when a solver
+needs them, the output grid below, ``[stability] method``, and sweeps.
+``run.outputs`` defaults to :func:`default_outputs`: every output that
+applies to the model.
 
 Errors and accuracy are measured on the output grid ``0, output_dt, ...,
 t_end``; every ``h`` must divide ``output_dt`` (default: the largest ``h``) and
@@ -42,7 +36,10 @@ the grid keeps every ``k``-th of those points (``k`` the smallest stride that
 fits) and always ``t_end``: decimated, but still on every step grid.
 
 A malformed scene raises :class:`SceneError`, one line ``FILE: field `F`:
-problem (got VALUE)``, before anything runs.
+problem (got VALUE)``, before anything runs. A parameter set that passes the
+schema but from which rk4core builds no model (a spring network joining a
+node to itself, an expression that does not parse, a frequency that
+overflows) is refused naming field ``params`` with rk4core's own line.
 
 Sweeps
 ------
@@ -133,25 +130,24 @@ from numbers import Real
 from pathlib import Path
 
 import numpy as np
+from pydantic import ValidationError
 
 from references.registry import MethodError, methods_from_tables, names, resolve
 from rk4core.solver import _SLACK as _STEP_SLACK
 
+from . import scene_schema
+from .scene_schema import OUTPUTS
+
 __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scenes", "resolve_scene",
            "scene_from_dict", "scene_points_from_dict", "output_stride", "OUTPUTS", "SCENE_DIR",
-           "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS"]
+           "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS", "default_outputs"]
 
-OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
-           "stability", "dispersion", "modal_energy", "linearization", "thesis_code")
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
-_TOP = {"name", "description", "model", "quick", "params", "initial", "run", "convergence",
-        "stability", "sweep", "methods"}
-_INITIAL = {"x", "v", "mode", "amplitude"}
-_RUN = {"t_end", "h", "tolerances", "solvers", "outputs", "output_dt", "max_output_points"}
-_CONVERGENCE = {"t_end", "theta", "theta_euler"}
-_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*")  # used with fullmatch: no trailing newline slips through
-_NAME_MAX = 100
+_TOP = set(scene_schema.TOP_KEYS)
+_INITIAL = set(scene_schema.INITIAL_KEYS)
+_NAME = re.compile(scene_schema.NAME_PATTERN.strip("^$"))  # used with fullmatch: no trailing newline slips through
+_NAME_MAX = scene_schema.NAME_MAX
 #: Relative slack when checking that one step divides another: the slack of
 #: rk4core's step count (``ceil((t1 - t0) / h)``), so a step that passes here
 #: is the step used, and every output time is a grid point of every run.
@@ -165,10 +161,10 @@ SWEEP_RUN_KEYS = ("t_end",)
 #: Longest point name ``BASE@TOKEN=VALUE...`` (file-name stems stay well below 255 bytes).
 _POINT_NAME_MAX = 200
 _POINT_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*(?:@[a-z0-9_.]+=[a-z0-9_.-]+)+")
-_IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+_IDENT = scene_schema.IDENT
 _SWEEP_PATH = re.compile(rf"({_IDENT})((?:\.{_IDENT}|\[(?:0|[1-9][0-9]*)\])+)")
 _SWEEP_STEP = re.compile(rf"\.({_IDENT})|\[(0|[1-9][0-9]*)\]")
-_WORD = re.compile(r"[a-z0-9][a-z0-9_.-]{0,39}")
+_WORD = re.compile(scene_schema.WORD)
 
 
 class SceneError(ValueError):
@@ -293,54 +289,18 @@ def output_stride(n_intervals: int, max_points: int | None) -> int:
     return k
 
 
-# -- field checks --------------------------------------------------------------
+# -- checks --------------------------------------------------------------------
 def _is_num(x) -> bool:
     return isinstance(x, Real) and not isinstance(x, bool)
 
 
-def _number(path, fld, value, *, positive=False, open_unit=False) -> float:
-    if not _is_num(value):
-        raise SceneError(path, fld, "must be a number", value)
-    try:
-        v = float(value)
-    except OverflowError:  # an integer beyond the double range
-        raise SceneError(path, fld, "must be finite (it exceeds the double range)", value) from None
-    if not math.isfinite(v):
-        raise SceneError(path, fld, "must be finite", value)
-    if positive and v <= 0.0:
-        raise SceneError(path, fld, "must be > 0", value)
-    if open_unit and not 0.0 < v < 1.0:
-        raise SceneError(path, fld, "must lie in (0, 1)", value)
-    return v
-
-
-def _numbers(path, fld, value, **kw) -> list:
-    if not isinstance(value, list):
-        raise SceneError(path, fld, "must be a list of numbers", value)
-    if not value:
-        raise SceneError(path, fld, "must not be empty", value)
-    return [_number(path, f"{fld}[{i}]", v, **kw) for i, v in enumerate(value)]
-
-
-def _strings(path, fld, value, allowed) -> list:
-    if not isinstance(value, list) or not value:
-        raise SceneError(path, fld, "must be a non-empty list of names", value)
-    for i, v in enumerate(value):
-        if v not in allowed:
-            raise SceneError(path, f"{fld}[{i}]", f"must be one of {', '.join(allowed)}", v)
-    if len(set(value)) != len(value):
-        raise SceneError(path, fld, "lists a name twice", value)
-    return list(value)
-
-
-def _table(path, fld, value, allowed_keys) -> dict:
-    if not isinstance(value, dict):
-        raise SceneError(path, fld, "must be a table", value)
-    unknown = sorted(set(value) - set(allowed_keys))
+def _unknown_keys(path, fld, table: dict, known) -> None:
+    """Refuse the first key of ``table`` outside ``known`` (a user model's
+    parameters; the top level of a swept document)."""
+    unknown = sorted((k for k in table if k not in known), key=str)
     if unknown:
-        raise SceneError(path, f"{fld}.{unknown[0]}" if fld else unknown[0],
-                         f"unknown key (known: {', '.join(sorted(allowed_keys))})")
-    return value
+        where = f"{fld}.{unknown[0]}" if fld else str(unknown[0])
+        raise SceneError(path, where, f"unknown key (known: {', '.join(sorted(known))})")
 
 
 def _divides(small: float, big: float) -> bool:
@@ -350,23 +310,19 @@ def _divides(small: float, big: float) -> bool:
     return abs(r - round(r)) <= _DIVIDES * max(1.0, r)
 
 
-_MSG = re.compile(r"^`([^`]+)` (.*?)(?:, got (.*))?$")
-
-
-def _from_value_error(path, prefix, err) -> SceneError:
-    """Turn an rk4core ValueError ("`name` must be ..., got X") into a SceneError."""
-    text = str(err).splitlines()[0] if str(err) else type(err).__name__
-    m = _MSG.match(text)
-    if m:
-        return SceneError(path, f"{prefix}.{m.group(1)}", m.group(2), _Raw(m.group(3)) if m.group(3) else None)
-    m = re.search(r"`([^`]+)`", text)
-    name = f"{prefix}.{m.group(1)}" if m else prefix
-    return SceneError(path, name, text)
-
-
 class _Raw(str):
     def __repr__(self):
         return str(self)
+
+
+def _validated(path, doc: dict):
+    """``doc`` validated by :data:`validation.scene_schema.SCENE` (the variant of
+    its model), or the :class:`SceneError` of its first error."""
+    try:
+        return scene_schema.SCENE.validate_python(doc)
+    except ValidationError as e:
+        fld, problem, value = scene_schema.first_error(e, doc)
+        raise SceneError(path, fld, problem, value) from None
 
 
 # -- loading -------------------------------------------------------------------
@@ -451,116 +407,144 @@ def _check_model(path, model_name):
 
 
 def _scene_from_dict(doc: dict, path) -> Scene:
-    from rk4core import make_model
-
     if not isinstance(doc, dict):
         raise SceneError(path, "file", "must hold a table of scene fields", doc)
-    _table(path, "", doc, _TOP)
-    for key in ("name", "model", "params", "initial", "run"):
-        if key not in doc:
-            raise SceneError(path, key, "is missing")
-    name = doc["name"]
-    if not isinstance(name, str) or not _NAME.fullmatch(name) or len(name) > _NAME_MAX:
-        raise SceneError(path, "name", f"must be 1 to {_NAME_MAX} lowercase letters, digits, '-' or '_', "
-                         f"starting with a letter or digit", name)
-    description = doc.get("description", "")
-    if not isinstance(description, str):
-        raise SceneError(path, "description", "must be a string", description)
-    quick = doc.get("quick", False)
-    if not isinstance(quick, bool):
-        raise SceneError(path, "quick", "must be true or false", quick)
-    model_name = doc["model"]
-    _check_model(path, model_name)
-    params = _table(path, "params", doc["params"], _model_keys(model_name))
-    try:
-        model = make_model(model_name, dict(params))
-    except ValueError as e:
-        raise _from_value_error(path, "params", e) from None
-    except TypeError as e:
-        raise SceneError(path, "params", f"has a value of the wrong type: {e}") from None
-    except ArithmeticError as e:  # overflow in a derived quantity of extreme parameters
-        raise SceneError(path, "params", f"gives no usable model: {type(e).__name__}: {e}") from None
-
+    s = _validated(path, doc)
+    _check_model(path, s.model)
+    model = _build_model(path, s.model, doc["params"])
     n = model.n_dof
-    ini = _table(path, "initial", doc["initial"], _INITIAL)
-    if ("x" in ini) == ("mode" in ini):
-        raise SceneError(path, "initial", "give exactly one of `x` and `mode`")
-    if "x" in ini:
-        if "amplitude" in ini:
-            raise SceneError(path, "initial.amplitude", "only goes with `mode`")
-        x = _numbers(path, "initial.x", ini["x"])
-        if len(x) != n:
-            raise SceneError(path, "initial.x", f"must have {n} entries for this {model_name}", ini["x"])
+    ini = s.initial
+    if ini.x is not None:
+        if len(ini.x) != n:
+            raise SceneError(path, "initial.x", f"must have {n} entries for this {s.model}", doc["initial"]["x"])
+        x = list(ini.x)
     else:
         x = _mode_shape(path, model, ini)
-    v = _numbers(path, "initial.v", ini["v"]) if "v" in ini else [0.0] * n
+    v = list(ini.v) if ini.v is not None else [0.0] * n
     if len(v) != n:
-        raise SceneError(path, "initial.v", f"must have {n} entries for this {model_name}", ini["v"])
+        raise SceneError(path, "initial.v", f"must have {n} entries for this {s.model}", doc["initial"]["v"])
 
-    run = _table(path, "run", doc["run"], _RUN)
-    for key in ("t_end", "solvers", "outputs"):
-        if key not in run:
-            raise SceneError(path, f"run.{key}", "is missing")
-    t_end = _number(path, "run.t_end", run["t_end"], positive=True)
+    run = s.run
+    t_end = run.t_end
     methods = _methods(path, doc.get("methods", {}))
-    solvers = _strings(path, "run.solvers", run["solvers"], names(methods))
-    outputs = _strings(path, "run.outputs", run["outputs"], OUTPUTS)
-    fixed = [resolve(s, methods).fixed_step for s in solvers]
+    known = names(methods)
+    for i, solver in enumerate(run.solvers):
+        if solver not in known:
+            raise SceneError(path, f"run.solvers[{i}]", f"must be one of {', '.join(known)}", solver)
+    fixed = [resolve(sv, methods).fixed_step for sv in run.solvers]
     h = []
-    if any(fixed) or "h" in run:
-        if "h" not in run:
+    if any(fixed) or run.h is not None:
+        if run.h is None:
             raise SceneError(path, "run.h", "is missing (needed by the fixed-step solvers)")
-        h = _numbers(path, "run.h", run["h"], positive=True)
+        h = list(run.h)
         for i, hi in enumerate(h):
             if hi > t_end:
                 raise SceneError(path, f"run.h[{i}]", f"must be <= t_end = {t_end}", hi)
     tolerances = []
-    if not all(fixed) or "tolerances" in run:
-        if "tolerances" not in run:
+    if not all(fixed) or run.tolerances is not None:
+        if run.tolerances is None:
             raise SceneError(path, "run.tolerances", "is missing (needed by the adaptive solvers)")
-        tolerances = _numbers(path, "run.tolerances", run["tolerances"], open_unit=True)
-    default_dt = max(h) if h else t_end / 1000.0
-    output_dt = _number(path, "run.output_dt", run.get("output_dt", default_dt), positive=True)
+        tolerances = list(run.tolerances)
+    output_dt = run.output_dt if run.output_dt is not None else max(h) if h else t_end / 1000.0
     if output_dt > t_end or not _divides(output_dt, t_end):
         raise SceneError(path, "run.output_dt", f"must divide t_end = {t_end}", output_dt)
     for i, hi in enumerate(h):
         if not _divides(hi, output_dt):
             raise SceneError(path, f"run.h[{i}]", f"must divide the output spacing {output_dt}", hi)
-    max_points = run.get("max_output_points")
-    if max_points is not None and (isinstance(max_points, bool) or not isinstance(max_points, int)
-                                   or max_points < 2):
-        raise SceneError(path, "run.max_output_points", "must be an integer >= 2", max_points)
 
-    conv = _table(path, "convergence", doc.get("convergence", {}), _CONVERGENCE)
-    convergence = {}
-    if "t_end" in conv:
-        convergence["t_end"] = _number(path, "convergence.t_end", conv["t_end"], positive=True)
-    for key in ("theta", "theta_euler"):
-        if key in conv:
-            vals = _numbers(path, f"convergence.{key}", conv[key], positive=True)
-            if len(vals) < 3:
-                raise SceneError(path, f"convergence.{key}", "needs at least 3 values for a fit", conv[key])
-            convergence[key] = vals
+    stability = s.stability
+    if run.outputs is not None:
+        outputs = list(run.outputs)
+    else:
+        outputs = default_outputs(model, stability=stability is not None)
+        if not outputs:
+            from .budget import MAX_DENSE_DOF
 
-    stability = doc.get("stability")
-    if "stability" in outputs or stability is not None:
-        stability = _stability(path, stability if stability is not None else {})
-        stability["method"] = _stability_method(path, stability.get("method"), solvers, methods)
+            raise SceneError(path, "run.outputs", f"is missing, and only `stability` applies to a model of {n} "
+                             f"degrees of freedom (every other output needs a dense eigensolve, above "
+                             f"{MAX_DENSE_DOF}): give a [stability] table or outputs")
+    if "stability" in outputs and stability is None:  # its defaults, or the error of a missing `studies`
+        stability = _validated(path, {**doc, "stability": {}}).stability
+    if stability is not None:
+        stability["method"] = _stability_method(path, stability.get("method"), run.solvers, methods)
 
-    scene = Scene(name=name, description=description, model=model_name, params=dict(params),
+    scene = Scene(name=s.name, description=s.description, model=s.model, params=dict(doc["params"]),
                   initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
-                  h=h, tolerances=tolerances, solvers=solvers, outputs=outputs, quick=quick,
-                  stability=stability, path=Path(path), output_dt=output_dt, convergence=convergence,
-                  max_output_points=max_points, methods={k: dict(v) for k, v in doc.get("methods", {}).items()})
+                  h=h, tolerances=tolerances, solvers=list(run.solvers), outputs=outputs, quick=s.quick,
+                  stability=stability, path=Path(path), output_dt=output_dt,
+                  convergence=s.convergence.model_dump(exclude_unset=True),
+                  max_output_points=run.max_output_points,
+                  methods={k: dict(v) for k, v in doc.get("methods", {}).items()})
     scene.__dict__["_registry"] = methods
     return scene
+
+
+def default_outputs(model, *, stability: bool = False) -> list[str]:
+    """What ``run.outputs`` is when a scene omits it: every output that applies
+    to ``model`` (an rk4core model), in :data:`OUTPUTS` order.
+
+    * ``state``, ``energy``, ``work_precision``, ``figures``: every model;
+    * ``convergence``, ``modes``, ``modal_energy``: a model with a linearization
+      (a stiffness matrix: its frequencies set the convergence grid);
+    * ``linearization``: a nonlinear model with a linearization;
+    * ``dispersion``: a uniform chain between walls (the rule the dispersion
+      output itself applies, ``validation.execute._uniform_chain``);
+    * ``stability``: when the scene has a ``[stability]`` table;
+    * ``thesis_code``: never (it runs the thesis' own programs, whatever the
+      scene's model).
+
+    Above :data:`validation.budget.MAX_DENSE_DOF` degrees of freedom only
+    ``stability`` applies (every other output needs a dense eigensolve: the
+    budget refuses it), so the list may be empty.
+    """
+    from .budget import MAX_DENSE_DOF
+    from .execute import _uniform_chain
+
+    if model.n_dof > MAX_DENSE_DOF:
+        return ["stability"] if stability else []
+    try:
+        model.omega_bound()  # O(nnz): needs a stiffness matrix, no eigensolve
+        linearized = True
+    except Exception:  # noqa: BLE001 - a model without a linearization
+        linearized = False
+    applies = {"state", "energy", "work_precision", "figures"}
+    if linearized:
+        applies |= {"convergence", "modes", "modal_energy"}
+        if not model.linear:
+            applies.add("linearization")
+        if _uniform_chain(model) is not None:
+            applies.add("dispersion")
+    if stability:
+        applies.add("stability")
+    return [o for o in OUTPUTS if o in applies]
+
+
+def _build_model(path, model_name, params):
+    """The rk4core model of the scene's ``[params]``. A user's model's keys are
+    checked against its constructor here (a built-in's by the schema); what
+    rk4core still refuses is one line naming ``params``."""
+    from rk4core import make_model
+    from rk4core.models import model_parameters
+
+    if model_name not in scene_schema.BUILTIN_MODELS:
+        required, optional = model_parameters(model_name)
+        _unknown_keys(path, "params", params, set(required) | set(optional))
+        for key in required:
+            if key not in params:
+                raise SceneError(path, f"params.{key}", "is missing")
+    try:
+        return make_model(model_name, dict(params))
+    except ValueError as e:
+        raise SceneError(path, "params", str(e).strip() or type(e).__name__) from None
+    except TypeError as e:
+        raise SceneError(path, "params", f"has a value of the wrong type: {e}") from None
+    except ArithmeticError as e:  # overflow in a derived quantity of extreme parameters
+        raise SceneError(path, "params", f"gives no usable model: {type(e).__name__}: {e}") from None
 
 
 def _methods(path, tables) -> dict:
     """The scene's ``[methods.NAME]`` tables as registry methods; a bad one is
     one line naming ``methods.NAME.KEY``."""
-    if not isinstance(tables, dict):
-        raise SceneError(path, "methods", "must be a table of [methods.NAME] tables", tables)
     try:
         return methods_from_tables(tables)
     except MethodError as e:
@@ -577,42 +561,21 @@ def _model_keys(model_name):
 
 def _mode_shape(path, model, ini) -> list:
     """``amplitude * phi[:, mode - 1]`` with a fixed sign (first nonzero entry > 0)."""
-    mode = ini["mode"]
-    if isinstance(mode, bool) or not isinstance(mode, int) or not 1 <= mode <= model.n_dof:
+    mode = ini.mode
+    if mode > model.n_dof:
         raise SceneError(path, "initial.mode", f"must be an integer in 1..{model.n_dof}", mode)
     from .budget import MAX_DENSE_DOF
 
     if model.n_dof > MAX_DENSE_DOF:
         raise SceneError(path, "initial.mode", f"needs a dense eigensolve of {model.n_dof} degrees of freedom, "
                          f"above the cap of {MAX_DENSE_DOF}; give `x` instead", mode)
-    amp = _number(path, "initial.amplitude", ini.get("amplitude", 1.0))
     try:
         _, phi = model.modes()
     except NotImplementedError:
         raise SceneError(path, "initial.mode", f"model {model.name!r} has no modes") from None
     shape = phi[:, mode - 1]
     first = np.flatnonzero(np.abs(shape) > 1e-12 * np.max(np.abs(shape)))[0]
-    return list(amp * np.sign(shape[first]) * shape)
-
-
-def _stability(path, params) -> dict:
-    if not isinstance(params, dict):
-        raise SceneError(path, "stability", "must be a table", params)
-    try:
-        from validation.stability import validate_params
-    except ImportError as e:
-        raise SceneError(path, "stability", f"the stability study is not available ({e})") from None
-    from validation.stability.params import StabilityParamError
-
-    try:
-        return validate_params(dict(params), "stability")
-    except StabilityParamError as e:  # names its own field: `stability.<key>`
-        raise SceneError(path, e.field, e.problem, _Raw(repr(e.value)) if e.value is not None else None) from None
-    except ValueError as e:
-        text = str(e).splitlines()[0]
-        if text.startswith(str(path)):
-            raise SceneError(path, "stability", text[len(str(path)):].lstrip(": ")) from None
-        raise _from_value_error(path, "stability", e) from None
+    return list(ini.amplitude * np.sign(shape[first]) * shape)
 
 
 def _stability_method(path, name, solvers, methods) -> str:
@@ -651,7 +614,7 @@ def scene_points_from_dict(doc: dict, path="<scene>") -> list[Scene]:
     ``[sweep]`` (module docstring, "Sweeps"), or ``[scene]`` without one."""
     if not isinstance(doc, dict) or "sweep" not in doc:
         return [_scene_from_dict(doc, path)]
-    _table(path, "", doc, _TOP)
+    _unknown_keys(path, "", doc, _TOP)
     axes = _sweep_axes(path, doc)
     n_points = math.prod(len(a.values) for a in axes)
     if n_points > MAX_SWEEP_POINTS:

@@ -1,0 +1,712 @@
+"""The scene file's schema, declared once (pydantic v2, strict, ``extra="forbid"``).
+
+Every key a scene file may hold, its type, bounds, default, unit, example and
+meaning is declared here, and nowhere else: :mod:`validation.scenes` validates
+a document's structure with :data:`SCENE` and keeps only the checks a schema
+cannot express (the model's degrees of freedom, ``h`` dividing
+``output_dt``, the solvers a scene's own methods add, sweeps). The reference
+and the JSON Schema are generated from these models::
+
+    python -m validation.scene_schema --markdown > docs/scene-reference.md
+    python -m validation.scene_schema --json-schema > docs/scene.schema.json
+
+The top level is a union on ``model``: one variant per built-in model, whose
+``[params]`` table is declared key by key, and one for a user's model
+(``"package.module:Class"``), whose ``[params]`` are its constructor's
+arguments (checked against the model registry by :mod:`validation.scenes`).
+A callable discriminator picks the variant (a string naming a built-in model
+selects it, anything else the user variant), so only one variant is
+validated and its errors name the document's own fields. ``[stability]`` is
+declared from :data:`validation.stability.params.PARAMS` and validated by its
+``validate_params`` (the bounds table stays the rule there).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
+
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, WrapValidator,
+                      create_model, model_validator)
+from pydantic_core import PydanticCustomError, PydanticUndefined
+
+from references.registry import _METHOD_NAME, BUILTIN
+from rk4core.models.base import MASS_MIN
+from rk4core.models.potential import MAX_COORDINATES
+from validation.plan import EULER_THETAS, RK4_THETAS
+from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
+
+__all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "OUTPUTS", "OUTPUT_HELP", "TOP_KEYS", "INITIAL_KEYS",
+           "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
+
+#: What a scene may ask for in ``run.outputs``.
+OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
+           "stability", "dispersion", "modal_energy", "linearization", "thesis_code")
+#: output -> (when it applies, so is in the default ``run.outputs``; what it adds to the report).
+#: The rule is :func:`validation.scenes.default_outputs`.
+OUTPUT_HELP = {
+    "state": ("every model", "every solver at every step or tolerance against the reference: `accuracy.csv`"),
+    "energy": ("every model", "energy drift of those runs, against theory for tableaux on linear models: "
+                              "`energy.csv`, the energy figure"),
+    "convergence": ("models with a linearization (modes)", "observed order of every fixed-step method from a "
+                    "sweep of omega_max h (`[convergence]`): `convergence.csv`"),
+    "work_precision": ("every model", "error against wall time and RHS calls, the cheapest solver per "
+                       "target: `work_precision.csv`, the work-precision figure"),
+    "modes": ("models with a linearization", "natural frequencies of the linearization: `modes.csv`"),
+    "figures": ("every model", "the figures of the outputs above and the state figures (trajectory, phase "
+                "portrait)"),
+    "stability": ("scenes with a `[stability]` table", "the stability study: `stability.csv` and its figures"),
+    "dispersion": ("uniform chains between walls", "the chain's frequencies against the lattice's dispersion "
+                   "relation, and RK4 wave packets: `dispersion.csv`"),
+    "modal_energy": ("models with a linearization", "energy in each of the lowest four modes against time (FPUT): "
+                     "`modal_energy.csv` and its figure"),
+    "linearization": ("nonlinear models with a linearization", "the linearized model's exact solution against "
+                      "the nonlinear truth: `linearization.csv`"),
+    "thesis_code": ("never by default (it runs the thesis' own programs, not the scene's model)",
+                    "the thesis' Code 01-03 in GNU Octave against rk4core: `thesis_code.csv`"),
+}
+NAME_PATTERN = "^[a-z0-9][a-z0-9_-]*$"
+NAME_MAX = 100
+#: A name in a ``[sweep]`` path.
+IDENT = r"[A-Za-z_][A-Za-z0-9_]*"
+#: A string value of a ``[sweep]`` list (it appears in the point's name).
+WORD = r"[a-z0-9][a-z0-9_.-]{0,39}"
+_SWEEP_PATH = rf"^{IDENT}(\.{IDENT}|\[(0|[1-9][0-9]*)\])+$"
+_TARGET = r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*$"
+_STRICT = ConfigDict(strict=True, extra="forbid")
+
+
+def _f(description: str, unit: str = "-", example: Any = None, **kw):
+    """A documented field: ``unit`` and ``example`` go to the reference and the JSON Schema."""
+    extra = {"unit": unit, "example": example, **kw.pop("schema", {})}
+    if "default_text" in kw:
+        extra["default_text"] = kw.pop("default_text")
+    return Field(description=description, json_schema_extra=extra, **kw)
+
+
+def _rule(problem: str, at: str = "", **value) -> PydanticCustomError:
+    """A broken rule of a table, raised from its validator: ``problem`` at the
+    table's field plus ``at`` (``".amplitude"``); ``value=...`` is shown."""
+    return PydanticCustomError("scene_rule", "{problem}", {"problem": problem, "at": at, **value})
+
+
+def _distinct(items: list) -> list:
+    if len(set(items)) != len(items):
+        raise _rule("lists a name twice", value=items)
+    return items
+
+
+def _open_unit(x: float) -> float:
+    if not 0.0 < x < 1.0:
+        raise _rule("must lie in (0, 1)", value=x)
+    return x
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+#: A mass, stiffness or length: a normal positive float (rk4core.models.base.MASS_MIN).
+Normal = Annotated[float, Field(ge=MASS_MIN, allow_inf_nan=False)]
+#: In (0, 1), refused in one message (the bounds are written for the JSON Schema only).
+OpenUnit = Annotated[float, Field(allow_inf_nan=False, json_schema_extra={"exclusiveMinimum": 0,
+                                                                          "exclusiveMaximum": 1}),
+                     AfterValidator(_open_unit)]
+Names = Annotated[list[str], Field(min_length=1), AfterValidator(_distinct)]
+Output = Literal[OUTPUTS]  # type: ignore[valid-type]
+
+
+def _shape(v) -> str:
+    return "each" if isinstance(v, list) else "one"
+
+
+#: One number for all, or one per item (``masses = 1.0`` with ``n``, or ``masses = [...]``).
+NormalOrList = Annotated[Union[Annotated[Normal, Tag("one")],
+                               Annotated[list[Normal], Field(min_length=1), Tag("each")]], Discriminator(_shape)]
+#: A tableau coefficient: a number or an exact rational such as ``"1/3"``.
+Coefficient = Annotated[Union[Annotated[float, Tag("number")], Annotated[str, Tag("text")]],
+                        Discriminator(lambda v: "text" if isinstance(v, str) else "number")]
+_TAGS = frozenset({"one", "each", "number", "text"})
+
+
+class _Table(BaseModel):
+    model_config = _STRICT
+
+
+# -- [params], one table per built-in model --------------------------------------------
+class ChainParams(_Table):
+    """Masses in a line joined by springs (thesis sec. 2.1-2.2; FPUT chains with alpha, beta)."""
+
+    masses: NormalOrList = _f("mass of each block, left to right; one number with `n` for n equal masses",
+                              "kg", [0.815, 3.099])
+    springs: NormalOrList = _f("stiffness of each spring, left to right: N+1 with walls = both, N with one wall, "
+                               "N-1 with none; one number for all", "N/m", [41.5, 138.0, 157.8])
+    walls: Literal["both", "left", "right", "none"] = _f("which ends are tied to a wall", "-", "both",
+                                                        default="both")
+    alpha: Finite = _f("cubic term of each spring's energy k r^2/2 + alpha r^3/3 + beta r^4/4 (FPUT alpha)",
+                       "N/m^2", 0.25, default=0.0)
+    beta: Finite = _f("quartic term of each spring's energy (FPUT beta)", "N/m^3", 1.0, default=0.0)
+    n: int = _f("number of masses when `masses` is one number", "masses", 2, default=None, ge=1, le=10**7)
+
+    @model_validator(mode="after")
+    def _counts(self):
+        many = isinstance(self.masses, list)
+        if not many and self.n is None:
+            raise _rule("must be given when `masses` is one number", at=".n")
+        if many and self.n is not None and self.n != len(self.masses):
+            raise _rule(f"disagrees with the {len(self.masses)} entries of `masses`", at=".n", value=self.n)
+        count = len(self.masses) if many else self.n
+        n_springs = count + {"both": 1, "left": 0, "right": 0, "none": -1}[self.walls]
+        if n_springs < 1:
+            raise _rule("must have at least 2 entries when walls = 'none'", at=".masses", value=self.masses)
+        if isinstance(self.springs, list) and len(self.springs) != n_springs:
+            raise _rule(f"must have {n_springs} entries for {count} masses and walls = {self.walls!r}",
+                       at=".springs", value=self.springs)
+        return self
+
+
+class Planar4Params(_Table):
+    """One mass on four springs to anchors at (+-l, 0), (0, +-l) (thesis sec. 2.3, Tables 4.4-4.5)."""
+
+    m: Normal = _f("the mass", "kg", 0.815)
+    k: Normal = _f("stiffness of each spring", "N/m", 41.5)
+    l: Normal = _f("distance of each anchor from the centre, the springs' natural length", "m", 0.01)  # noqa: E741
+    linear: bool = _f("true: the linearized (small-amplitude) model; false: the exact spring geometry", "-",
+                      True, default=False)
+
+
+class Oscillator2DParams(_Table):
+    """The 2-D harmonic oscillator, isotropic or not (thesis sec. 2.3.2, Table 4.6)."""
+
+    m: Normal = _f("the mass", "kg", 0.815)
+    kx: Normal = _f("stiffness along x", "N/m", 41.5)
+    ky: Normal = _f("stiffness along y", "N/m", 83.0)
+
+
+class PendulumsParams(_Table):
+    """Two equal pendulums coupled by a spring between the bobs (thesis sec. 1.1.1)."""
+
+    m: Normal = _f("mass of each bob", "kg", 1.0)
+    length: Normal = _f("length of each rod", "m", 1.0)
+    g: Normal = _f("gravitational acceleration", "m/s^2", 9.81)
+    k: Normal = _f("stiffness of the coupling spring", "N/m", 0.5)
+    linear: bool = _f("true: the small-angle equations; false: the exact ones", "-", True, default=False)
+    separation: Normal = _f("distance between the pivots, the spring's natural length", "m", 1.0, default=None,
+                            default_text="length")
+
+
+class TriangleParams(_Table):
+    """Three equal masses on the corners of an equilateral triangle of springs, free in the plane
+    (thesis sec. 1.1.1)."""
+
+    m: Normal = _f("mass at each corner", "kg", 0.815)
+    k: Normal = _f("stiffness of each side's spring", "N/m", 41.5)
+    side: Normal = _f("side of the triangle, the springs' natural length", "m", 0.1)
+
+
+class NetworkParams(_Table):
+    """Masses, anchors and springs with exact geometry, on a line or in the plane."""
+
+    dim: int = _f("dimension of the positions: 1 (a line) or 2 (the plane)", "-", 2, ge=1, le=2)
+    masses: list[Normal] = _f("one mass per node; the masses are nodes 0 .. n-1", "kg", [0.5, 0.8], min_length=1)
+    positions: list[Finite] = _f("reference positions of the masses, flat: dim numbers per mass", "m",
+                                 [-0.2, 0.0, 0.2, 0.0])
+    springs: list[Annotated[list[float], Field(min_length=3, max_length=4)]] = _f(
+        "springs as [a, b, k] or [a, b, k, rest]: nodes a and b (masses, then anchors), stiffness k (N/m), "
+        "natural length rest (m; default: the reference distance)", "N/m, m", [[0, 1, 50.0]], min_length=1)
+    anchors: list[Finite] = _f("fixed points, flat (dim numbers each): nodes n, n+1, ...", "m", [-0.6, 0.0],
+                               default=[])
+
+
+class PotentialParams(_Table):
+    """Any potential typed as text: V(q) over named coordinates (parsed by rk4core.expr, never eval'd)."""
+
+    coordinates: list[str] = _f("names of the generalized coordinates, as used in `potential`", "-",
+                                ["x", "y"], min_length=1, max_length=MAX_COORDINATES)
+    masses: NormalOrList = _f("mass of each coordinate (kg m^2 for an angle); one number for all", "kg", 1.0)
+    potential: str = _f("the potential energy V of the coordinates and `constants`: numbers, names, + - * / ^, "
+                        "sin cos tan sinh cosh tanh exp log sqrt", "J", "(x^2 + y^2)/2 + x^2*y - y^3/3")
+    constants: dict[str, Finite] = _f("named numbers used in `potential`", "-", {"lam": 1.0}, default=None)
+
+
+#: Built-in model name -> its ``[params]`` table.
+BUILTIN_MODELS: dict[str, type[BaseModel]] = {
+    "chain": ChainParams, "planar4": Planar4Params, "oscillator2d": Oscillator2DParams,
+    "pendulums": PendulumsParams, "triangle": TriangleParams, "network": NetworkParams,
+    "potential": PotentialParams}
+
+
+# -- the other tables ----------------------------------------------------------------
+class Initial(_Table):
+    """The state at t = 0: `x` (and `v`), or a normal mode."""
+
+    x: list[Finite] = _f("generalized coordinates at t = 0, one per degree of freedom, flat; give `x` or `mode`",
+                         "m or rad", [0.005, 0.005], default=None, min_length=1)
+    v: list[Finite] = _f("their time derivatives at t = 0", "m/s or rad/s", [0.0, 0.0], default=None,
+                         min_length=1, default_text="zeros")
+    mode: int = _f("start in this normal mode instead (1-based, ascending frequency): x = amplitude phi[:, mode-1], "
+                   "the mass-normalised mode shape with its first non-zero entry > 0 (thesis Code 02)", "-", 2,
+                   default=None, ge=1)
+    amplitude: Finite = _f("scale of the mode shape (only with `mode`)", "m kg^(1/2)", 0.001, default=1.0)
+
+    @model_validator(mode="after")
+    def _one_start(self):
+        if (self.x is None) == (self.mode is None):
+            raise _rule("give exactly one of `x` and `mode`")
+        if self.x is not None and "amplitude" in self.model_fields_set:
+            raise _rule("only goes with `mode`", at=".amplitude")
+        return self
+
+
+class Run(_Table):
+    """What to integrate, with which methods and settings, and what to measure."""
+
+    t_end: Positive = _f("end of the integration, from t = 0; output_dt must divide it", "s", 10.0)
+    h: list[Positive] = _f("steps of the fixed-step methods; each at most t_end and dividing output_dt; required "
+                           "when run.solvers lists a fixed-step method", "s", [0.1, 0.05], default=None,
+                           min_length=1)
+    tolerances: list[OpenUnit] = _f("relative tolerances (rtol) of the adaptive solvers, in (0, 1); required when "
+                                    "run.solvers lists one", "1", [1e-6, 1e-9], default=None, min_length=1)
+    solvers: Names = _f(f"methods to run: the built-ins ({', '.join(BUILTIN)}) and the scene's own "
+                        f"[methods.NAME]", "-", ["rk4", "dop853"])
+    outputs: Annotated[list[Output], Field(min_length=1), AfterValidator(_distinct)] = _f(
+        "what to measure and report (the table of outputs below)", "-", ["state", "energy"], default=None,
+        default_text="every output that applies to the model")
+    output_dt: Positive = _f("spacing of the output grid the errors are measured on; must divide t_end", "s", 0.1,
+                             default=None, default_text="the largest h; t_end/1000 without h")
+    max_output_points: int = _f("keep at most this many output points (every k-th point, t_end kept)", "points",
+                                1000, default=None, ge=2, default_text="all")
+
+
+class Convergence(_Table):
+    """The convergence sweep: the observed order of every fixed-step method."""
+
+    t_end: Positive = _f("length of each sweep run (at most run.t_end)", "s", 0.5, default=None,
+                         default_text="one period of the fastest mode")
+    theta: list[Positive] = _f("omega_max h of the sweep of methods of order >= 3, halving for nested grids", "rad",
+                               [0.4, 0.2, 0.1, 0.05], default=list(RK4_THETAS), min_length=3)
+    theta_euler: list[Positive] = _f("the same for methods of order 1-2", "rad", [0.02, 0.01, 0.005],
+                                     default=list(EULER_THETAS), min_length=3)
+
+
+class MethodTable(_Table):
+    """A scene's own method: a Butcher tableau, a Python stepper or an external command."""
+
+    A: list[list[Coefficient]] = _f("Butcher matrix of an explicit tableau (zero on and above the diagonal, "
+                                    "except in a partitioned pair)", "-", [["0", "0"], ["2/3", "0"]], default=None)
+    b: list[Coefficient] = _f("weights of the tableau", "-", ["1/4", "3/4"], default=None)
+    c: list[Coefficient] = _f("nodes of the tableau", "-", ["0", "2/3"], default=None,
+                              default_text="the row sums of A")
+    A_v: list[list[Coefficient]] = _f("velocity-half matrix of a partitioned tableau (A, b act on the positions); "
+                                      "with b_v", "-", [["0", "0"], ["1", "0"]], default=None)
+    b_v: list[Coefficient] = _f("velocity-half weights of a partitioned tableau; with A_v", "-", ["1", "0"],
+                                default=None)
+    description: str = _f("label in tables and figures", "-", "Ralston's second-order method", default="")
+    python: str = _f("a step function f(fun, t, y, h) -> y_next, as 'package.module:function'", "-",
+                     "rk4core.steppers:rk4_step", default=None, pattern=_TARGET)
+    command: list[str] = _f("an external program speaking the file protocol (rk4core.command), as argv", "-",
+                            ["octave-cli", "step.m"], default=None, min_length=1, max_length=100)
+    order: int = _f("the declared order of a python or command method (a tableau's is computed)", "-", 4,
+                    default=None, ge=1, le=20)
+    nfev_per_step: int = _f("right-hand-side calls per step of a python or command method", "calls", 4,
+                            default=None, ge=0, default_text="counted")
+
+
+def _stability_field(p):
+    """``(type, Field)`` of the ``[stability]`` key of row ``p`` of PARAMS."""
+    number = Annotated[float, Field(ge=p.min, le=p.max)] if p.min is not None else float
+    whole = {"multiple_of": 1} if p.type == "list[int]" else {}
+    types = {"list[str]": list[Literal[STUDIES]], "str": str, "float": number,  # type: ignore[valid-type]
+             "list[float]": list[number], "list[int]": list[Annotated[number, Field(**whole)]]}
+    lists = {"min_length": 1, "max_length": MAX_LIST} if p.type.startswith("list") else {}
+    example = p.default if p.default is not None else (["boundary", "roundoff"] if p.name == "studies" else "rk4")
+    default = PydanticUndefined if p.name == "studies" else p.default
+    text = {"method": "the first classical tableau of run.solvers, else rk4"}.get(p.name)
+    return types[p.type], _f(p.meaning.removeprefix("required: "), p.unit, example, default=default, **lists,
+                             **({"default_text": text} if text else {}))
+
+
+#: The ``[stability]`` table, declared from validation.stability.params.PARAMS.
+Stability = create_model("Stability", __config__=_STRICT, __doc__="The stability study (docs/stability-params.md).",
+                         **{p.name: _stability_field(p) for p in PARAMS})
+
+
+def _by_params(value, handler):
+    """``[stability]`` is validated by validate_params (its bounds table is the rule); the model
+    above gives it a schema."""
+    if not isinstance(value, dict):
+        raise _rule("must be a table", value=value)
+    try:
+        return validate_params(dict(value), "stability")
+    except StabilityParamError as e:
+        shown = {} if e.value is None else {"value": e.value}
+        raise _rule(e.problem, at=e.field[len("stability"):], **shown) from None
+
+
+SweepValue = Union[bool, int, float, Annotated[str, Field(pattern=f"^{WORD}$")]]
+
+
+def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
+    """One variant of the top level: every field but `model` and `params` is shared."""
+    builtin = ", ".join(BUILTIN_MODELS)
+    fields = dict(
+        name=(str, _f(f"the scene's name: 1 to {NAME_MAX} of a-z 0-9 - _, starting with a letter or digit; unique; "
+                      "figure files start with it; `--scene NAME` runs it", "-", "thesis-2dof-case1",
+                      pattern=NAME_PATTERN, max_length=NAME_MAX)),
+        description=(str, _f("what the scene shows, one line", "-", "Thesis Table 4.1: unequal masses", default="")),
+        model=(model_type, _f(f"the model: {builtin} (its [params] below), or 'package.module:Class', a subclass of "
+                              f"rk4core.Model", "-", "chain")),
+        quick=(bool, _f("part of the --quick subset", "-", True, default=False)),
+        params=(params_type, _f("the model's parameters (the [params] tables below)", "-",
+                                {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})),
+        initial=(Initial, _f("the initial state", "-", {"x": [0.005, 0.005]})),
+        run=(Run, _f("the runs and the outputs", "-", {"t_end": 1.0, "h": [0.1], "solvers": ["rk4"]})),
+        convergence=(Convergence, _f("the convergence sweep", "-", {"t_end": 0.5}, default_factory=Convergence,
+                                     default_text="the defaults below")),
+        methods=(dict[str, MethodTable], _f("the scene's own methods, [methods.NAME] (NAME: 1 to 40 of a-z 0-9 . - "
+                                            "_, not a built-in's)", "-",
+                                            {"ralston2": {"A": [["0", "0"], ["2/3", "0"]], "b": ["1/4", "3/4"]}},
+                                            default_factory=dict, default_text="none",
+                                            schema={"propertyNames": {"pattern": f"^{_METHOD_NAME.pattern}$"}})),
+        stability=(Annotated[Stability, WrapValidator(_by_params)],
+                   _f("the stability study", "-", {"studies": ["boundary"]}, default=None, default_text="none")),
+        sweep=(dict[str, Annotated[list[SweepValue], Field(min_length=1)]],
+               _f("one scene per point of the product of these lists: \"PATH\" = [values] ([sweep] below)", "-",
+                  {"params.masses[1]": [0.5, 1.0]}, default=None, default_text="none",
+                  schema={"propertyNames": {"pattern": _SWEEP_PATH}})),
+    )
+    return create_model(f"Scene_{tag}", __config__=_STRICT, __doc__=f"A scene file, model {tag}.", **fields)
+
+
+#: A user's model: any string at run time (a registered name, or an import path the registry
+#: resolves); the JSON Schema asks for 'package.module:Class', so its variants never overlap.
+_USER_MODEL = Annotated[str, Field(json_schema_extra={"pattern": _TARGET})]
+
+
+#: tag -> the scene variant (the user's model under "user").
+SCENE_MODELS: dict[str, type[BaseModel]] = {
+    **{name: _scene(name, Literal[name], params) for name, params in BUILTIN_MODELS.items()},
+    "user": _scene("user", _USER_MODEL, dict[str, Any]),
+}
+
+
+def _which(doc) -> str:
+    model = doc.get("model") if isinstance(doc, dict) else None
+    return model if isinstance(model, str) and model in BUILTIN_MODELS else "user"
+
+
+#: The scene document: validate with ``SCENE.validate_python(doc)``.
+SCENE = TypeAdapter(Annotated[Union[tuple(Annotated[cls, Tag(tag)] for tag, cls in SCENE_MODELS.items())],
+                              Discriminator(_which)])
+TOP_KEYS = tuple(SCENE_MODELS["user"].model_fields)
+INITIAL_KEYS = tuple(Initial.model_fields)
+
+
+# -- errors -----------------------------------------------------------------------------
+_PROBLEMS = {
+    "missing": "is missing", "float_type": "must be a number", "int_type": "must be an integer",
+    "bool_type": "must be true or false", "string_type": "must be a string", "list_type": "must be a list",
+    "dict_type": "must be a table", "model_type": "must be a table", "model_attributes_type": "must be a table",
+    "finite_number": "must be finite", "greater_than": "must be > {gt:g}", "greater_than_equal": "must be >= {ge:g}",
+    "less_than": "must be < {lt:g}", "less_than_equal": "must be <= {le:g}",
+    "multiple_of": "must be a whole number", "literal_error": "must be {expected}",
+    "string_pattern_mismatch": "must match {pattern}", "string_too_long": "must be at most {max_length} characters",
+    "too_long": "must have at most {max_length} entries",
+}
+#: Field -> the problem of any error there but a missing key.
+_FIELD_PROBLEMS = {
+    "name": f"must be 1 to {NAME_MAX} lowercase letters, digits, '-' or '_', starting with a letter or digit",
+    "run.max_output_points": "must be an integer >= 2",
+}
+
+def first_error(exc, doc) -> tuple[str, str, object]:
+    """The one error a scene reports of a failed :data:`SCENE` validation.
+
+    Parameters
+    ----------
+    exc : pydantic.ValidationError
+        From ``SCENE.validate_python(doc)``.
+    doc : dict
+        The document validated (its keys give the error's path).
+
+    Returns
+    -------
+    field : str
+        Dotted path into the document, ``run.h[1]`` (union tags dropped).
+    problem : str
+        What is wrong, as :class:`validation.scenes.SceneError` words it.
+    value : object
+        The offending value; None when none is shown (a missing or unknown key).
+
+    Notes
+    -----
+    An unknown key is reported first (as the hand-written checks did), else
+    the first error pydantic lists (fields in declaration order).
+    """
+    errors = exc.errors(include_url=False)
+    err = min(errors, key=lambda e: e["type"] != "extra_forbidden")
+    parts = _doc_path(err["loc"], doc)
+    field = _dotted(parts)
+    kind, ctx = err["type"], err.get("ctx") or {}
+    if kind == "scene_rule":
+        return field + ctx["at"], ctx["problem"], ctx.get("value")
+    if kind == "missing":
+        return field, "is missing", None
+    if kind == "extra_forbidden":
+        known = _known_keys(SCENE_MODELS[_which(doc)], parts[:-1])
+        return field, f"unknown key (known: {', '.join(sorted(known))})", None
+    value = err.get("input")
+    if field in _FIELD_PROBLEMS:
+        return field, _FIELD_PROBLEMS[field], value
+    if kind == "float_type" and isinstance(value, int) and not isinstance(value, bool):
+        return field, "must be finite (it exceeds the double range)", value
+    if kind == "float_type" and err["loc"][-1] == "one":  # neither a number nor a list
+        return field, "must be a number or a list of numbers", value
+    if kind == "too_short":
+        n = ctx.get("min_length", 1)
+        return field, "must not be empty" if n <= 1 else f"needs at least {n} entries", value
+    template = _PROBLEMS.get(kind)
+    if template is None:
+        msg = err["msg"]
+        return field, msg.replace("Input should be", "must be", 1) if msg.startswith("Input should") else msg, value
+    try:
+        return field, template.format(**ctx), value
+    except (KeyError, ValueError, TypeError):
+        return field, err["msg"], value
+
+
+def _doc_path(loc, doc) -> list:
+    """The document path of an error's ``loc``: the variant's tag (``loc[0]``) and the
+    tags of the number-or-list unions dropped."""
+    parts, node = [], doc
+    for el in loc[1:]:
+        if isinstance(node, dict) and isinstance(el, str) and el in node:
+            node = node[el]
+        elif isinstance(node, list) and isinstance(el, int) and 0 <= el < len(node):
+            node = node[el]
+        elif el in _TAGS or el == "[key]":
+            continue
+        else:
+            node = None
+        parts.append(el)
+    return parts
+
+
+def _dotted(parts) -> str:
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "file"
+
+
+def _table_type(annotation):
+    """The BaseModel (or ``dict`` value type) an annotation holds, else None."""
+    while get_origin(annotation) is Annotated:
+        annotation = get_args(annotation)[0]
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if get_origin(annotation) is dict:
+        return ("dict", get_args(annotation)[1])
+    return None
+
+
+def _known_keys(cls, parts) -> list:
+    t = cls
+    for p in parts:
+        if isinstance(t, tuple):  # a dict's key: its value type next
+            t = _table_type(t[1])
+        elif isinstance(t, type) and issubclass(t, BaseModel) and p in t.model_fields:
+            t = _table_type(t.model_fields[p].annotation)
+        else:
+            return []
+    return list(t.model_fields) if isinstance(t, type) else []
+
+
+# -- the JSON Schema -------------------------------------------------------------------
+def json_schema() -> dict:
+    """The JSON Schema of a scene file.
+
+    Returns
+    -------
+    dict
+        pydantic's schema of :data:`SCENE` (draft 2020-12), with ``const``
+        written as a one-value ``enum`` (draft 4 validators such as Taplo's
+        read it too) and ``null`` defaults dropped (TOML has no null: an
+        absent key takes the default the reference gives).
+    """
+    schema = SCENE.json_schema()
+
+    def clean(node):
+        if isinstance(node, dict):
+            if "const" in node:
+                node["enum"] = [node.pop("const")]
+            if "default" in node and node["default"] is None:
+                del node["default"]
+            for v in node.values():
+                clean(v)
+        elif isinstance(node, list):
+            for v in node:
+                clean(v)
+    clean(schema)
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "RK4 harness scene file",
+            "description": "A scene of the RK4 validation harness (docs/scene-reference.md).", **schema}
+
+
+# -- the reference --------------------------------------------------------------------
+def _toml(v) -> str:
+    """``v`` as a TOML value (inline; a float always reads back as a float)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        short = f"{v:g}"
+        return short if float(short) == v and any(c in short for c in ".en") else repr(v)
+    if isinstance(v, int):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    if isinstance(v, dict):
+        keys = (k if all(c.isalnum() or c in "_-" for c in k) else json.dumps(k) for k in v)
+        return "{ " + ", ".join(f"{k} = {_toml(x)}" for k, x in zip(keys, v.values())) + " }"
+    raise TypeError(f"no TOML form for {v!r}")
+
+
+def _type_text(s: dict) -> str:
+    """A field's type, read from its JSON Schema."""
+    if "$ref" in s:
+        return "table"
+    for key in ("anyOf", "oneOf"):
+        if key in s:
+            return " or ".join(_type_text(x) for x in s[key])
+    if "enum" in s or "const" in s:
+        values = s.get("enum", [s.get("const")])
+        return "one of " + ", ".join(f"`{v}`" for v in values) if len(values) > 1 else f"`{values[0]}`"
+    t = s.get("type")
+    if t == "array":
+        lo, hi = s.get("minItems"), s.get("maxItems")
+        count = (f"list of {lo} to {hi}" if lo and hi else "non-empty list of" if lo == 1
+                 else f"list of {lo} or more" if lo else f"list of at most {hi}" if hi else "list of")
+        return f"{count} ({_type_text(s.get('items', {}))})"
+    if t == "object":
+        values = s.get("additionalProperties")
+        return f"table of ({_type_text(values)})" if isinstance(values, dict) else "table"
+    bounds = [f"{op} {s[k]:g}" for k, op in (("exclusiveMinimum", ">"), ("minimum", ">="), ("exclusiveMaximum", "<"),
+                                              ("maximum", "<=")) if k in s]
+    word = {"number": "number", "integer": "integer", "string": "string", "boolean": "true/false"}.get(t, "any")
+    if s.get("multipleOf") == 1:
+        word = "whole number"
+    return " ".join([word, ", ".join(bounds)]).strip()
+
+
+def _default_text(name, info) -> str:
+    extra = info.json_schema_extra or {}
+    if "default_text" in extra:
+        return extra["default_text"]
+    if info.is_required():
+        return "required"
+    if info.default is None:
+        return "-"
+    return f"`{_toml(info.default)}`"
+
+
+def _table(cls: type[BaseModel]) -> str:
+    props = cls.model_json_schema()
+    rows = ["| key | type | unit | default | example | description |", "|---|---|---|---|---|---|"]
+    for name, info in cls.model_fields.items():
+        extra = info.json_schema_extra or {}
+        t = _type_text(props["properties"][name])
+        cells = [f"`{name}`", t, extra.get("unit", "-"), _default_text(name, info), f"`{_toml(extra['example'])}`",
+                 info.description or ""]
+        rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(rows)
+
+
+_INTRO = """\
+# Scene files: every key
+
+Generated from `validation/scene_schema.py` (pydantic models, strict, unknown keys refused) by
+`python -m validation.scene_schema --markdown > docs/scene-reference.md`;
+`tests/test_scene_schema.py` checks that this file is current and that every key below is accepted.
+A scene is a TOML file in `validation/scenes/` (or anywhere, given by path): `--scene NAME` runs a
+shipped scene by its `name` or file stem. A malformed scene is refused before anything runs, with one
+line naming the file, the field and the value: ``FILE: field `run.h[1]`: must be > 0 (got -0.1)``.
+TOML types are kept honest: `1.0` is a number, `"1.0"` a string, `true` a boolean (an integer is
+accepted where a number is asked for, not the other way round).
+
+Editors: `docs/scene.schema.json` is the JSON Schema of the same models. With Taplo or the VS Code
+extension Even Better TOML, put a schema directive on the first line of a scene file,
+
+```toml
+#:schema ../../docs/scene.schema.json
+```
+
+(the path is relative to the scene file), and keys, types and descriptions complete as you type.
+"""
+
+_SWEEP = """\
+## `[sweep]`
+
+`"PATH" = [values]`: the file stands for one scene per point of the product of the lists (the first
+key varies slowest). A PATH is a table and a key, then any number of `[i]` (0-based index into a
+list written in the file) or `.KEY`. Sweepable: `params.NAME` (any parameter of the model, written
+or not), `initial.x`, `initial.v`, `initial.mode`, `initial.amplitude` (`initial.x[0]` sweeps one
+coordinate) and `run.t_end`. A value is a number, `true`/`false` or a word of `a-z 0-9 _ . -`; a
+point is named `NAME@TOKEN=VALUE`, e.g. `sweep-2dof-mass-ratio@masses1=0.815`. The rules are in
+`validation/scenes.py` ("Sweeps").
+"""
+
+_USER = """\
+### `[params]` of a user's model
+
+With `model = "package.module:Class"` (a subclass of `rk4core.Model`, importable), the keys are the
+arguments of the class's `__init__`: those without a default are required, unknown keys are refused.
+"""
+
+
+def _outputs_table() -> str:
+    rows = ["| output | in the default when | adds |", "|---|---|---|"]
+    rows += [f"| `{o}` | {when} | {what} |" for o, (when, what) in OUTPUT_HELP.items()]
+    return "\n".join(rows)
+
+
+def reference_markdown() -> str:
+    """The text of ``docs/scene-reference.md``.
+
+    Returns
+    -------
+    str
+        One Markdown table per section (key, type, unit, default, example,
+        description), each read from the models' fields: types from their
+        JSON Schema, the rest from ``Field(description=...,
+        json_schema_extra={"unit": ..., "example": ...})``.
+    """
+    parts = [_INTRO, "## Top level\n", _table(SCENE_MODELS["user"]), ""]
+    for name, cls in BUILTIN_MODELS.items():
+        parts += [f"### `[params]` of `model = \"{name}\"`\n", (cls.__doc__ or "").strip() + "\n", _table(cls), ""]
+    parts += [_USER, "## `[initial]`\n", _table(Initial), "", "## `[run]`\n", _table(Run), "",
+              "### Outputs\n", "`run.outputs` defaults to every output that applies to the model "
+              "(`validation.scenes.default_outputs`); a chain above 5000 degrees of freedom gets only "
+              "`stability` (every other output needs a dense eigensolve).\n", _outputs_table(), "",
+              "## `[convergence]`\n", _table(Convergence), "", "## `[methods.NAME]`\n",
+              "Exactly one of a tableau (`A`, `b`, optional `c`; `A_v`, `b_v` make it partitioned), `python` or "
+              "`command`; the last two need `order`.\n", _table(MethodTable), "",
+              "## `[stability]`\n", "Declared from `validation.stability.params.PARAMS`; the same keys with their "
+              "ranges: [stability-params.md](stability-params.md).\n", _table(Stability), "", _SWEEP]
+    return "\n".join(parts)
+
+
+def main(argv=None) -> int:
+    """``python -m validation.scene_schema --markdown | --json-schema``: print
+    the reference or the JSON Schema; returns the exit status."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv == ["--markdown"]:
+        sys.stdout.write(reference_markdown())
+    elif argv == ["--json-schema"]:
+        sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
+    else:
+        sys.stderr.write("usage: python -m validation.scene_schema --markdown | --json-schema\n")
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
