@@ -448,3 +448,20 @@ def test_skip_rules(what, ratio, exc, quick, skipped):
     assert got == skipped
     for sv in got:
         assert ST.skip_reason(sv, what, ratio, exc, quick).startswith("skipped for cost")
+
+
+@pytest.mark.parametrize("study, col", [("stiffness", "ratio"), ("mass_ratio", "mu")])
+def test_limits_table_reads_the_stiffness_ratio_column(study, col):
+    """The limits table's cost line takes the point with the largest
+    stiffness_ratio (a tidy column, not text parsed from the note)."""
+    from validation.report import limits_rows
+
+    rows = []
+    for x, stiff, rk, bdf in ((1.0, 2.0, 300.0, 200.0), (1e4, 4.07e4, 3.65e5, 219.0), (1e2, 30.0, 2e3, 210.0)):
+        for solver, n in (("rk4", rk), ("cvode-bdf", bdf)):
+            rows.append(C.row("sc", study, solver, "nfev_at_error", n, target_error=1e-6, stiffness_ratio=stiff,
+                              note="setting 0.1; error 1e-7", **{col: x}))
+    (line,) = [r for r in limits_rows(rows) if r["limit"].startswith("cost at")]
+    assert line["limit"] == "cost at stiffness ratio 4.07e+04"
+    assert line["value"] == "rk4 3.65e+05 RHS calls vs cvode-bdf 219"
+    assert f"{col} = 10000" in line["detail"]

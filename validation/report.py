@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 import os
 import platform
-import re
 import sys
 from pathlib import Path
 
@@ -264,11 +263,7 @@ def limits_rows(stability_rows) -> list[dict]:
         pts = [r for r in rows if r["study"] == study and r["quantity"] == "nfev_at_error"]
         for sc in dict.fromkeys(r["scene"] for r in pts):
             mine = [r for r in pts if r["scene"] == sc]
-            ratio = {}
-            for r in mine:
-                m_ = re.search(r"stiffness ratio ([0-9.e+-]+)", r["note"] or "")
-                if m_:
-                    ratio[r[col]] = float(m_.group(1))
+            ratio = {r[col]: r["stiffness_ratio"] for r in mine if math.isfinite(r.get("stiffness_ratio", math.nan))}
             if not ratio:
                 continue
             x = max(ratio, key=lambda k: (ratio[k], -abs(math.log(k)) if k > 0 else 0))

@@ -22,11 +22,12 @@ MAX_STEP_WORK = 5e9
 
 #: Parameter columns of ``stability.csv``: NaN where a row has no such parameter.
 #: theta = omega h (rad; of the fastest mode, or of ``mode``), mode (1 = slowest),
-#: mu = m2/m1, ratio = stiff spring / the others, n = masses of a chain,
+#: mu = m2/m1, ratio = stiff spring / the others, stiffness_ratio = the cost
+#: point's omega_max / omega_min (derived from mu or ratio), n = masses of a chain,
 #: a_over_l = initial amplitude / natural length, offset (m) = aim past an anchor,
 #: periods = run length in periods of the slowest mode, target_error = the
 #: relative error a cost row is measured at.
-PARAM_COLUMNS = ("theta", "mode", "mu", "ratio", "n", "a_over_l", "offset", "periods", "target_error")
+PARAM_COLUMNS = ("theta", "mode", "mu", "ratio", "stiffness_ratio", "n", "a_over_l", "offset", "periods", "target_error")
 
 #: Columns read from a clock (not reproducible): ``wall_s`` is the wall time (s)
 #: of the run a row measures; ``measured_timed`` holds a row's measured value

@@ -459,8 +459,8 @@ def _cost_point(ctx: Context, study: str, x: float) -> StudyResult:
     for r in recs:
         res.rows.append(row(s, study, r["solver"], "nfev_at_error", r["nfev"], math.nan,
                             r["status"] == "ok" if r["status"] != "skipped" else None, status=r["status"],
-                            target_error=target, wall_s=r["wall_s"], **{what: x}, note=(
-                                f"stiffness ratio {r['stiffness_ratio']:.3g}; setting {r['setting']:.3g}; "
+                            target_error=target, wall_s=r["wall_s"], stiffness_ratio=r["stiffness_ratio"],
+                            **{what: x}, note=(f"setting {r['setting']:.3g}; "
                                 f"error {r['error']:.3g}; steps {r['n_steps']}; {r['note']}")))
     rk = recs[0]
     h_stab = B.theory_boundary(ctx.tab, rk["omega_max"])
