@@ -11,11 +11,26 @@ scene's output grid and horizon, the report's ``error_rel``).
 How (all plain data, one run per line below):
 
 1. *Calibration.* Each fixed-step method of the scene (a tableau) runs at its
-   scene's largest step, halved until its error is in the asymptotic range
-   (:data:`validation.metrics.PREASYMPTOTIC_REL`), at most
-   :data:`CALIBRATION_HALVINGS` times; ``C`` of ``error ~ C h^p`` gives the
-   step for the target (:func:`validation.trust.step_for`: capped at 0.9 of
-   the stability limit, refused below the round-off level). Each adaptive
+   scene's largest step, halved (on the output grid) until its error is below
+   :data:`validation.metrics.PREASYMPTOTIC_REL` (at most
+   :data:`CALIBRATION_HALVINGS` times), then halved further, at most
+   :data:`FIT_HALVINGS` times, until three successive steps ``h, h/2, h/4``
+   show the method's order: both observed orders ``log2(e(h)/e(h/2))``
+   within :data:`ORDER_TOLERANCE` of ``p`` (:func:`asymptotic_fit`). ``C``
+   of ``error ~ C h^p`` is then the largest ``err / h^p`` of those three
+   (conservative) and gives the step for the target
+   (:func:`validation.trust.step_for`: capped at 0.9 of the stability limit,
+   refused below the round-off level). One run is not enough: on
+   planar4-case2 a single run (h = 3.1e-4 s, error 1.2e-2, in a dip of a
+   non-monotone error curve) gave ``C`` 2300x below ``err / h^4`` at
+   h = 2.4e-6 s. If the halvings reach the
+   target before the order is seen (a step whose error exceeds the target,
+   then half of it that meets it), the step is interpolated on log-log
+   between those two measured runs (:func:`bracket_step`, source "measured
+   bracket"); if the budget runs out first, ``C`` is the largest
+   ``err / h^p`` measured (source "pre-asymptotic"). The candidate reports
+   the observed order (``observed_order``) and its calibration runs
+   (``calibration``: ``[step, error]`` pairs, also in ``--json``). Each adaptive
    reference runs at rtol 1e-4 and 1e-8 (heyoka: 1e-4 and 1e-10); a
    straight line through ``log error`` against ``log rtol`` gives the rtol
    for the target (rounded down to a power of ten) and the cost by the same
@@ -51,10 +66,19 @@ if __package__ in (None, ""):  # run as a script: python validation/advise.py
 
 from references.registry import Kind  # noqa: E402
 from validation import metrics, trust  # noqa: E402
+from validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step  # noqa: E402,F401 - re-exported
 
-__all__ = ["Advice", "advise", "main", "CALIBRATION_HALVINGS", "CONFIRM_TRIES"]
+__all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
+           "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES"]
 
+#: Halvings from the scene's largest step to the first error below
+#: :data:`validation.metrics.PREASYMPTOTIC_REL`.
 CALIBRATION_HALVINGS = 8
+#: Further halvings, after that, to see the method's order or bracket the
+#: target (each run costs twice the one before: at most 2^9 - 1 times the first
+#: one's steps). planar4-case2 needs all 8 at a target of 1e-9 (3.1e-4 s ->
+#: 1.2e-6 s; its error curve shows no fourth order anywhere above round-off).
+FIT_HALVINGS = 8
 CONFIRM_TRIES = 4
 _RTOLS = {"heyoka": (1e-4, 1e-10)}
 _RTOL_PAIR = (1e-4, 1e-8)
@@ -121,25 +145,58 @@ class _Problem:
 
 
 def _fixed_candidate(p: _Problem, method, target):
+    order = method.order
     h = p.on_grid(min(max(p.scene.h) if p.scene.h else p.scene.output_dt,
                       trust.STABILITY_MARGIN * p.h_stab(method)))
-    for _ in range(CALIBRATION_HALVINGS + 1):
+    pts, first = [], None  # (h, err) of every run, NaN when it failed; index of the first below PREASYMPTOTIC_REL
+    for k in range(CALIBRATION_HALVINGS + FIT_HALVINGS + 1):
         err, rhs, wall, status = p.run(method, h)
-        if status == "ok" and err < metrics.PREASYMPTOTIC_REL:  # asymptotic, or at the round-off floor
+        pts.append((h, err if status == "ok" else math.nan))
+        if first is None and status == "ok" and err < metrics.PREASYMPTOTIC_REL:
+            first = len(pts) - 1
+        if first is None:
+            if k >= CALIBRATION_HALVINGS:
+                break
+        else:
+            tail = pts[first:]
+            if (asymptotic_fit(tail, order)["asymptotic"] or pts[-1][1] <= metrics.ROUNDOFF_REL
+                    or bracket_step(tail, target) is not None or len(tail) > FIT_HALVINGS):
+                break
+        h_next = p.on_grid(h / 2)
+        if not h_next < h:
             break
-        h = p.on_grid(h / 2)
-    C = err / h ** method.order if status == "ok" and err > metrics.ROUNDOFF_REL else math.nan
-    if status == "ok" and err <= target and not math.isfinite(C):  # at the round-off floor already
-        return {"method": method.name, "setting": h, "predicted_error": err, "predicted_rhs": rhs,
-                "source": "calibration run", "calibration": [(h, err)]}
-    h_t, source, n = trust.step_for(target, C, method.order, p.scene.t_end, p.h_stab(method))
+        h = h_next
+    tail = pts[first:] if first is not None else []
+    fit = asymptotic_fit(tail, order)
+    base = {"method": method.name, "observed_order": fit["observed_order"], "calibration": pts}
+
+    def at_step(h_t, pred_e, source):
+        n = math.ceil(p.scene.t_end / h_t * (1 - 1e-12))
+        return {**base, "setting": h_t, "predicted_error": pred_e,
+                "predicted_rhs": float(trust.fixed_rhs(method, n)), "source": source}
+
+    if fit["asymptotic"]:
+        C, source = fit["C"], "error constant"
+    else:
+        br = bracket_step(tail, target)
+        if br is not None:  # measured: one step misses the target, half of it meets it
+            h_b, e_b, q = br
+            h_t = p.on_grid(h_b)
+            base["observed_order"] = q
+            return at_step(h_t, e_b * (h_t / h_b) ** q if math.isfinite(q) else e_b, "measured bracket")
+        meets = [(a, b) for a, b in tail if math.isfinite(b) and b <= target]
+        usable = [(a, b) for a, b in tail if math.isfinite(b) and metrics.ROUNDOFF_REL < b < metrics.PREASYMPTOTIC_REL]
+        if meets and not usable:  # at the round-off floor already: the largest step measured to meet it
+            return at_step(*max(meets), "calibration run")
+        C = max((b / a ** order for a, b in usable), default=math.nan)  # conservative: the largest err / h^p
+        source = "pre-asymptotic"
+    h_t, src, n = trust.step_for(target, C, order, p.scene.t_end, p.h_stab(method))
+    if src == "error constant":
+        src = source
     if not math.isfinite(h_t):
-        return {"method": method.name, "setting": math.nan, "predicted_error": math.nan,
-                "predicted_rhs": math.inf, "source": source, "calibration": [(h, err)]}
+        return {**base, "setting": math.nan, "predicted_error": math.nan, "predicted_rhs": math.inf, "source": src}
     h_t = p.on_grid(h_t)
-    n = math.ceil(p.scene.t_end / h_t * (1 - 1e-12))
-    return {"method": method.name, "setting": h_t, "predicted_error": C * h_t ** method.order,
-            "predicted_rhs": float(trust.fixed_rhs(method, n)), "source": source, "calibration": [(h, err)]}
+    return at_step(h_t, C * h_t ** order, src)
 
 
 def _adaptive_candidate(p: _Problem, method, target):
@@ -148,7 +205,8 @@ def _adaptive_candidate(p: _Problem, method, target):
     good = [(tol, e, rhs) for tol, e, rhs, _, st in pts if st == "ok" and e > 0 and math.isfinite(e)]
     if len(good) < 2:
         return {"method": method.name, "setting": math.nan, "predicted_error": math.nan,
-                "predicted_rhs": math.inf, "source": "calibration failed", "calibration": pts}
+                "predicted_rhs": math.inf, "source": "calibration failed", "observed_order": math.nan,
+                "calibration": pts}
     (t1, e1, c1), (t2, e2, c2) = good[0], good[-1]
     slope = math.log(e2 / e1) / math.log(t2 / t1) if e2 != e1 else 1.0
     slope = slope if slope > 0.1 else 1.0
@@ -158,7 +216,8 @@ def _adaptive_candidate(p: _Problem, method, target):
     cs = math.log(c2 / c1) / math.log(t2 / t1) if c1 > 0 and c2 > 0 and c2 != c1 else 0.0
     pred_c = c1 * (tol / t1) ** cs if c1 > 0 else math.inf
     return {"method": method.name, "setting": tol, "predicted_error": pred_e, "predicted_rhs": pred_c,
-            "source": "log-log line through 2 rtol", "calibration": [(t, e) for t, e, _ in good]}
+            "source": "log-log line through 2 rtol", "observed_order": math.nan,
+            "calibration": [(t, e) for t, e, _ in good]}
 
 
 def _confirm(p: _Problem, method, cand, target):
@@ -231,7 +290,8 @@ def advise(scene, target: float) -> Advice:
             cands.append((m, _fixed_candidate(p, m, target)))
         elif not m.fixed_step:
             cands.append((m, _adaptive_candidate(p, m, target)))
-    adv.candidates = [{k: v for k, v in c.items() if k != "calibration"} for _, c in cands]
+    adv.candidates = [{**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]}  # (setting, error)
+                      for _, c in cands]
     ok = [(m, c) for m, c in cands if math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])]
     adv.model, adv.model_note = _model_advice(p, target)
     adv.warnings = _warnings(p, methods, [c for _, c in cands], target)
@@ -257,7 +317,8 @@ def _text(adv: Advice) -> str:
     lines.append("  candidates (fewest predicted RHS calls wins):")
     for c in sorted(adv.candidates, key=lambda c: c["predicted_rhs"]):
         lines.append(f"    {c['method']:<18} setting {c['setting']:.3g}  predicted error {c['predicted_error']:.2g}"
-                     f"  RHS calls {c['predicted_rhs']:.3g}  ({c['source']})")
+                     f"  RHS calls {c['predicted_rhs']:.3g}  ({c['source']}"
+                     + (f", observed order {c['observed_order']:.2f})" if math.isfinite(c["observed_order"]) else ")"))
     lines.append(f"  model: {adv.model}: {adv.model_note}")
     for w in adv.warnings:
         lines.append(f"  warning: {w}")

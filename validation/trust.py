@@ -11,9 +11,14 @@ The step for a target
     A fixed-step method of order ``p`` has ``error_rel(h) ~ C h^p`` in its
     asymptotic range; ``C`` is fitted on the scene's runs whose relative
     error lies between :data:`validation.metrics.ROUNDOFF_REL` and
-    :data:`validation.metrics.PREASYMPTOTIC_REL` (the median of
-    ``err / h^p``: robust to one point off the line), and the step for a
-    target is ``(target / C)^(1/p)``, not limited to the scene's step list.
+    :data:`validation.metrics.PREASYMPTOTIC_REL`, only where successive runs
+    show the order ``p`` (:func:`fit_constant`: three runs with two observed
+    orders within :data:`ORDER_TOLERANCE` of ``p``, or the two finest; the
+    largest ``err / h^p`` of them), and the step for a target is
+    ``(target / C)^(1/p)``, not limited to the scene's step list. Without
+    such a range (planar4-case2: the error is not fourth order anywhere
+    above round-off) the step comes from the measured runs themselves
+    (:func:`measured_step`) or is not given.
     It is capped at :data:`STABILITY_MARGIN` times the method's stability
     limit on the fastest mode (``h_source = "stability"``), and flagged
     (``h_source = "round-off"``) when the round-off level ``sqrt(n) eps`` of
@@ -44,7 +49,8 @@ import numpy as np
 
 from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
 
-__all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "error_constant", "step_for", "roundoff_level",
+__all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "ORDER_TOLERANCE", "asymptotic_fit", "bracket_step",
+           "fit_constant", "measured_step", "error_constant", "step_for", "roundoff_level",
            "time_model", "time_verdict", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
 
 #: A time verdict needs the medians this far apart (and the repeats disjoint):
@@ -66,12 +72,101 @@ COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h
 TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict_one_run", "verdict_amortized"}
 
 
+#: An observed order ``log(e1/e2)/log(h1/h2)`` agrees with the method's order
+#: ``p`` when it lies within ``p +- ORDER_TOLERANCE``; a fit needs two
+#: successive agreeing orders (three steps), since one pair can agree by
+#: chance (planar4-case2: 3.90 between 6.25e-4 s and 3.1e-4 s, then -1.64
+#: and 1.23: `python validation/advise.py planar4-case2 --target 1e-6 --json`
+#: lists its calibration runs).
+ORDER_TOLERANCE = 0.5
+
+
+def _order(a, b) -> float:
+    """Observed order between the runs ``a = (h1, e1)`` and ``b = (h2, e2)``."""
+    (h1, e1), (h2, e2) = a, b
+    if not (e1 > 0 and e2 > 0 and math.isfinite(e1) and math.isfinite(e2) and h1 != h2):
+        return math.nan
+    return math.log(e1 / e2) / math.log(h1 / h2)
+
+
+def asymptotic_fit(points, order: int) -> dict:
+    """The error constant of ``err ~ C h^order`` from calibration runs
+    ``points = [(h, err), ...]`` at successive steps (largest first).
+
+    The fit takes the first three successive points whose errors lie in
+    ``(ROUNDOFF_REL, PREASYMPTOTIC_REL)`` and whose two observed orders both
+    lie within :data:`ORDER_TOLERANCE` of ``order``; ``C`` is the largest
+    ``err / h^order`` of the three (conservative). A pre-asymptotic point (an
+    order off ``p``) or a cancellation (an error dip: one order too high, the
+    next too low) has no such window around it.
+
+    Returns ``{"asymptotic": bool, "C": float (NaN unless asymptotic),
+    "observed_order": float, "used": [indices]}``; ``observed_order`` is the
+    order across the window, or, when there is none, between the last two
+    usable points (NaN with fewer than two).
+    """
+    pts = [(float(h), float(e)) for h, e in points]
+    usable = [math.isfinite(e) and ROUNDOFF_REL < e < PREASYMPTOTIC_REL and h > 0
+              for h, e in pts]
+    for i in range(len(pts) - 2):
+        if not all(usable[i:i + 3]):
+            continue
+        q1, q2 = _order(pts[i], pts[i + 1]), _order(pts[i + 1], pts[i + 2])
+        if abs(q1 - order) <= ORDER_TOLERANCE and abs(q2 - order) <= ORDER_TOLERANCE:
+            used = [i, i + 1, i + 2]
+            return {"asymptotic": True, "C": max(pts[k][1] / pts[k][0] ** order for k in used),
+                    "observed_order": _order(pts[i], pts[i + 2]), "used": used}
+    idx = [k for k, u in enumerate(usable) if u]
+    q = _order(pts[idx[-2]], pts[idx[-1]]) if len(idx) >= 2 else math.nan
+    return {"asymptotic": False, "C": math.nan, "observed_order": q, "used": []}
+
+
+def bracket_step(points, target: float):
+    """The step for ``target`` between two measured successive runs: the last
+    pair of ``points = [(h, err), ...]`` (largest step first) whose first
+    error exceeds ``target`` and whose second meets it, interpolated on
+    ``log err`` against ``log h`` (clamped to the pair). ``(h, err, local
+    order)``, or None when no pair brackets the target."""
+    for k in range(len(points) - 1, 0, -1):
+        (ha, ea), (hb, eb) = points[k - 1], points[k]
+        if math.isfinite(ea) and math.isfinite(eb) and ea > target >= eb and ha > hb:
+            q = _order((ha, ea), (hb, eb)) if eb > 0 else math.inf
+            if not (math.isfinite(q) and q > 0):
+                return hb, eb, q
+            h = min(ha, max(hb, ha * (target / ea) ** (1.0 / q)))
+            return h, ea * (h / ha) ** q, q
+    return None
+
+
+def fit_constant(h, err, order: int) -> tuple[float, str, float]:
+    """``(C, source, observed_order)`` of ``err ~ C h^order`` from runs at the
+    steps ``h`` (any order; sorted here, largest first).
+
+    ``C`` comes from :func:`asymptotic_fit` (three successive usable runs,
+    two observed orders within :data:`ORDER_TOLERANCE` of ``order``; source
+    ``"error constant"``), else from the two smallest usable steps when their
+    observed order agrees (``"error constant (2 runs)"``: a scene's step list
+    may hold only two runs between the pre-asymptotic range and round-off),
+    else NaN (``"no asymptotic fit"``). The largest ``err / h^order`` of the
+    runs used is taken (conservative).
+    """
+    pts = sorted(((float(a), float(b)) for a, b in zip(h, err) if float(a) > 0), reverse=True)
+    fit = asymptotic_fit(pts, order)
+    if fit["asymptotic"]:
+        return fit["C"], "error constant", fit["observed_order"]
+    usable = [(a, b) for a, b in pts if math.isfinite(b) and ROUNDOFF_REL < b < PREASYMPTOTIC_REL]
+    if len(usable) >= 2:
+        i = pts.index(usable[-2])
+        if pts[i + 1] == usable[-1] and abs(_order(usable[-2], usable[-1]) - order) <= ORDER_TOLERANCE:
+            return (max(b / a ** order for a, b in usable[-2:]), "error constant (2 runs)",
+                    _order(usable[-2], usable[-1]))
+    return math.nan, "no asymptotic fit", fit["observed_order"]
+
+
 def error_constant(h, err, order: int) -> float:
-    """``C`` of ``err ~ C h^order`` (median of ``err / h^order`` over the
-    asymptotic points); NaN when none is asymptotic."""
-    h, err = np.asarray(h, float), np.asarray(err, float)
-    ok = np.isfinite(err) & (err > ROUNDOFF_REL) & (err < PREASYMPTOTIC_REL) & (h > 0)
-    return float(np.median(err[ok] / h[ok] ** order)) if ok.any() else math.nan
+    """``C`` of ``err ~ C h^order`` (:func:`fit_constant`); NaN when the runs
+    show no asymptotic range."""
+    return fit_constant(h, err, order)[0]
 
 
 def roundoff_level(n_steps: float) -> float:
@@ -177,6 +272,30 @@ def stable_step(method, omega_max: float) -> float:
     return b / omega_max if b > 0 else math.inf
 
 
+def measured_step(points, target: float, t_span: float, h_stab: float, fit_source: str, q_obs: float):
+    """``(h, source, n_steps)`` for ``target`` from the runs ``points = [(h,
+    err), ...]`` (largest step first) when they give no error constant:
+    interpolated between the two successive runs that bracket the target
+    (:func:`bracket_step`, ``"measured bracket"``), else the largest run that
+    meets it (``"measured run"``: a larger step may also do), else NaN with
+    ``fit_source`` and the observed order. Capped at
+    :data:`STABILITY_MARGIN` x ``h_stab``."""
+    br = bracket_step(points, target)
+    if br is not None:
+        h, source = br[0], "measured bracket"
+    else:
+        met = [a for a, b in points if math.isfinite(b) and b <= target]
+        if not met:
+            why = (f"observed order {q_obs:.2f} at the finest steps" if math.isfinite(q_obs) else
+                   f"fewer than two runs with error in ({ROUNDOFF_REL:g}, {PREASYMPTOTIC_REL:g})")
+            return math.nan, f"{fit_source}: {why}", 0
+        h, source = max(met), "measured run"
+    if math.isfinite(h_stab) and h > STABILITY_MARGIN * h_stab:
+        h, source = STABILITY_MARGIN * h_stab, "stability"
+    n = int(math.ceil(t_span / min(h, t_span) * (1 - 1e-12)))
+    return t_span / n, source, n
+
+
 def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
                setting_name=lambda s: "setting") -> list[dict]:
     """One row per target (:data:`COLUMNS`): the step ``method`` (a
@@ -189,12 +308,17 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
     name = method.name
     mine = [r for r in ok if r["solver"] == name]
     order = int(method.order)
-    C = error_constant([r["setting"] for r in mine], [r["error_rel"] for r in mine], order)
+    pts = sorted(((r["setting"], r["error_rel"]) for r in mine), reverse=True)
+    C, fit_source, q_obs = fit_constant(*zip(*pts), order) if pts else (math.nan, "no run", math.nan)
     timing = time_model(mine)
     compile_m = max((r.get("compile_s", 0.0) or 0.0 for r in mine), default=0.0)
     out = []
     for target in targets:
         h, source, n = step_for(target, C, order, t_span, h_stab)
+        if source == "error constant":
+            source = fit_source
+        elif source == "no fit":
+            h, source, n = measured_step(pts, target, t_span, h_stab, fit_source, q_obs)
         rhs = fixed_rhs(method, n) if math.isfinite(h) else math.nan
         tm = timing(n) if math.isfinite(h) else (math.nan,) * 3
         alts = [r for r in ok if r["solver"] != name and r["error_rel"] <= target]
