@@ -327,9 +327,10 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
     if trust:
         lines += ["## Can the method under test be trusted here, and is it the cheapest?", "",
                   "Per scene and target relative error (error_max / max |y_ref| over the scene's horizon): the "
-                  "step the method needs (from its error constant C h^p fitted on the scene's runs, not limited "
-                  "to its step list; capped at 0.9 of its stability limit; \"no h (round-off)\" where sqrt(n) "
-                  "eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
+                  "step the method needs (from its error constant C h^p, fitted only on runs that show the order p, "
+                  "so not limited to the scene's step list; else between the two runs that bracket the target; "
+                  "\"no h (no asymptotic fit)\" when the runs show neither; capped at 0.9 of its stability limit; "
+                  "\"no h (round-off)\" where sqrt(n) eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
                   "run that reached the target: **calls** (deterministic), time amortized over many runs (compile "
                   "excluded) and, where it differs, for one run (compile and start-up included). A time verdict is "
                   "`tie` unless the medians differ 3x and the repeats do not overlap. Details: "
