@@ -277,6 +277,13 @@ def _log_tick_text(v, _pos=None):
     return f"$10^{{{e}}}$" if abs(m - 1.0) < 1e-6 else f"${m:g}\\times10^{{{e}}}$"
 
 
+#: Minor ticks (unlabelled, a faint grid) of log axes at these multiples of
+#: each decade; None: matplotlib's 2, 3, ..., 9. Each minor tick is a Tick
+#: object that the constrained layout visits on every draw:
+#: ``python benchmarks/bench_figures.py`` measures what they cost.
+MINOR_SUBS = (2.0, 5.0)
+
+
 def _log_axes(ax, x=True, y=True):
     """Log scales with the figures' grid and no minor tick labels; an axis
     spanning under two decades gets major ticks at 1, 2, 5 x 10^k. Call after
@@ -290,6 +297,8 @@ def _log_axes(ax, x=True, y=True):
         set_scale("log")
         lo, hi = sorted(lim())
         axis.set_minor_formatter(ticker.NullFormatter())
+        if MINOR_SUBS is not None:
+            axis.set_minor_locator(ticker.LogLocator(base=10, subs=MINOR_SUBS, numticks=100))
         if lo > 0 and math.log10(hi / lo) < 2:
             axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
             axis.set_major_formatter(ticker.FuncFormatter(_log_tick_text))
