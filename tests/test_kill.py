@@ -198,3 +198,17 @@ def test_a_swallowed_signal_stops_the_run_at_the_next_unit(tmp_path, capsys):
         sys.unraisablehook(types.SimpleNamespace(exc_type=Interrupted, exc_value=Interrupted(signal.SIGTERM),
                                                  exc_traceback=None, err_msg=None, object=None))
     assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("code", [130, 143])
+def test_an_interrupted_run_exits_even_when_a_thread_would_hold_the_exit(code):
+    """After an interrupt, run_all.exit_process ends the process at once: a
+    worker pool's manager thread left waiting on a killed worker's queue (a
+    non-daemon thread that never returns, here) must not keep it alive. CI saw
+    a SIGTERM'd run print its line and then hang for 120 s."""
+    prog = ("import threading, sys; sys.path.insert(0, '.');"
+            "from validation.run_all import exit_process;"
+            "threading.Thread(target=threading.Event().wait).start();"
+            f"print('settled', flush=True); exit_process({code})")
+    r = subprocess.run([sys.executable, "-c", prog], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert r.returncode == code and r.stdout == "settled\n", (r.returncode, r.stdout, r.stderr)

@@ -28,5 +28,12 @@ def main(argv=None) -> int:
     return 2
 
 
+def entry() -> None:
+    """The console script: an interrupted ``rk4h run`` ends as ``run_all.py`` does."""
+    from validation.run_all import exit_process
+
+    exit_process(main())
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -159,6 +159,10 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
     return records
 
 
+#: Warning filter passed to the resource tracker's interpreter (see LocalPools.start).
+_TRACKER_QUIET = "ignore:resource_tracker:UserWarning"
+
+
 class LocalPools:
     """Worker processes kept for a whole report: the timing lane (one process)
     and ``workers - 1`` general processes, started on first use (``spawn``:
@@ -173,6 +177,13 @@ class LocalPools:
         if self.general is None:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
+
+            # An interrupted run ends with os._exit (run_all.exit_process) after killing
+            # these workers; multiprocessing's resource tracker, a separate process
+            # started with this interpreter's -W options, then unlinks the pools'
+            # semaphores itself and would print a UserWarning saying so.
+            if _TRACKER_QUIET not in sys.warnoptions:
+                sys.warnoptions.append(_TRACKER_QUIET)
 
             ctx = mp.get_context("spawn")
             self.general = ProcessPoolExecutor(max_workers=max(1, self.workers - 1), mp_context=ctx,
