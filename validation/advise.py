@@ -185,7 +185,7 @@ def _fixed_candidate(p: _Problem, method, target):
             base["observed_order"] = q
             return at_step(h_t, e_b * (h_t / h_b) ** q if math.isfinite(q) else e_b, "measured bracket")
         meets = [(a, b) for a, b in tail if math.isfinite(b) and b <= target]
-        usable = [(a, b) for a, b in tail if math.isfinite(b) and metrics.ROUNDOFF_REL < b < metrics.PREASYMPTOTIC_REL]
+        usable = [(a, b) for a, b in tail if trust.in_fit_range(b)]
         if meets and not usable:  # at the round-off floor already: the largest step measured to meet it
             return at_step(*max(meets), "calibration run")
         C = max((b / a ** order for a, b in usable), default=math.nan)  # conservative: the largest err / h^p

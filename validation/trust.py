@@ -50,7 +50,7 @@ import numpy as np
 from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
 
 __all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "ORDER_TOLERANCE", "asymptotic_fit", "bracket_step",
-           "fit_constant", "measured_step", "error_constant", "step_for", "roundoff_level",
+           "fit_constant", "measured_step", "in_fit_range", "error_constant", "step_for", "roundoff_level",
            "time_model", "time_verdict", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
 
 #: A time verdict needs the medians this far apart (and the repeats disjoint):
@@ -81,6 +81,13 @@ TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict
 ORDER_TOLERANCE = 0.5
 
 
+def in_fit_range(err: float) -> bool:
+    """Whether a relative error lies where an error constant is fitted:
+    above round-off and below the pre-asymptotic level
+    (``ROUNDOFF_REL < err < PREASYMPTOTIC_REL``; NaN and inf never)."""
+    return ROUNDOFF_REL < err < PREASYMPTOTIC_REL
+
+
 def _order(a, b) -> float:
     """Observed order between the runs ``a = (h1, e1)`` and ``b = (h2, e2)``."""
     (h1, e1), (h2, e2) = a, b
@@ -106,7 +113,7 @@ def asymptotic_fit(points, order: int) -> dict:
     usable points (NaN with fewer than two).
     """
     pts = [(float(h), float(e)) for h, e in points]
-    usable = [math.isfinite(e) and ROUNDOFF_REL < e < PREASYMPTOTIC_REL and h > 0
+    usable = [in_fit_range(e) and h > 0
               for h, e in pts]
     for i in range(len(pts) - 2):
         if not all(usable[i:i + 3]):
@@ -154,7 +161,7 @@ def fit_constant(h, err, order: int) -> tuple[float, str, float]:
     fit = asymptotic_fit(pts, order)
     if fit["asymptotic"]:
         return fit["C"], "error constant", fit["observed_order"]
-    usable = [(a, b) for a, b in pts if math.isfinite(b) and ROUNDOFF_REL < b < PREASYMPTOTIC_REL]
+    usable = [(a, b) for a, b in pts if in_fit_range(b)]
     if len(usable) >= 2:
         i = pts.index(usable[-2])
         if pts[i + 1] == usable[-1] and abs(_order(usable[-2], usable[-1]) - order) <= ORDER_TOLERANCE:
