@@ -1,12 +1,13 @@
-"""What a busy neighbour costs a timed run in the timing lane.
+"""What a busy neighbour costs a timed run.
 
-``run_all`` runs every timed spec (the solver runs whose wall times feed the
-work-precision tables) in one process, the timing lane, while the other
-workers run untimed work (references, convergence sweeps, stability units,
-figures). This benchmark measures the bias that leaves: the wall times of the
-same timed specs, executed in the lane with the other worker idle and with it
-busy integrating (untimed RK4 and DOP853 runs of the 100-mass lattice),
-alternating idle and busy rounds so that machine drift hits both alike.
+``run_all`` runs the timed specs (the solver runs whose wall times feed the
+work-precision tables) after all untimed work, one per worker process: each
+timed run has another integration beside it on a 2-core machine
+(``--exclusive-timing``: one at a time, the other workers idle). This
+benchmark measures the bias a neighbour leaves: the wall times of the same
+timed specs, executed in one worker with the other worker idle and with it
+busy integrating (RK4 and DOP853 runs of the 100-mass lattice), alternating
+idle and busy rounds so that machine drift hits both alike.
 
 Prints, per spec, the median over rounds of ``wall_s`` idle and busy and
 their ratio; then the median ratio over specs and its spread (the 10th-90th

@@ -1,7 +1,7 @@
 """Measure the README's timing figures: the full and the ``--quick`` run of
 ``validation/run_all.py``, wall and CPU time, and the run's own summary line.
 
-    python benchmarks/readme_timings.py [--quick-only] [--workers N]
+    python benchmarks/readme_timings.py [--quick-only] [--workers N] [--exclusive-timing]
 
 Each run writes into a fresh temporary directory (removed afterwards; the
 committed ``reports/`` is never touched). Prints one Markdown paragraph per run
@@ -51,8 +51,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick-only", action="store_true")
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--exclusive-timing", action="store_true", help="passed to run_all.py")
     a = ap.parse_args(argv)
-    extra = [] if a.workers is None else ["--workers", str(a.workers)]
+    extra = ([] if a.workers is None else ["--workers", str(a.workers)]) + \
+        (["--exclusive-timing"] if a.exclusive_timing else [])
     runs = [["--quick", *extra]] + ([] if a.quick_only else [extra])
     head = (f"Measured by `python benchmarks/readme_timings.py` on {datetime.date.today().isoformat()}, commit "
             f"{_commit()}, {os.cpu_count()} CPUs:")

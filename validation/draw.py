@@ -50,6 +50,8 @@ def _draw(job, out_dir, scenes_by_name) -> list:
         return [stability.draw(d["plot"], out_dir)]
     if job.kind == "sweep":
         return [sweep_figure(out_dir, **d)]
+    if job.kind == "crossover":
+        return [f.crossover(out_dir, pd.DataFrame(d["rows"]))]
     raise ValueError(f"unknown figure kind {job.kind!r}")
 
 

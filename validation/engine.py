@@ -14,12 +14,13 @@ estimated first; then the timed specs.
 Timing
 ------
 Timed specs (:attr:`RunSpec.timed`: the solver runs whose wall times feed the
-work-precision tables and verdicts) run last, one at a time, in one worker
-process (the *timing lane*) while the other workers are idle: no timed run
-shares the machine with work of this tool. Running them beside the untimed
-work instead was measured (``benchmarks/bench_timing_lane.py``) to inflate
-their wall times by a median factor of about 1.2 to 1.6 on this 2-core
-machine: a bias, not noise, so the timings wait for an idle machine.
+work-precision tables and verdicts) run last, after every untimed spec has
+finished, so that a timed run shares the machine only with other timed runs:
+one per worker process, each single-threaded (``benchmarks/bench_timing_lane.py``
+measures what a neighbour integrating on the other core does to a timing).
+``exclusive_timing=True`` (``run_all.py --exclusive-timing``) runs them one at
+a time in one worker process (the *timing lane*) with the other workers idle,
+for a machine where parallel runs do disturb each other's timings.
 ``--workers 1`` runs everything in this process, in the same order.
 
 On a Dask cluster (``--scheduler ADDRESS``) the same three stages run in
@@ -86,7 +87,7 @@ def _execute(scene, spec, quick):
 
 
 def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progress=None, cost=None,
-             stats=None, records=None, pools=None):
+             stats=None, records=None, pools=None, exclusive_timing=False):
     """Execute ``jobs`` (``[(scene, spec), ...]``); see the module docstring.
 
     Parameters
@@ -110,6 +111,9 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
         Filled in place as records arrive (and returned).
     pools : LocalPools or None
         Worker processes to use (and keep); default: started and stopped here.
+    exclusive_timing : bool
+        Timed specs one at a time in the timing lane, the other workers idle
+        (default: one per worker process, after the untimed work).
     """
     stats = stats if stats is not None else PlanStats()
     stats.planned = len(jobs)
@@ -152,7 +156,7 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
         own = pools is None
         pools = pools or LocalPools(workers)
         try:
-            _pool(stages, quick, pools, done, stats)
+            _pool(stages, quick, pools, done, stats, exclusive_timing)
         finally:
             if own:
                 pools.close()
@@ -191,19 +195,37 @@ class LocalPools:
             self.lane = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_worker_init)
         return self
 
-    def map(self, fn, items):
+    def map(self, fn, items, cost=None):
         """``[fn(*item) ...]`` over both pools, in order; an exception is
-        returned in place of its result."""
+        returned in place of its result. Each process takes the next item
+        when it is done with its last, the largest ``cost`` (one number per
+        item) first, so that a long item does not leave one process idle at
+        the end."""
+        from concurrent.futures import FIRST_COMPLETED, wait
+
         self.start()
-        futs = [(self.general if i % self.workers else self.lane).submit(fn, *item)
-                for i, item in enumerate(items)]
-        out = []
+        out = [None] * len(items)
+        free = {"lane": 1, "general": max(1, self.workers - 1)}
+        todo = list(range(len(items)))
+        if cost is not None:
+            todo.sort(key=lambda i: -cost[i])
+        pending = {}
         try:
-            for f in futs:
-                try:
-                    out.append(f.result())
-                except Exception as e:  # noqa: BLE001 - the caller reports it
-                    out.append(e)
+            while todo or pending:
+                for name in ("lane", "general"):
+                    while todo and free[name]:
+                        i = todo.pop(0)
+                        free[name] -= 1
+                        pool = self.lane if name == "lane" else self.general
+                        pending[pool.submit(fn, *items[i])] = (i, name)
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for f in finished:
+                    i, name = pending.pop(f)
+                    free[name] += 1
+                    try:
+                        out[i] = f.result()
+                    except Exception as e:  # noqa: BLE001 - the caller reports it
+                        out[i] = e
         except BaseException:
             self.close(kill=True)
             raise
@@ -225,24 +247,27 @@ class LocalPools:
         self.general = self.lane = None
 
 
-def _pool(stages, quick, pools, done, stats):
+def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
     from concurrent.futures import FIRST_COMPLETED, wait
 
     pools.start()
-    stats.timing = (f"one at a time after the untimed work, in one process with the other "
-                    f"{pools.workers - 1} worker(s) idle (--workers {pools.workers})")
+    others = pools.workers - 1
+    stats.timing = (f"one at a time after the untimed work, in one process with the other {others} worker(s) "
+                    f"idle (--exclusive-timing, --workers {pools.workers})" if exclusive_timing or not others else
+                    f"after the untimed work, {pools.workers} at a time, one per worker process "
+                    f"(--workers {pools.workers}): each timed run shares the machine with other timed runs only")
     try:
         for stage in stages:
             queue = list(stage)
-            free = {"lane": 1, "general": max(1, pools.workers - 1)}
+            free = {"lane": 1, "general": max(1, others)}
             pending = {}
             while queue or pending:
-                # keep every process busy with one spec (untimed work on every process;
-                # timed runs only in the lane, alone)
+                # keep every process busy with one spec (timed runs only in the lane
+                # when timing is exclusive)
                 while queue:
-                    timed = queue[0][1].timed
-                    name = "lane" if free["lane"] and (timed or not free["general"]) else \
-                        ("general" if free["general"] and not timed else None)
+                    alone = exclusive_timing and queue[0][1].timed
+                    name = "lane" if free["lane"] and (alone or not free["general"]) else \
+                        ("general" if free["general"] and not alone else None)
                     if name is None:
                         break
                     scene, spec = queue.pop(0)

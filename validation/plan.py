@@ -76,7 +76,7 @@ PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "
             "thesis_code")
 #: Points of the trajectory drawn in the state figures (at most).
 FIGURE_POINTS = 4000
-#: Stability units whose rows hold timings (they run in the timing lane).
+#: Stability units whose rows hold timings (they run with the timed specs).
 TIMED_UNITS = ("large_n",)
 
 

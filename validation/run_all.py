@@ -4,7 +4,8 @@ Usage::
 
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
                                  [--max-output-points N] [--max-steps N] [--max-truth-steps N]
-                                 [--replace] [--workers N] [--scheduler ADDRESS] [--resume]
+                                 [--replace] [--workers N] [--exclusive-timing] [--scheduler ADDRESS]
+                                 [--resume]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
@@ -27,8 +28,10 @@ which scenes had finished.
 
 The work is a plan (:mod:`validation.plan`): one record per spec, executed
 on ``--workers`` local processes (default: every core this process may use)
-or on a Dask cluster (``--scheduler``), written to ``.<DIR>.records`` beside
-``DIR`` as it arrives (:mod:`validation.records`). After an interrupted run,
+or on a Dask cluster (``--scheduler``); the timed runs come last, one per
+worker (``--exclusive-timing``: one at a time, the other workers idle; see
+:mod:`validation.engine`). Each record is written to ``.<DIR>.records``
+beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted run,
 ``--resume`` reruns only the specs that have no record. The records are
 removed once the report is in place.
 
@@ -127,6 +130,9 @@ def _parser():
     p.add_argument("--workers", type=_int_at_least(1, 1024), default=None, metavar="N",
                    help="local worker processes (default: $RK4H_WORKERS, else the cores this process may "
                         "use; 1: no pool)")
+    p.add_argument("--exclusive-timing", action="store_true",
+                   help="time each run alone, the other workers idle (slower; for a machine where parallel "
+                        "runs disturb each other's timings)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the plan on the Dask distributed scheduler at ADDRESS (tcp://host:port)")
     p.add_argument("--resume", action="store_true",
@@ -198,7 +204,7 @@ def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
 
 
 def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None, workers=1,
-        scheduler=None, store=None, stats=None):
+        scheduler=None, store=None, stats=None, exclusive_timing=False):
     """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
 
     The pipeline (``validation.plan`` -> ``validation.engine`` ->
@@ -228,6 +234,9 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         Records to resume from and to write.
     stats : validation.engine.PlanStats or None
         Filled with the counts of planned, resumed and executed specs.
+    exclusive_timing : bool
+        Time each run alone, the other workers idle (default: the timed runs
+        run one per worker after the untimed work; see ``validation.engine``).
 
     Returns ``(results, failures)``. A fault inside a scene, solver or figure
     is a failure line (and a ``failed`` row where a row exists), never an
@@ -238,6 +247,8 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ValueError(f"`workers` must be an integer >= 1, got {workers!r}")
+    if not isinstance(exclusive_timing, bool):
+        raise ValueError(f"`exclusive_timing` must be True or False, got {exclusive_timing!r}")
     from validation import engine, interrupt, plan
 
     t0 = time.perf_counter()
@@ -285,20 +296,20 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     pools = engine.LocalPools(workers) if workers > 1 else None
     try:
         return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
-                    tick, completed, t0, broken)
+                    tick, completed, t0, broken, exclusive_timing)
     finally:
         if pools is not None:
             pools.close()
 
 
 def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
-         completed, t0, broken):
+         completed, t0, broken, exclusive_timing=False):
     from validation import atomic, budget, draw, engine, interrupt, measure, report
 
     t_run = time.perf_counter()
     records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
                               store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
-                              records=records, pools=pools)
+                              records=records, pools=pools, exclusive_timing=exclusive_timing)
     completed(records)
     t_measure = time.perf_counter()
     results, tables, failures, findings = [], {}, [], []
@@ -322,35 +333,28 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
         results.append(r)
     figure_jobs = draw.sweep_jobs(scenes, results) if figures else []
     by_name = {s.name: s for s in scenes}
-    t_draw = time.perf_counter()
-    if figures:
-        _draw_all(results, figure_jobs, out_dir, by_name, pools)
-    t_write = time.perf_counter()
     for r in results:
         for name, rows in r.tables.items():
             tables.setdefault(name, []).extend(rows)
-        failures += r.failures
-        findings += r.findings
-    findings = report.summarize(tables) + findings
     extra = []
     if figures and tables.get("cheapest"):
-        import pandas as pd
-
-        from validation import figures as fig
-
         try:
-            trust = pd.DataFrame(tables["cheapest"])  # the grid shows the RHS-call verdict (deterministic)
-            trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""),
-                                 rhs=trust["rhs"].where(trust["verdict_rhs"] == trust["method"], trust["alt_rhs"]))
-            path, sentence = fig.crossover(out_dir, trust[["scene", "target_error", "solver", "rhs"]])
-            extra.append(measure.SceneTables("all scenes", drawn=[(path, sentence)]))
+            extra.append(_crossover_job(tables["cheapest"]))
         except Exception as e:  # noqa: BLE001
             if atomic.is_environment_error(e) or interrupt.pending():
                 raise
             findings.append(f"(crossover figure not drawn: {type(e).__name__}: {e})")
+    t_draw = time.perf_counter()
+    if figures:
+        _draw_all(results, figure_jobs, out_dir, by_name, pools, extra=extra)
+    t_write = time.perf_counter()
+    for r in results:
+        failures += r.failures
+        findings += r.findings
+    findings = report.summarize(tables) + findings
     front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
     paths = report.write_tables(out_dir, tables, front=front)
-    report.write_index(out_dir, results=results + extra, tables=tables, table_paths=paths,
+    report.write_index(out_dir, results=results, tables=tables, table_paths=paths,
                        failures=failures, findings=findings, mode="quick" if quick else "full",
                        repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes),
                        timing=getattr(stats, "timing", None))
@@ -368,19 +372,43 @@ def _draw_job(job, out_dir, scene):
     return draw.draw(job, out_dir, {job.scene: scene} if scene is not None else {})
 
 
-def _draw_all(results, sweep_jobs, out_dir, by_name, pools):
-    """Draw every figure job (on the worker processes when there are any); a
-    plotting fault is a failed check of its scene."""
+#: Relative drawing cost of a figure job by kind (a state job draws two or
+#: three figures; ``python benchmarks/bench_figures.py`` gives each kind's time).
+_DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
+
+
+def _crossover_job(cheapest):
+    """The all-scenes crossover grid (a figure job), from the trust table's
+    rows: each cell shows the RHS-call verdict (deterministic)."""
+    import pandas as pd
+
+    from validation import measure
+
+    trust = pd.DataFrame(cheapest)
+    trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""),
+                         rhs=trust["rhs"].where(trust["verdict_rhs"] == trust["method"], trust["alt_rhs"]))
+    rows = trust[["scene", "target_error", "solver", "rhs"]].to_dict("records")
+    res = measure.SceneTables("all scenes")
+    res.figures.append(measure.FigureJob("all scenes", "crossover", {"rows": rows}))
+    return res
+
+
+def _draw_all(results, sweep_jobs, out_dir, by_name, pools, extra=()):
+    """Draw every figure job of ``results``, of ``sweep_jobs`` and of
+    ``extra`` (on the worker processes when there are any); a plotting fault
+    is a failed check of its scene. The sweeps' and ``extra``'s results are
+    appended to ``results``."""
     from validation import atomic, interrupt, measure
 
     sweeps = {}
     for job in sweep_jobs:
         sweeps.setdefault(job.scene, measure.SceneTables(f"sweep {job.scene}"))
-    work = [(r, j) for r in results for j in r.figures] + [(sweeps[j.scene], j) for j in sweep_jobs]
+    work = ([(r, j) for r in results for j in r.figures] + [(sweeps[j.scene], j) for j in sweep_jobs]
+            + [(r, j) for r in extra for j in r.figures])
     # Every job gets its scene: state figures build the model from it, all draw its own methods' styles.
     items = [(j, out_dir, by_name.get(j.scene)) for _, j in work]
     if pools is not None and len(items) > 1:
-        outs = pools.map(_draw_job, items)
+        outs = pools.map(_draw_job, items, cost=[_DRAW_COST.get(j.kind, 1.0) for _, j in work])
     else:
         outs = []
         for item in items:
@@ -399,6 +427,7 @@ def _draw_all(results, sweep_jobs, out_dir, by_name, pools):
         else:
             r.drawn.extend(out)
     results.extend(sweeps.values())
+    results.extend(extra)
 
 
 run.completed = []
@@ -532,6 +561,9 @@ def _main(argv, sig) -> int:
         sys.stderr.write(f"{e}\n")
         return 2
     if args.scheduler:
+        if args.exclusive_timing:
+            return _fail("--exclusive-timing applies to local workers; on a Dask cluster start one worker "
+                         "with --resources timing=1 --nthreads 1, alone on its machine")
         try:
             _check_scheduler(args.scheduler)
         except _BadInput as e:
@@ -590,7 +622,7 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
             progress = Progress(total)
             _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats, figures=figures,
                               progress=progress, workers=workers, scheduler=args.scheduler, store=store,
-                              stats=stats)
+                              stats=stats, exclusive_timing=args.exclusive_timing)
             progress.close()
             sig.hold()  # the swap is not interrupted half-way
             atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
