@@ -87,6 +87,36 @@ def test_time_verdict_needs_margin_and_disjoint_repeats(ta, tb, want):
     assert trust.time_verdict("a", ta, "b", tb) == want
 
 
+def _one_run_rows(heyoka_compiles):
+    """RK4 runs (err = 100 h^4 over 100 s, 4.5 ms at the h = 0.01 s that
+    target 1e-6 needs) and heyoka runs (0.4 ms each, the given compile times)."""
+    rows = []
+    for h in H6:
+        n = round(100 / h)
+        w = 4.5e-3 * n / 10_000
+        rows.append(dict(solver="rk4", setting=h, error_rel=100 * h**4, nfev=4 * n, n_steps=n, wall_s=w,
+                         wall_min=0.96 * w, wall_max=1.02 * w, compile_s=1e-4, status="ok", taylor_order=0))
+    for tol, c in zip((1e-8, 1e-10, 1e-12), heyoka_compiles):
+        rows.append(dict(solver="heyoka", setting=tol, error_rel=1e-8, nfev=0, n_steps=10, wall_s=4e-4,
+                         wall_min=3.5e-4, wall_max=4.5e-4, compile_s=c, status="ok", taylor_order=20))
+    return rows
+
+
+@pytest.mark.parametrize("compiles, one_run", [
+    ((14e-3, 2.3e-3, 2.5e-3), "tie"),   # the first compile 3.1x rk4's time, the others below it
+    ((14e-3, 14e-3, 15e-3), "rk4"),     # every compile 3x rk4's time: one run of heyoka costs more
+])
+def test_one_run_verdict_spans_the_compile_times_of_the_runs(compiles, one_run):
+    """A compile is timed once per run: the one-run time spans the smallest to
+    the largest compile of the solver's runs, so heyoka's first compile alone
+    (3.1x rk4 here, near the 3x margin, where a rerun flips it) names no winner."""
+    (row,) = trust.trust_rows("s", _one_run_rows(compiles), BUILTIN["rk4"], 100.0, math.inf, [1e-6])
+    assert row["h"] == pytest.approx(0.01) and row["time_s"] == pytest.approx(4.5e-3)
+    assert row["alternative"] == "heyoka" and row["alt_compile_s"] == max(compiles)
+    assert row["verdict_amortized"] == "heyoka"  # 0.4 ms against 4.5 ms, repeats disjoint
+    assert row["verdict_one_run"] == one_run
+
+
 def _run(out):
     r = subprocess.run([sys.executable, "validation/run_all.py", "--scene", "thesis-2dof-case1", "--out", str(out)],
                        cwd=REPO, capture_output=True, text=True, timeout=600)

@@ -8,7 +8,18 @@ import math
 
 import numpy as np
 
-__all__ = ["draw", "sweep_jobs", "sweep_figure"]
+__all__ = ["draw", "draw_job", "sweep_jobs", "sweep_figure"]
+
+
+def draw_job(job, out_dir, scene) -> list:
+    """:func:`draw` for one job whose scene (or None) is passed alone: what a
+    worker process runs (a function of this module, so that it pickles by
+    name however ``run_all`` was started)."""
+    from pathlib import Path
+
+    if not Path(out_dir).is_dir():  # the run was stopped and its directory removed: draw nothing
+        raise FileNotFoundError(f"{out_dir} is gone")
+    return draw(job, out_dir, {job.scene: scene} if scene is not None else {})
 
 
 def draw(job, out_dir, scenes_by_name) -> list:

@@ -31,6 +31,7 @@ and the report says that its timings came from a shared cluster.
 """
 from __future__ import annotations
 
+import atexit
 import math
 import os
 import signal
@@ -78,6 +79,29 @@ def _worker_init():
             os._exit(1)
     except (OSError, AttributeError):
         pass
+    # A worker that was told to stop ends here, without the interpreter's
+    # teardown of what its runs built (JIT-compiled models, caches: up to a
+    # second per worker at the end of a run). atexit runs handlers last
+    # registered first: those of modules the runs import still run, then this
+    # one. Every file a run writes is closed by then; results travel through a
+    # pipe written synchronously (no feeder thread to wait for).
+    atexit.register(_exit_now)
+
+
+def _exit_now():
+    """Flush the standard streams and end the process (exit status 0)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):
+            pass
+    os._exit(0)
+
+
+def _warm():
+    """Import what executing a spec needs (run in a fresh worker)."""
+    import validation.execute  # noqa: F401
+    import validation.measure  # noqa: F401
 
 
 def _execute(scene, spec, quick):
@@ -193,6 +217,16 @@ class LocalPools:
             self.general = ProcessPoolExecutor(max_workers=max(1, self.workers - 1), mp_context=ctx,
                                                initializer=_worker_init)
             self.lane = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_worker_init)
+        return self
+
+    def warm(self):
+        """Start the worker processes now, each importing the execution
+        modules, so that a plan's first spec does not wait for them (the
+        CLI calls this before it plans)."""
+        self.start()
+        for pool, n in ((self.lane, 1), (self.general, max(1, self.workers - 1))):
+            for _ in range(n):  # one task per idle process makes the pool start it
+                pool.submit(_warm)
         return self
 
     def map(self, fn, items, cost=None):

@@ -7,6 +7,7 @@ test_reports_committed.py`` compares them with the committed ``reports/``).
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import platform
@@ -158,13 +159,53 @@ def versions() -> dict:
 
 
 def _blas() -> str:
-    """numpy's BLAS/LAPACK (it decides the round-off of eigen-decompositions)."""
+    """numpy's BLAS/LAPACK (it decides the round-off of eigen-decompositions)
+    and, for OpenBLAS, the CPU kernel it runs (:func:`blas_kernel`)."""
     try:
         deps = np.show_config(mode="dicts")["Build Dependencies"]
         blas = deps["blas"]
-        return f"{blas.get('name', '?')} {blas.get('version', '?')} (numpy build)"
+        text = f"{blas.get('name', '?')} {blas.get('version', '?')} (numpy build)"
     except Exception:  # noqa: BLE001 - older numpy: no dict mode
-        return "unknown"
+        text = "unknown"
+    kernel = blas_kernel()
+    return text if kernel is None else f"{text}, kernel {kernel}"
+
+
+#: Where numpy's wheels keep their OpenBLAS, and the names of its core-name query.
+_OPENBLAS_DIRS = ("numpy.libs", "numpy/.dylibs")
+_CORENAME = ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename", "openblas_get_corename64_",
+             "openblas_get_corename")
+
+
+@functools.lru_cache(maxsize=1)
+def blas_kernel() -> str | None:
+    """The CPU kernel numpy's OpenBLAS chose at start-up ("Haswell",
+    "SkylakeX", "Zen", ...; the environment variable ``OPENBLAS_CORETYPE``
+    forces one), or None when numpy's BLAS is not an OpenBLAS that says.
+
+    The kernel fixes the order of the sums in numpy's dot products, hence
+    the round-off of scipy's DOP853 steps (``K.T @ A``): the same code on two
+    kernels gives errors that agree to about 1e-13 of the state, not to the
+    bit (``tests/test_reports_committed.py`` regenerates on the committed
+    report's kernel).
+    """
+    import ctypes
+    import glob
+
+    site = Path(np.__file__).resolve().parent.parent
+    for d in _OPENBLAS_DIRS:
+        for path in sorted(glob.glob(str(site / d / "*openblas*"))):
+            try:
+                lib = ctypes.CDLL(path)  # already loaded by numpy: the same handle
+            except OSError:
+                continue
+            for name in _CORENAME:
+                fn = getattr(lib, name, None)
+                if fn is not None:
+                    fn.restype = ctypes.c_char_p
+                    core = fn()
+                    return (core.decode().strip() or None) if core else None
+    return None
 
 
 def _cpu_name() -> str:

@@ -204,7 +204,7 @@ def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
 
 
 def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None, workers=1,
-        scheduler=None, store=None, stats=None, exclusive_timing=False):
+        scheduler=None, store=None, stats=None, exclusive_timing=False, pools=None):
     """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
 
     The pipeline (``validation.plan`` -> ``validation.engine`` ->
@@ -237,6 +237,10 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
     exclusive_timing : bool
         Time each run alone, the other workers idle (default: the timed runs
         run one per worker after the untimed work; see ``validation.engine``).
+    pools : validation.engine.LocalPools or None
+        Worker processes started by the caller, who closes them (``workers``
+        is then their number); default: started here when ``workers > 1``
+        and stopped at the end.
 
     Returns ``(results, failures)``. A fault inside a scene, solver or figure
     is a failure line (and a ``failed`` row where a row exists), never an
@@ -293,12 +297,14 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         completed(records)
         progress(message)
 
-    pools = engine.LocalPools(workers) if workers > 1 else None
+    own = pools is None
+    if own:
+        pools = engine.LocalPools(workers) if workers > 1 else None
     try:
         return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
                     tick, completed, t0, broken, exclusive_timing)
     finally:
-        if pools is not None:
+        if own and pools is not None:
             pools.close()
 
 
@@ -364,14 +370,6 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     return results, failures
 
 
-def _draw_job(job, out_dir, scene):
-    from validation import draw
-
-    if not Path(out_dir).is_dir():  # the run was stopped and its directory removed: draw nothing
-        raise FileNotFoundError(f"{out_dir} is gone")
-    return draw.draw(job, out_dir, {job.scene: scene} if scene is not None else {})
-
-
 #: Relative drawing cost of a figure job by kind (a state job draws two or
 #: three figures; ``python benchmarks/bench_figures.py`` gives each kind's time).
 _DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
@@ -399,6 +397,7 @@ def _draw_all(results, sweep_jobs, out_dir, by_name, pools, extra=()):
     is a failed check of its scene. The sweeps' and ``extra``'s results are
     appended to ``results``."""
     from validation import atomic, interrupt, measure
+    from validation.draw import draw_job
 
     sweeps = {}
     for job in sweep_jobs:
@@ -408,12 +407,12 @@ def _draw_all(results, sweep_jobs, out_dir, by_name, pools, extra=()):
     # Every job gets its scene: state figures build the model from it, all draw its own methods' styles.
     items = [(j, out_dir, by_name.get(j.scene)) for _, j in work]
     if pools is not None and len(items) > 1:
-        outs = pools.map(_draw_job, items, cost=[_DRAW_COST.get(j.kind, 1.0) for _, j in work])
+        outs = pools.map(draw_job, items, cost=[_DRAW_COST.get(j.kind, 1.0) for _, j in work])
     else:
         outs = []
         for item in items:
             try:
-                outs.append(_draw_job(*item))
+                outs.append(draw_job(*item))
             except Exception as e:  # noqa: BLE001
                 if atomic.is_environment_error(e) or interrupt.pending():
                     raise
@@ -616,13 +615,15 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
     stats = engine.PlanStats()
     progress, swapped = None, False
     run.completed = []
+    # the workers start (and import) while this process plans
+    pools = engine.LocalPools(workers).warm() if workers > 1 and not args.scheduler else None
     try:
         try:
             total = len(plan_all(scenes, quick=args.quick, figures=figures, repeats=repeats))
             progress = Progress(total)
             _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats, figures=figures,
                               progress=progress, workers=workers, scheduler=args.scheduler, store=store,
-                              stats=stats, exclusive_timing=args.exclusive_timing)
+                              stats=stats, exclusive_timing=args.exclusive_timing, pools=pools)
             progress.close()
             sig.hold()  # the swap is not interrupted half-way
             atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
@@ -630,6 +631,8 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
             store.remove()
         finally:
             sig.held = True  # cleanup is not interrupted either
+            if pools is not None:
+                pools.close(kill=not swapped)
             if not swapped:
                 shutil.rmtree(tmp, ignore_errors=True)
                 # records stay only for --resume after an interrupt; a run that the

@@ -1,0 +1,97 @@
+"""The local worker processes (``validation.engine.LocalPools``) as the CLI
+uses them: started and warmed before planning, handed to ``run_all.run``
+(which then leaves them open for their owner), drawing figures however
+``run_all`` was started, and ending without the interpreter's teardown."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from validation import engine, run_all
+from validation.scenes import load_scene
+
+from _scenes import one_mass
+
+REPO = Path(__file__).resolve().parent.parent
+OUTPUTS = '["state", "energy", "figures"]'
+
+
+def _scenes(tmp_path):
+    paths = []
+    for name in ("pool-a", "pool-b"):
+        paths.append(tmp_path / f"{name}.toml")
+        paths[-1].write_text(one_mass(name, outputs=OUTPUTS))
+    return paths
+
+
+def _pids(pools):
+    return {p.pid for pool in (pools.lane, pools.general) for p in pool._processes.values()}
+
+
+def test_warm_starts_every_worker_and_run_uses_the_callers_pools_and_leaves_them_open(tmp_path, monkeypatch):
+    pools = engine.LocalPools(2).warm()
+    try:
+        started = _pids(pools)
+        assert len(started) == 2  # the lane and one general worker, before any spec was submitted
+
+        def no_new_pools(*args, **kwargs):
+            raise AssertionError("run() started pools of its own")
+
+        monkeypatch.setattr(engine, "LocalPools", no_new_pools)
+        out = tmp_path / "out"
+        out.mkdir()
+        results, failures = run_all.run([load_scene(p) for p in _scenes(tmp_path)], out, repeats=1, workers=2,
+                                        pools=pools)
+        assert failures == []
+        assert {r.scene for r in results} == {"pool-a", "pool-b"}
+        assert sorted(p.name for p in out.glob("*.png")) == sorted(
+            f"pool_{s}_{f}.png" for s in "ab" for f in ("displacement", "velocity", "energy_error"))
+        # run() used these processes and did not close them: their owner does
+        assert pools.general is not None and pools.lane is not None
+        assert _pids(pools) == started
+    finally:
+        pools.close()
+    assert pools.general is None and pools.lane is None
+
+
+def test_figures_are_drawn_in_workers_when_run_all_is_not_the_main_module(tmp_path):
+    """Under ``python -m cProfile`` the main module is cProfile's: a figure
+    job submitted as a function of ``run_all`` run as a script could not be
+    pickled (every figure failed); ``validation.draw.draw_job`` pickles by
+    module name."""
+    args = [a for p in _scenes(tmp_path) for a in ("--scene", str(p))]
+    out = tmp_path / "out"
+    p = subprocess.run([sys.executable, "-m", "cProfile", "-o", os.devnull, "validation/run_all.py", *args,
+                        "--out", str(out), "--workers", "2", "--repeats", "1"],
+                       cwd=REPO, capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "MPLBACKEND": "Agg"})
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "all expectations held" in p.stdout, p.stdout
+    assert len(list(out.glob("*.png"))) == 6
+
+
+def test_draw_job_draws_nothing_into_a_directory_that_is_gone(tmp_path):
+    from validation.draw import draw_job
+    from validation.measure import FigureJob
+
+    gone = tmp_path / "gone"
+    with pytest.raises(FileNotFoundError, match="gone"):
+        draw_job(FigureJob("x", "state", {}), gone, None)
+    assert not gone.exists()
+
+
+@pytest.mark.parametrize("stream", ["stdout", "stderr"])
+def test_exit_now_flushes_what_the_worker_wrote(stream):
+    """``_exit_now`` ends the process with ``os._exit``, which skips the
+    flush of buffered output: it must flush first (a pipe is block-buffered
+    unless PYTHONUNBUFFERED is set, so the child runs without it)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    code = (f"import sys; from validation import engine; sys.{stream}.write('unterminated'); "
+            "engine._exit_now(); print('not reached')")
+    p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60, env=env)
+    assert p.returncode == 0
+    assert getattr(p, stream) == "unterminated"
