@@ -386,7 +386,7 @@ def _real128(model, y0, t, tol) -> Truth:
     import heyoka as hy
 
     R = hy.real128
-    ta, compile_s = get_integrator(model, tol, "real128")
+    ta, compile_s, _ = get_integrator(model, tol, "real128")
     scales = group_scales(model, y0)
     start = time.perf_counter()
     with np.errstate(over="ignore", invalid="ignore"):

@@ -80,3 +80,12 @@ def test_references_ran_on_the_rhs_they_were_given(tiny_output):
     for solver in ("dop853", "cvode-adams", "cvode-bdf"):
         assert re.search(rf"^  {solver} +compiled RHS .*rhs used: compiled / numpy; status ok / ok\)$",
                          tiny_output, flags=re.MULTILINE), tiny_output
+
+
+def test_heyoka_startup_benchmark_prints_its_three_medians():
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_heyoka_startup.py"), "--rounds", "1"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    for label in ("first compile in a process:", "the same system compiled again after it:",
+                  "first compile after taylor._start_up:"):
+        assert re.search(re.escape(label) + r"\s+" + NUMBER + r"$", proc.stdout, flags=re.M), (label, proc.stdout)

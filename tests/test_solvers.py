@@ -204,7 +204,10 @@ def test_heyoka_compiles_once_and_reuses():
     t = np.linspace(0.0, 1.0, 11)
     first = integrate("heyoka", model, y0, t, 3e-11)
     again = integrate("heyoka", model, 2 * y0, t, 3e-11)
-    assert again.compile_s == 0.0 and again.extra["cached"]
+    # the cached integrator's compile time, not 0: a run's one-run cost does not
+    # depend on what ran before it in the process
+    assert not first.extra["cached"] and again.extra["cached"]
+    assert again.compile_s == first.compile_s > 0.0
     # The reused integrator is reset: a rerun reproduces the first run bit for bit.
     rerun = integrate("heyoka", model, y0, t, 3e-11)
     np.testing.assert_array_equal(rerun.y, first.y)

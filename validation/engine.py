@@ -99,9 +99,19 @@ def _exit_now():
 
 
 def _warm():
-    """Import what executing a spec needs (run in a fresh worker)."""
+    """Import what executing a spec needs and start heyoka (run in a fresh
+    worker; heyoka's start-up is untimed in any case, see
+    ``references.solvers.taylor``)."""
     import validation.execute  # noqa: F401
     import validation.measure  # noqa: F401
+
+    try:
+        import heyoka
+
+        from references.solvers import taylor
+    except ImportError:
+        return
+    taylor._start_up(heyoka)
 
 
 def _execute(scene, spec, quick):

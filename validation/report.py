@@ -184,10 +184,12 @@ def blas_kernel() -> str | None:
     forces one), or None when numpy's BLAS is not an OpenBLAS that says.
 
     The kernel fixes the order of the sums in numpy's dot products, hence
-    the round-off of scipy's DOP853 steps (``K.T @ A``): the same code on two
-    kernels gives errors that agree to about 1e-13 of the state, not to the
-    bit (``tests/test_reports_committed.py`` regenerates on the committed
-    report's kernel).
+    the round-off of scipy's DOP853 steps (``K.T @ A``): on two kernels the
+    same code gives DOP853 errors that differ at round-off level (1.2e-13 of
+    the state in the quick scenes) or, where the rounding changes the
+    accepted steps, by up to 53% (planar4-case2, rtol 1e-7; see the README).
+    ``tests/test_reports_committed.py`` regenerates on the committed
+    report's kernel.
     """
     import ctypes
     import glob

@@ -246,12 +246,13 @@ def compile_spread(rows) -> tuple:
     (zeros when there are none), added to its ``(median, lo, hi)`` time for
     ``verdict_one_run``.
 
-    One run pays the solver's first compile, the largest; but a compile is
-    timed once per run, with no repeats, so its spread between reruns is
-    unknown. The smallest compile of the other runs is the lower end:
-    heyoka's first compile in a scene measured 10 to 12 ms on this machine,
-    its others 2 to 4 ms, and a one-run verdict against a method whose time
-    lies inside that range is a ``tie`` rather than a flip between reruns.
+    One run pays one compile; the largest is the cautious figure. But a
+    compile is timed once per run, with no repeats, so its spread between
+    reruns is unknown: the smallest compile of the solver's other runs is
+    the lower end (in three runs of thesis-2dof-case1, heyoka's five
+    compiles spanned 2.5 to 4.4 ms, up to 1.6x within one run), and a
+    one-run verdict against a method whose time lies inside that range is a
+    ``tie`` rather than a flip between reruns.
     """
     c = [float(r.get("compile_s", 0.0) or 0.0) for r in rows]
     c = [x for x in c if math.isfinite(x)] or [0.0]
