@@ -80,11 +80,13 @@ def _worker_init():
     except (OSError, AttributeError):
         pass
     # A worker that was told to stop ends here, without the interpreter's
-    # teardown of what its runs built (JIT-compiled models, caches: up to a
-    # second per worker at the end of a run). atexit runs handlers last
+    # teardown of what its runs built (JIT-compiled models, caches), which is
+    # slow and has nothing left to save. atexit runs handlers last
     # registered first: those of modules the runs import still run, then this
-    # one. Every file a run writes is closed by then; results travel through a
-    # pipe written synchronously (no feeder thread to wait for).
+    # one; handlers registered before it (at interpreter start, e.g. coverage's
+    # subprocess measurement) do not run in a worker. Every file a run writes
+    # is closed by then; results travel through a pipe written synchronously
+    # (no feeder thread to wait for).
     atexit.register(_exit_now)
 
 
