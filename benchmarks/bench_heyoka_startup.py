@@ -5,7 +5,7 @@ untimed): the wall time of a first ``taylor_adaptive`` compile of the
 2-DOF case-1 model (``references.solvers.taylor.get_integrator``'s system),
 then of the same system compiled again after it; and, in a second set of
 processes, of that compile after the untimed start-up
-``taylor._start_up`` (what the harness times as ``compile_s``). Prints the
+``taylor.start_up`` (what the harness times as ``compile_s``). Prints the
 medians in milliseconds. Run::
 
     python benchmarks/bench_heyoka_startup.py [--rounds 5]
@@ -32,7 +32,7 @@ def compile_once():
     hy.taylor_adaptive(sys_, np.zeros(2 * model.n_dof), tol=1e-9, pars=pars)
     return time.perf_counter() - t
 if {started}:
-    taylor._start_up(hy)
+    taylor.start_up()
 print(compile_once(), compile_once())
 """
 
@@ -54,7 +54,7 @@ def main(argv=None) -> int:
     print(f"medians over {args.rounds} fresh processes (ms):")
     print(f"  first compile in a process:               {ms([a for a, _ in cold]):7.1f}")
     print(f"  the same system compiled again after it:  {ms([b for _, b in cold]):7.1f}")
-    print(f"  first compile after taylor._start_up:     {ms([a for a, _ in warm]):7.1f}")
+    print(f"  first compile after taylor.start_up:      {ms([a for a, _ in warm]):7.1f}")
     return 0
 
 

@@ -87,5 +87,5 @@ def test_heyoka_startup_benchmark_prints_its_three_medians():
                           cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     for label in ("first compile in a process:", "the same system compiled again after it:",
-                  "first compile after taylor._start_up:"):
+                  "first compile after taylor.start_up:"):
         assert re.search(re.escape(label) + r"\s+" + NUMBER + r"$", proc.stdout, flags=re.M), (label, proc.stdout)

@@ -248,8 +248,8 @@ def compile_spread(rows) -> tuple:
 
     One run pays one compile; the largest is the cautious figure. But a
     compile is timed once per run, with no repeats, so its spread between
-    reruns is unknown: the smallest compile of the solver's other runs is
-    the lower end (in three runs of thesis-2dof-case1, heyoka's five
+    reruns is unknown: the smallest compile of the solver's runs is the
+    lower end (in three runs of thesis-2dof-case1, heyoka's five
     compiles spanned 2.5 to 4.4 ms, up to 1.6x within one run), and a
     one-run verdict against a method whose time lies inside that range is a
     ``tie`` rather than a flip between reruns.

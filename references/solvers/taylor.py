@@ -41,6 +41,7 @@ celestial mechanics", MNRAS 504 (2021) 2614-2628.
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import time
@@ -50,14 +51,13 @@ import numpy as np
 from .base import SolverRun, Status
 
 __all__ = ["scaled_system", "get_integrator", "propagate", "outcome_status", "stop_time", "run_heyoka", "model_key",
-           "clear_cache", "DEFAULT_MAX_STEPS"]
+           "clear_cache", "start_up", "DEFAULT_MAX_STEPS"]
 
 #: Default cap on Taylor steps in one run (as CVODE's and DOP853's).
 DEFAULT_MAX_STEPS = 5_000_000
 
 #: (model key, tol, fp_type) -> (taylor_adaptive, compile seconds)
 _CACHE: dict = {}
-_STARTED = False
 #: Systems with more state components than this are compiled in compact mode.
 COMPACT_ABOVE = 40
 
@@ -103,13 +103,14 @@ def _pars(model, scales, dtype=float):
     return np.concatenate([np.asarray(scales, dtype=float), np.asarray(model.mass, dtype=float)]).astype(dtype)
 
 
-def _start_up(hy) -> None:
-    """heyoka's one-time start-up in this process, untimed (module docstring)."""
-    global _STARTED
-    if not _STARTED:
-        x, v = hy.make_vars("x", "v")
-        hy.taylor_adaptive([(x, v), (v, -x)], [0.0, 1.0], tol=1e-6)
-        _STARTED = True
+@functools.cache
+def start_up() -> None:
+    """heyoka's one-time start-up in this process, untimed (module docstring):
+    a compile of a one-line system, done once."""
+    import heyoka as hy
+
+    x, v = hy.make_vars("x", "v")
+    hy.taylor_adaptive([(x, v), (v, -x)], [0.0, 1.0], tol=1e-6)
 
 
 def get_integrator(model, tol: float, fp_type: str = "double"):
@@ -122,7 +123,7 @@ def get_integrator(model, tol: float, fp_type: str = "double"):
     hit = _CACHE.get(key)
     if hit is not None:
         return hit[0], hit[1], True
-    _start_up(hy)
+    start_up()
     _, sys = scaled_system(model)
     n2 = 2 * model.n_dof
     start = time.perf_counter()
