@@ -1,4 +1,4 @@
-"""The seed's known errata (DESIGN.md, "Known errata in the seed"), recomputed.
+"""The seed's known errata (docs/scenes.md, "The thesis' errata"), recomputed.
 
 :func:`errata_rows` returns one row per corrected quantity. In the
 ``thesis`` column a number the thesis prints is quoted as printed (typed:
@@ -80,7 +80,7 @@ def errata_rows(with_wavepacket: bool = False) -> list[dict]:
     Returns
     -------
     list of dict
-        Keys ``item`` (int, DESIGN.md's numbering), ``quantity`` (str, with
+        Keys ``item`` (int, the numbering of docs/scenes.md's errata list), ``quantity`` (str, with
         units), ``thesis`` (float or str), ``corrected`` (float or str),
         ``note`` (str).
     """

@@ -2,8 +2,8 @@
 
 A :class:`Method` knows its kind, its expected order, its cost per step and
 its style in figures; nothing outside this module decides anything from a
-method's name. Kinds (DESIGN.md, "Methods: the system under test is the
-user's"):
+method's name. Kinds (docs/user-guide.md, "Bringing your own
+integrator"):
 
 ``tableau``
     An explicit Runge-Kutta method given by its Butcher tableau
@@ -177,7 +177,7 @@ def _tableau_method(tab) -> Method:
 #: The tableaux of ``rk4core.methods.METHODS`` a scene may list without
 #: defining them: the thesis' three methods and Stormer-Verlet. The other
 #: tableaux of rk4core's library (``rk38``, ``heun3``, ``ralston``) serve
-#: ``rk4core.solve`` callers; a scene defines its own (DESIGN.md's
+#: ``rk4core.solve`` callers; a scene defines its own (the README's
 #: ``[methods.rk38]`` example), so their names stay free for scenes.
 BUILTIN_TABLEAUX = ("rk4", "euler", "symplectic-euler", "stormer-verlet")
 

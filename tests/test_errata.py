@@ -1,4 +1,4 @@
-"""The errata table (DESIGN.md, "Known errata in the seed"): every corrected
+"""The errata table (docs/scenes.md, "The thesis' errata"): every corrected
 number is computed by the code and agrees with the theory written here."""
 import math
 

@@ -194,7 +194,7 @@ def test_chain_time_series_panels_show_whole_run_then_first_periods(tmp_path, ca
     fig = dict((p.name, f) for f, p in captured)["case1_displacement.png"]
     top, zoom = fig.axes[:2]
     assert top.get_xlim() == (0.0, 20.0)
-    # Zoom: three periods of the slowest mode, omega_1 = 7.1358 rad/s (DESIGN erratum 1).
+    # Zoom: three periods of the slowest mode, omega_1 = 7.1358 rad/s (thesis erratum 1: Table 4.3 prints omega^2).
     assert zoom.get_xlim()[1] == pytest.approx(3 * 2 * math.pi / 7.1358, rel=1e-4)
     # Displacements of 5 mm are drawn in mm: the data are 1e3 * x.
     assert "(mm)" in top.get_ylabel()

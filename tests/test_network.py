@@ -1,7 +1,7 @@
 """The `network` model: masses, anchors and springs with exact geometry.
 
 `triangle`, `planar4` and a walled `chain` are special cases: the network
-must equal them on states and trajectories (DESIGN.md; 1e-13). Force, Hessian
+must equal them on states and trajectories (docs/user-guide.md; 1e-13). Force, Hessian
 and the heyoka system are derived from one spring-energy expression.
 """
 import math

@@ -3,7 +3,7 @@
 Expected values come from theory, stated beside each test: the order of each
 method, the amplification factor of RK4 and Euler on a harmonic mode, the
 quadrature rule RK4 reduces to on ``y' = p(t)`` (Simpson's rule), and the
-contract of DESIGN.md (scipy ``solve_ivp`` conventions).
+contract of docs/user-guide.md (scipy ``solve_ivp`` conventions).
 """
 import math
 import warnings

@@ -41,7 +41,7 @@ Conventions
 References
 ----------
 The figures regenerate the thesis' Figs 4.1-4.20 (chapter 4 of the seed) with
-the corrected physics listed in DESIGN.md's errata.
+the corrected physics listed in the errata (docs/scenes.md).
 """
 from __future__ import annotations
 

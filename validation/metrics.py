@@ -2,7 +2,7 @@
 energy theory, the cheapest solver per target error.
 
 Metrics see arrays only (states ``y`` of shape (2n, m) on output times ``t``),
-never solvers. Conventions (DESIGN.md):
+never solvers. Conventions (docs/reading-the-report.md):
 
 * ``error_max`` -- the largest absolute difference from the reference over
   output times and state components (m, m/s, rad, rad/s as the model's

@@ -1,4 +1,4 @@
-"""Scene files: one physical situation and what to measure on it (DESIGN.md "Scenes").
+"""Scene files: one physical situation and what to measure on it (docs/scene-reference.md).
 
 Every key a scene file may hold -- type, unit, default, an example -- is in
 ``docs/scene-reference.md``, generated from :mod:`validation.scene_schema`,

@@ -1,6 +1,6 @@
 """Group velocity of a Gaussian wave packet on the monatomic chain, by RK4.
 
-The experiment behind the dispersion check of DESIGN.md: a packet of carrier
+The experiment behind the report's dispersion check: a packet of carrier
 wavenumber ``kp0`` (rad/m) and Gaussian envelope of width ``sigma`` (m) is
 launched rightwards on a long chain of equal masses (walls at both ends),
 integrated with ``rk4core.solve``, and its energy centroid is tracked while it
