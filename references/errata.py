@@ -141,7 +141,7 @@ def errata_rows(with_wavepacket: bool = False) -> list[dict]:
     note = ("thesis column: d omega / dt, which is 0 for a wave of fixed frequency; corrected: "
             "d omega / d kp = d sqrt(k/m) cos(kp d/2) (eq. 2.54 is right)")
     if with_wavepacket:
-        from validation.wavepacket import measure_group_velocity
+        from references.wavepacket import measure_group_velocity
 
         wp = measure_group_velocity(kp, m=lat["m"], k=lat["k"], d=lat["d"])
         note += (f"; an RK4 wave packet (N = {wp.N}, sigma = {wp.sigma / lat['d']:g} d) measures "

@@ -1,6 +1,6 @@
 """The monatomic-lattice dispersion relation (thesis sec. 2.2.2, eqs. 2.49-2.54)
 against the finite chain's eigenproblem and forces, and against a wave packet
-integrated by RK4 (validation.wavepacket)."""
+integrated by RK4 (references.wavepacket)."""
 import math
 
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 
 import rk4core
 from references import dispersion as disp
-from validation.wavepacket import measure_group_velocity, packet_state
+from references.wavepacket import measure_group_velocity, packet_state
 
 M, K, D = disp.THESIS_LATTICE["m"], disp.THESIS_LATTICE["k"], disp.THESIS_LATTICE["d"]
 V0 = D * math.sqrt(K / M)

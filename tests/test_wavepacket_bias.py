@@ -29,7 +29,7 @@ import pytest
 import rk4core
 from references import dispersion as disp
 from rk4core.models import Chain
-from validation.wavepacket import (measure_group_velocity, packet_state, rk4_group_velocity_offset,
+from references.wavepacket import (measure_group_velocity, packet_state, rk4_group_velocity_offset,
                                    spectral_group_velocity)
 
 M, K, D = disp.THESIS_LATTICE["m"], disp.THESIS_LATTICE["k"], disp.THESIS_LATTICE["d"]

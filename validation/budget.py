@@ -43,7 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .scenes import Scene, SceneError
+from .scenes import MAX_DENSE_DOF, Scene, SceneError
 
 __all__ = ["Estimate", "estimate", "check", "MAX_STEPS", "MAX_TRUTH_STEPS", "MAX_BYTES", "MAX_DENSE_DOF",
            "ADAPTIVE_STEPS_PER_PERIOD", "TRUTH_STEPS_PER_PERIOD", "TRAJECTORIES_HELD", "BASE_BYTES"]
@@ -53,8 +53,6 @@ MAX_STEPS = 1e9
 #: Largest number of quadruple-precision Taylor steps of a scene's reference
 #: (~1e3 s at ~1 ms per step on a 2-DOF model).
 MAX_TRUTH_STEPS = 1e6
-#: Largest dense eigenproblem (degrees of freedom) a scene may need.
-MAX_DENSE_DOF = 5000
 #: Largest estimated memory of the whole process (bytes): 4 GiB.
 MAX_BYTES = 4 * 2**30
 #: Adaptive solvers: at least this many steps per period of the fastest mode

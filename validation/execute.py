@@ -298,7 +298,7 @@ def _dispersion_spec(scene, spec, quick):
 
 
 def _packet_spec(scene, spec, quick):
-    from . import wavepacket
+    from references import wavepacket
 
     lattice = _lattice(scene, spec)
     if isinstance(lattice, RunRecord):

@@ -142,6 +142,11 @@ __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scene
            "scene_from_dict", "scene_points_from_dict", "output_stride", "OUTPUTS", "SCENE_DIR",
            "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS", "default_outputs"]
 
+#: Degrees of freedom above which no dense eigenproblem is solved (modes,
+#: the exact modal reference): minutes of O(n^3) work; the budget
+#: (:mod:`validation.budget`) refuses such scenes, and the defaults skip
+#: what would need one.
+MAX_DENSE_DOF = 5000
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 
 _TOP = set(scene_schema.TOP_KEYS)
@@ -458,7 +463,6 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     else:
         outputs = default_outputs(model, stability=stability is not None)
         if not outputs:
-            from .budget import MAX_DENSE_DOF
 
             raise SceneError(path, "run.outputs", f"is missing, and only `stability` applies to a model of {n} "
                              f"degrees of freedom (every other output needs a dense eigensolve, above "
@@ -493,11 +497,10 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
     * ``thesis_code``: never (it runs the thesis' own programs, whatever the
       scene's model).
 
-    Above :data:`validation.budget.MAX_DENSE_DOF` degrees of freedom only
+    Above :data:`MAX_DENSE_DOF` degrees of freedom only
     ``stability`` applies (every other output needs a dense eigensolve: the
     budget refuses it), so the list may be empty.
     """
-    from .budget import MAX_DENSE_DOF
     from .execute import _uniform_chain
 
     if model.n_dof > MAX_DENSE_DOF:
@@ -564,7 +567,6 @@ def _mode_shape(path, model, ini) -> list:
     mode = ini.mode
     if mode > model.n_dof:
         raise SceneError(path, "initial.mode", f"must be an integer in 1..{model.n_dof}", mode)
-    from .budget import MAX_DENSE_DOF
 
     if model.n_dof > MAX_DENSE_DOF:
         raise SceneError(path, "initial.mode", f"needs a dense eigensolve of {model.n_dof} degrees of freedom, "

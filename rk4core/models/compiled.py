@@ -36,6 +36,7 @@ import hashlib
 import numpy as np
 
 from .. import expr as ex
+from .spring_template import TENSION
 
 __all__ = ["ForceKernel", "ExprKernel", "SpringKernel", "ChainKernel", "digest"]
 
@@ -179,12 +180,10 @@ class ExprKernel(ForceKernel):
 
 def _tension_source(linear: bool, consts: _Constants | None = None):
     """``(lines, result)``: the tension ``E'(r)`` of the one spring-energy
-    template (:data:`rk4core.models.network.SPRING_ENERGY`) in the locals
+    template (:data:`rk4core.models.spring_template.SPRING_ENERGY`) in the locals
     ``_Fr`` (extension), ``_Fk``, ``_Fal``, ``_Fbe``; with ``alpha = beta =
     0`` substituted when ``linear`` (it is then ``k r``)."""
-    from .network import _TENSION
-
-    e = ex.substitute(_TENSION, {"alpha": 0.0, "beta": 0.0}) if linear else _TENSION
+    e = ex.substitute(TENSION, {"alpha": 0.0, "beta": 0.0}) if linear else TENSION
     names = {"r": "_Fr", "k": "_Fk", "alpha": "_Fal", "beta": "_Fbe"}
     lines, (result,) = _print([e], names, consts or _Constants(), "_FT")
     return lines, result

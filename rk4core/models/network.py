@@ -34,15 +34,13 @@ import numpy as np
 from .. import expr as ex
 from .base import NUMPY, Drawing, Model, check_masses
 from .compiled import SpringKernel
+from .spring_template import NAMES, SPRING_ENERGY, TENSION
 
 __all__ = ["Network", "SPRING_ENERGY", "spring_energy", "spring_tension", "spring_energy_heyoka",
            "spring_tension_heyoka"]
 
-_R, _K, _ALPHA, _BETA = ex.symbols("r", "k", "alpha", "beta")
-#: The energy of one spring (J) in its extension ``r`` (m): the one definition.
-SPRING_ENERGY = _K * _R**2 / 2 + _ALPHA * _R**3 / 3 + _BETA * _R**4 / 4
-_NAMES = ("r", "k", "alpha", "beta")
-_TENSION = ex.diff(SPRING_ENERGY, "r")
+_NAMES = NAMES
+_TENSION = TENSION
 _STIFFNESS = ex.diff(_TENSION, "r")
 _np_energy, _np_tension, _np_stiffness = (ex.lambdify(e, _NAMES) for e in (SPRING_ENERGY, _TENSION, _STIFFNESS))
 #: The tension with ``alpha = beta = 0`` substituted (it is ``k r``): the

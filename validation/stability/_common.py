@@ -12,7 +12,7 @@ import rk4core
 from ..metrics import error_max
 
 __all__ = ["StudyResult", "row", "COLUMNS", "PARAM_COLUMNS", "TIMING_COLUMNS", "integrate_fixed", "error_rel",
-           "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK", "StudyCapError"]
+           "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK", "StudyCapError", "frequency_range", "heyoka_steps"]
 
 #: Cap on one fixed-step run of a study: steps x degrees of freedom (about
 #: 2.5e9 steps of a 2-DOF chain, a minute or two on the compiled path). A run
@@ -160,3 +160,17 @@ def mode_amplitudes(model, y, modes=None):
     eta = phi.T @ (M * y[:n])
     deta = phi.T @ (M * y[n:])
     return omega, omega[:, None] * eta - 1j * deta
+
+
+def frequency_range(model) -> tuple[float, float]:
+    """``(omega_min, omega_max)`` (rad/s): the slowest non-zero and the fastest
+    natural angular frequency of ``model``'s linearization, from
+    ``model.frequency_range()`` (see :mod:`validation.stability.estimate`)."""
+    lo, hi = model.frequency_range()
+    return float(lo), float(hi)
+
+
+def heyoka_steps(p_fast, p_exc):
+    """heyoka's Taylor steps over ``p_fast`` periods of the fastest mode
+    (``p_exc`` of the fastest excited one); calibrated on the shipped scenes."""
+    return max(1.2 * p_fast, 3.5 * p_exc) + 15

@@ -49,6 +49,7 @@ from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
 from ..metrics import energy_log_factor, phase_lag
 from .boundary import theory_boundary
+from ._common import frequency_range, heyoka_steps
 from .params import pick, validate_params
 from .studies import GROWTH_ALWAYS, context_method, parse_unit, units
 
@@ -57,21 +58,6 @@ __all__ = ["estimate_steps", "unit_steps", "frequency_range", "heyoka_steps"]
 _FMAX_LOG = math.log(np.finfo(float).max)
 _ADAPTIVE_CAP = 5_000_000  # references.solvers' default max_steps
 _EXCITED = 1e-3
-
-
-def frequency_range(model) -> tuple[float, float]:
-    """``(omega_min, omega_max)`` (rad/s): the slowest non-zero and the fastest
-    natural angular frequency of ``model``'s linearization, from
-    ``model.frequency_range()`` (see the module docstring)."""
-    lo, hi = model.frequency_range()
-    return float(lo), float(hi)
-
-
-# -- adaptive solvers -------------------------------------------------------------------------
-def heyoka_steps(p_fast, p_exc):
-    """heyoka's Taylor steps over ``p_fast`` periods of the fastest mode
-    (``p_exc`` of the fastest excited one); calibrated on the shipped scenes."""
-    return max(1.2 * p_fast, 3.5 * p_exc) + 15
 
 
 def _dop853(p_fast, p_exc):

@@ -50,7 +50,7 @@ from . import long_horizon as LH
 from . import mass_ratio as MR
 from . import stiffness as ST
 from ..metrics import energy_loss, leading_terms, phase_lag
-from ._common import PARAM_COLUMNS, StudyResult, integrate_fixed, row
+from ._common import PARAM_COLUMNS, StudyResult, frequency_range, heyoka_steps, integrate_fixed, row
 from .params import STUDIES, pick, validate_params
 
 __all__ = ["context_method", "units", "run_unit", "run_unit_in", "assemble", "failed_unit", "parse_unit", "unit_key", "Context",
@@ -361,7 +361,6 @@ def long_reference_max_steps(model, periods: float) -> int:
     """heyoka's step cap on the long horizon: :data:`LONG_STEP_MARGIN` times the
     calibrated estimate, at least the references' default, at most
     :data:`LONG_MAX_STEPS`."""
-    from .estimate import frequency_range, heyoka_steps
 
     w_lo, w_hi = frequency_range(model)
     p_fast = periods * w_hi / w_lo
