@@ -193,3 +193,17 @@ def test_a_command_method_whose_program_is_missing_is_a_status_and_a_finding():
     assert rows["rk4"]["status"] == "ok"
     assert not res.failures
     assert any("prog at 0.01 did not run" in f for f in res.findings)
+
+
+def test_a_reference_without_an_adapter_is_an_error_not_another_solver():
+    import dataclasses
+
+    import rk4core
+    from references.registry import BUILTIN
+    from references.solvers import REFERENCE_RUNNERS, integrate
+
+    fake = dataclasses.replace(BUILTIN["heyoka"], name="radau-fake")
+    assert fake.name not in REFERENCE_RUNNERS
+    model = rk4core.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
+    with pytest.raises(ValueError, match="no adapter runs the reference 'radau-fake'"):
+        integrate(fake, model, model.state([0.01]), np.linspace(0.0, 1.0, 5), 1e-8)

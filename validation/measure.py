@@ -405,7 +405,7 @@ def _state_figure(scene, specs, records, res):
                 continue  # an unstable RK4 run: no figure, its status is in the accuracy table
             _failed(res, s, rec)
             continue
-        title = (f"{scene.name}: RK4, h = {s.setting:g} s" if s.purpose == "figure"
+        title = (f"{scene.name}: {s.solver}, h = {s.setting:g} s" if s.purpose == "figure"
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],

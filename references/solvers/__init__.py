@@ -111,6 +111,17 @@ def _check_inputs(model, y0, t_eval, atol, max_steps):
     return y0, t, atol
 
 
+#: The adapter of each reference solver: ``runner(model, y0, t, rtol, atol,
+#: max_steps) -> SolverRun``. A reference without an entry is an error, never
+#: another solver's run.
+REFERENCE_RUNNERS = {
+    "dop853": run_dop853,
+    "cvode-adams": lambda *a: run_cvode("cvode-adams", *a),
+    "cvode-bdf": lambda *a: run_cvode("cvode-bdf", *a),
+    "heyoka": run_heyoka,
+}
+
+
 def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
               max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
     """Integrate ``model`` from ``y0`` at ``t_eval[0]`` to ``t_eval[-1]`` with ``solver``.
@@ -155,8 +166,8 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
                                   nfev_per_step=method.nfev_per_step)
     if atol is None:
         atol = absolute_tolerance(model, y0, setting)
-    if method.name == "dop853":
-        return run_dop853(model, y0, t, setting, atol, int(max_steps))
-    if method.name in ("cvode-adams", "cvode-bdf"):
-        return run_cvode(method.name, model, y0, t, setting, atol, int(max_steps))
-    return run_heyoka(model, y0, t, setting, atol, int(max_steps))
+    runner = REFERENCE_RUNNERS.get(method.name)
+    if runner is None:
+        raise ValueError(f"solver: no adapter runs the reference {method.name!r} "
+                         f"(adapters: {', '.join(sorted(REFERENCE_RUNNERS))})")
+    return runner(model, y0, t, setting, atol, int(max_steps))
