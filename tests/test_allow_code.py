@@ -11,6 +11,7 @@ import pytest
 
 from rk4core.models import MODELS
 from validation import advise
+from validation.cli import main as rk4h
 from validation.run_all import main as run_all
 from validation.scenes import (SCENE_DIR, SceneError, is_shipped, load_scene, load_scenes, scene_from_dict)
 
@@ -52,7 +53,10 @@ def test_a_command_method_of_a_user_scene_is_refused_without_the_flag(tmp_path, 
     assert not sentinel.exists() and not out.exists()
     assert advise.main([str(scene), "--target", "1e-3"]) == 2
     _one_line_refusal(capsys.readouterr().err, scene, "methods.fast.command")
-    assert not sentinel.exists()
+    for argv in (["run", "--scene", str(scene), "--out", str(out)], ["advise", str(scene), "--target", "1e-3"]):
+        assert rk4h(argv) == 2
+        _one_line_refusal(capsys.readouterr().err, scene, "methods.fast.command")
+    assert not sentinel.exists() and not out.exists()
 
 
 def test_a_command_method_runs_with_allow_code(tmp_path, capsys, monkeypatch):
