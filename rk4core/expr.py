@@ -66,6 +66,18 @@ right operand of an operator is a level) is refused before it can exhaust the
 stack. Numbers are read as IEEE doubles (``float(text)``); non-finite ones
 (``1e999``) are refused.
 
+Cost limits, checked while the tree is built, so that no text of
+:data:`MAX_LENGTH` characters takes minutes:
+
+* a product with more than :data:`MAX_FACTORS` factors that are not numbers
+  is refused, naming its column (its second derivatives grow as the cube of
+  that count: 160 factors took 338 s and 1.5 GB);
+* exact folding stops at :data:`MAX_FOLD_BITS` bits of numerator plus
+  denominator: a larger number is kept as written and evaluated in floating
+  point (``(5e-324^-64 * 2)^64`` no longer builds a 4-million-bit integer);
+* derivatives taken with a :class:`Budget` (the ``potential`` model's are)
+  are refused past :data:`MAX_DERIVATIVE_WORK` units of work.
+
 Constants (``parse(..., constants={"k": 2.5})``) are substituted as numbers
 when the text is parsed: the tree holds their double values, not their names,
 so the same double reaches every evaluator, heyoka's real128 integration
@@ -93,7 +105,8 @@ from typing import Callable, Iterable, Mapping, Sequence
 
 __all__ = [
     "Expr", "Num", "Sym", "Add", "Mul", "Pow", "Call", "ExprError",
-    "FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH", "MAX_TREE_DEPTH",
+    "FUNCTIONS", "MAX_LENGTH", "MAX_DEPTH", "MAX_TREE_DEPTH", "MAX_FACTORS", "MAX_FOLD_BITS",
+    "MAX_DERIVATIVE_WORK", "Budget",
     "parse", "check_name", "symbols", "as_expr", "add", "mul", "power", "call", "neg",
     "diff", "gradient", "hessian", "free_symbols", "substitute", "to_text", "digest",
     "lambdify", "to_source", "to_heyoka", "count_nodes", "MAX_SOURCE_DEPTH",
@@ -109,6 +122,17 @@ MAX_DEPTH = 200
 MAX_TREE_DEPTH = 1_000
 #: Longest name (characters).
 MAX_NAME_LENGTH = 100
+#: Most factors that are not numbers in one product :func:`parse` builds (after
+#: flattening and merging powers of one base). A product of ``k`` such factors
+#: has a second derivative of ``O(k^2)`` terms of ``k`` factors each; 32 keeps
+#: a model's Hessian of one product within about a second.
+MAX_FACTORS = 32
+#: Most work units (factors and terms handed to the builders) the derivatives
+#: of one expression may take when a :class:`Budget` is given (the ``potential``
+#: model gives one for its gradient and Hessian together). A unit took 20 to
+#: 80 us on a loaded 2-core machine (Hessian of a 32-factor product of sines:
+#: 36 000 units, 0.8 s; of a 1499-term polynomial: 27 000 units, 2.1 s).
+MAX_DERIVATIVE_WORK = 50_000
 
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 _NUMBER_RE = re.compile(r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
@@ -117,6 +141,10 @@ _WORD_RE = re.compile(r"[A-Za-z0-9_.]*")
 _WHITESPACE = " \t\r\n"
 # Exact folding of number powers only up to this integer exponent.
 _MAX_FOLD_EXPONENT = 64
+#: Largest exact rational folded (bits of numerator plus denominator). Doubles
+#: need at most 2100; above this, numbers are kept as written (evaluated in
+#: floating point), so ``(5e-324^-64 * 2)^64`` never builds a 4-million-bit integer.
+MAX_FOLD_BITS = 8192
 _EXACT_INT = 2 ** 53
 
 
@@ -431,6 +459,14 @@ def _exact_float(f: Fraction) -> float | None:
     return x
 
 
+def _bits(f: Fraction) -> int:
+    return f.numerator.bit_length() + f.denominator.bit_length()
+
+
+def _too_big(f: Fraction | None) -> bool:
+    return f is not None and _bits(f) > MAX_FOLD_BITS
+
+
 def _int_exponent(e: Expr) -> int | None:
     if isinstance(e, Num) and e.value.is_integer() and abs(e.value) <= _MAX_FOLD_EXPONENT:
         return int(e.value)
@@ -444,7 +480,10 @@ def _numeric(e: Expr) -> Fraction | None:
     if isinstance(e, Pow) and isinstance(e.base, Num):
         k = _int_exponent(e.exp)
         if k is not None and e.base.value != 0.0:
-            return Fraction(e.base.value) ** k
+            base = Fraction(e.base.value)
+            if _bits(base) * abs(k) > MAX_FOLD_BITS:
+                return None
+            return base ** k
         return None
     if isinstance(e, Mul):
         out = Fraction(1)
@@ -453,6 +492,8 @@ def _numeric(e: Expr) -> Fraction | None:
             if v is None:
                 return None
             out *= v
+            if _too_big(out):
+                return None
         return out
     return None
 
@@ -494,7 +535,7 @@ def add(*terms) -> Expr:
     order, coeff, originals = [], {}, {}
     for t in flat:
         v = _numeric(t)
-        if v is not None:
+        if v is not None and not _too_big(total + v):
             total += v
             raw_numbers.append(t)
             continue
@@ -503,6 +544,12 @@ def add(*terms) -> Expr:
             order.append(rest)
             coeff[rest] = Fraction(0)
             originals[rest] = []
+        if _too_big(coeff[rest] + c):  # kept as written: no exact sum
+            rest = t
+            if rest not in coeff:
+                order.append(rest)
+                coeff[rest], originals[rest] = Fraction(0), []
+            c = Fraction(1)
         coeff[rest] += c
         originals[rest].append(t)
     out = []
@@ -537,7 +584,7 @@ def _split_coeff(t: Expr):
     c, rest = Fraction(1), []
     for f in t.factors:
         v = _numeric(f)
-        if v is None:
+        if v is None or _too_big(c * v):
             rest.append(f)
         else:
             c *= v
@@ -553,7 +600,7 @@ def mul(*factors) -> Expr:
     c, raw_numbers, others = Fraction(1), [], []
     for f in flat:
         v = _numeric(f)
-        if v is None:
+        if v is None or _too_big(c * v):
             others.append(f)
         else:
             c *= v
@@ -600,7 +647,7 @@ def power(base, exp) -> Expr:
             return b
         bv = _numeric(b)
         n = _int_exponent(e)
-        if bv is not None and n is not None:
+        if bv is not None and n is not None and (bv == 0 or _bits(bv) * abs(n) <= MAX_FOLD_BITS):
             if bv == 0:
                 return ZERO if n > 0 else Pow(b, e)
             cf = _coeff_factors(bv ** n)
@@ -710,7 +757,30 @@ def _rebuild(node: Expr, kids: list) -> Expr:
     return node
 
 
-def diff(expr: Expr, name: str) -> Expr:
+class Budget:
+    """A running count of the work derivatives take, shared by several
+    :func:`diff` calls (``diff(..., budget=b)``): each node differentiated
+    spends the number of factors and terms it hands to the builders. Past
+    ``limit`` units :func:`diff` raises :class:`ExprError` naming the limit,
+    so an expression whose derivatives would take minutes is refused after
+    ``limit`` units (:data:`MAX_DERIVATIVE_WORK`: a second or two) instead."""
+
+    def __init__(self, limit: int = MAX_DERIVATIVE_WORK):
+        self.limit, self.spent = int(limit), 0
+
+    def spend(self, units: int) -> None:
+        self.spent += units
+        if self.spent > self.limit:
+            raise ExprError(f"its derivatives take more than {self.limit} units of work (the limit "
+                            f"MAX_DERIVATIVE_WORK); write the expression with fewer factors per product "
+                            f"or less nesting")
+
+
+def _width(e: Expr) -> int:
+    return len(e.factors) if isinstance(e, Mul) else len(e.terms) if isinstance(e, Add) else 1
+
+
+def diff(expr: Expr, name: str, *, budget: Budget | None = None) -> Expr:
     """The symbolic derivative ``d expr / d name``, simplified by the builders.
 
     Rules: sums and products term by term; ``d(b**e) = e b**(e-1) db`` when
@@ -718,13 +788,20 @@ def diff(expr: Expr, name: str) -> Expr:
     rule with ``sin' = cos``, ``cos' = -sin``, ``tan' = 1 + tan**2``,
     ``sinh' = cosh``, ``cosh' = sinh``, ``tanh' = 1 - tanh**2``,
     ``exp' = exp``, ``log'(u) = u**-1``, ``sqrt'(u) = 0.5 sqrt(u)**-1``.
-    Shared subtrees are differentiated once.
+    Shared subtrees are differentiated once. With a :class:`Budget`, the
+    work is counted against it (:class:`ExprError` past its limit).
     """
     expr = as_expr(expr)
     if not isinstance(name, str):
         raise ExprError(f"diff: the variable must be a name, got {name!r}")
     d = {}
     for node in _postorder([expr], prune=lambda n: name not in n._free):
+        if budget is not None and name in node._free:
+            kids = node.children()
+            # what the rule below hands to the builders: each child's derivative,
+            # and for a product every factor once per term
+            budget.spend(1 + sum(_width(d[c]) for c in kids if c in d)
+                         + (len(kids) * len(kids) if isinstance(node, Mul) else 0))
         if name not in node._free:
             d[node] = ZERO
         elif isinstance(node, Sym):
@@ -768,20 +845,21 @@ def diff(expr: Expr, name: str) -> Expr:
     return d[expr]
 
 
-def gradient(expr: Expr, names: Sequence[str]) -> list:
-    """``[d expr / d n for n in names]``."""
-    return [diff(expr, n) for n in names]
+def gradient(expr: Expr, names: Sequence[str], *, budget: Budget | None = None) -> list:
+    """``[d expr / d n for n in names]`` (``budget`` as for :func:`diff`)."""
+    return [diff(expr, n, budget=budget) for n in names]
 
 
-def hessian(expr: Expr, names: Sequence[str]) -> list:
+def hessian(expr: Expr, names: Sequence[str], *, budget: Budget | None = None) -> list:
     """The symmetric matrix (list of lists) of second derivatives; the upper
-    triangle is differentiated and mirrored."""
-    g = gradient(expr, names)
+    triangle is differentiated and mirrored (``budget`` as for :func:`diff`,
+    counting the gradient too)."""
+    g = gradient(expr, names, budget=budget)
     n = len(names)
     H = [[None] * n for _ in range(n)]
     for i in range(n):
         for j in range(i, n):
-            H[i][j] = H[j][i] = diff(g[i], names[j])
+            H[i][j] = H[j][i] = diff(g[i], names[j], budget=budget)
     return H
 
 
@@ -1374,6 +1452,7 @@ class _Parser:
     def expr(self, rbp: int, depth: int):
         if depth > MAX_DEPTH:
             raise ExprError(f"nesting deeper than {MAX_DEPTH} levels at column {self.peek().col}")
+        col = self.peek().col
         left = self.prefix(depth)
         # Operators met in this loop never rise in precedence (a higher one
         # is consumed by the right operand's own call), so a run of + and -
@@ -1384,7 +1463,7 @@ class _Parser:
             t = self.peek()
             if t.kind == "op":
                 if _LBP[t.text] <= rbp:
-                    return self.finish(kind, group, left)
+                    return self.finish(kind, group, left, col)
                 self.next()
                 self.operand_expected(t)
                 right = self.expr(_RBP[t.text], depth + 1)
@@ -1393,7 +1472,7 @@ class _Parser:
                     continue
                 k = "add" if t.text in "+-" else "mul"
                 if k != kind:
-                    left = self.finish(kind, group, left)
+                    left = self.finish(kind, group, left, col)
                     kind, group = k, [left]
                 group.append(self.operand(t.text, right))
             elif t.kind in ("num", "name", "("):
@@ -1402,14 +1481,21 @@ class _Parser:
                 raise ExprError(f"unexpected {what + ' ' if t.kind != '(' else ''}{shown} at column {t.col} "
                                 f"(missing operator?)")
             else:  # ")" or end
-                return self.finish(kind, group, left)
+                return self.finish(kind, group, left, col)
 
     @staticmethod
-    def finish(kind, group, left):
+    def finish(kind, group, left, col):
         if kind == "add":
             return add(*group)
         if kind == "mul":
-            return mul(*group)
+            e = mul(*group)
+            if isinstance(e, Mul) and len(e.factors) > MAX_FACTORS:
+                k = sum(1 for f in e.factors if _numeric(f) is None)
+                if k > MAX_FACTORS:
+                    raise ExprError(f"the product at column {col} has {k} factors that are not numbers, above "
+                                    f"the limit of {MAX_FACTORS} (MAX_FACTORS: its second derivatives grow as "
+                                    f"the cube of the number of factors)")
+            return e
         return left
 
     @staticmethod

@@ -335,6 +335,10 @@ def check_fun_value(value, t, shape, dtype):
                          f"{expected}") from None
     ok_kinds = "iufc" if np.dtype(dtype).kind == "c" else "iuf"
     if arr.dtype.kind == "O":
+        # astype would turn None into NaN and "1.5" into 1.5: neither is a number fun computed
+        bad = next((x for x in arr.flat if x is None or isinstance(x, (str, bytes))), False)
+        if bad is not False:
+            raise ValueError(f"`fun` returned an array holding {bad!r:.40} at t = {float(t)!r}; {expected}")
         try:
             arr = arr.astype(dtype)
         except (TypeError, ValueError, OverflowError):
@@ -465,8 +469,9 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     ----------
     fun : callable
         ``fun(t, y, *args) -> ndarray`` of shape (n,), as in ``solve_ivp``.
-        Every return value is checked: ``None``, a scalar, a wrong shape,
-        strings, or complex values for a real ``y0`` raise ``ValueError``
+        Every return value is checked: ``None`` (or an array holding
+        ``None``), a scalar, a wrong shape, strings, or complex values for a
+        real ``y0`` raise ``ValueError``
         naming ``fun``, what it returned and what was expected. ``fun`` is
         never called outside ``t_span``: stage times are ``t_i + c_j h``
         clamped to ``t1``.

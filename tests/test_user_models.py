@@ -115,7 +115,7 @@ def test_a_scene_runs_a_model_from_one_user_file(tmp_path, user_module, capsys):
     scene = tmp_path / "duffing.toml"
     scene.write_text(SCENE.format(model=f"{user_module}:Duffing"))
     out = tmp_path / "out"
-    rc = main(["--scene", str(scene), "--out", str(out), "--repeats", "1", "--no-figures"])
+    rc = main(["--scene", str(scene), "--out", str(out), "--repeats", "1", "--no-figures", "--allow-code"])
     assert rc == 0, capsys.readouterr()
     acc = pd.read_csv(out / "accuracy.csv")
     assert set(acc["status"]) == {"ok"}
@@ -157,5 +157,5 @@ def test_a_bad_model_reference_in_a_scene_names_the_field(tmp_path):
     scene = tmp_path / "bad.toml"
     scene.write_text(SCENE.format(model="no_such_module_xyz:Thing"))
     with pytest.raises(SceneError) as info:
-        load_scene(scene)
+        load_scene(scene, allow_code=True)
     assert info.value.field == "model" and "no_such_module_xyz:Thing" in str(info.value)

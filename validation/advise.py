@@ -2,7 +2,7 @@
 scene, whether a cheaper model would do, and what to watch out for -- without
 running the report.
 
-    python validation/advise.py SCENE --target REL [--json]
+    python validation/advise.py SCENE --target REL [--json] [--allow-code]
 
 ``SCENE`` is a scene file or a shipped scene's name (``thesis-2dof-case1``);
 ``REL`` the target relative error (``error_max / max |y_ref|`` over the
@@ -330,6 +330,9 @@ def main(argv=None) -> int:
     parser.add_argument("scene", help="a scene file or a shipped scene's name")
     parser.add_argument("--target", required=True, help="target relative error, e.g. 1e-6")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--allow-code", action="store_true",
+                        help="run the programs and import the Python modules a scene not shipped with the "
+                             "project names; read it first (default: refused; also RK4H_ALLOW_CODE=1)")
     args = parser.parse_args(argv)
     from validation.scenes import SceneError, load_scenes
 
@@ -342,7 +345,7 @@ def main(argv=None) -> int:
         print(f"advise: --target: must lie in (0, 1), got {args.target!r}", file=sys.stderr)
         return 2
     try:
-        scenes = load_scenes([args.scene])
+        scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
     except SceneError as e:
         print(str(e).splitlines()[0], file=sys.stderr)
         return 2

@@ -158,13 +158,15 @@ def _runs(scene, specs, records, res, draw):
         elif status == "unstable":
             res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} became unstable: "
                                 f"{rec.message or 'non-finite state'}")
+        # a program that is not installed evaluated nothing: no count, not a declared cost times steps
+        nfev = math.nan if status == "unavailable" else v["nfev"]
         res.add("accuracy", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                              "error_final": v["error_final"], "energy_drift_max": v["energy_drift_max"],
-                             "nfev": v["nfev"], "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
+                             "nfev": nfev, "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
                              "compile_s": tm["compile_s"], "status": status, "message": rec.message})
         if "work_precision" in scene.outputs:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
-                                       "wall_s": tm["wall_s"], "nfev": v["nfev"], "n_steps": v["n_steps"],
+                                       "wall_s": tm["wall_s"], "nfev": nfev, "n_steps": v["n_steps"],
                                        "taylor_order": v["taylor_order"], "status": status,
                                        "wall_min": tm.get("wall_min", tm["wall_s"]),
                                        "wall_max": tm.get("wall_max", tm["wall_s"]),

@@ -5,7 +5,7 @@ Usage::
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
                                  [--max-output-points N] [--max-steps N] [--max-truth-steps N]
                                  [--replace] [--workers N] [--exclusive-timing] [--scheduler ADDRESS]
-                                 [--resume]
+                                 [--resume] [--allow-code]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
@@ -18,6 +18,11 @@ repository root). All scenes are validated, and their cost estimated
 and nothing has changed in since (:mod:`validation.atomic`: a marker file with
 a manifest); anything else is refused before any work, untouched. A ``--quick``
 or ``--scene`` run never replaces a full report unless ``--replace`` is given.
+
+A scene the project does not ship may name code (a ``command`` or ``python``
+method, a ``module:Class`` model): it is refused, exit 2, before anything is
+imported or started, unless ``--allow-code`` (or ``RK4H_ALLOW_CODE=1``) is
+given (:mod:`validation.scenes`, "Code in a scene").
 Runs into one ``DIR`` are serialized by ``flock`` on ``.<DIR>.lock`` beside it.
 The report is written into a fresh directory beside ``DIR`` and swapped into
 place at the end (one atomic ``renameat2`` exchange where the filesystem has
@@ -137,6 +142,10 @@ def _parser():
                    help="run the plan on the Dask distributed scheduler at ADDRESS (tcp://host:port)")
     p.add_argument("--resume", action="store_true",
                    help="keep the records of an interrupted run into the same --out and run only the rest")
+    p.add_argument("--allow-code", action="store_true",
+                   help="run the programs and import the Python modules that scenes not shipped with the "
+                        "project name (command/python methods, module:Class models); read them first "
+                        "(default: refused; also RK4H_ALLOW_CODE=1)")
     p.add_argument("--max-output-points", type=_int_at_least(2), default=None, metavar="N",
                    help="decimate each scene's output grid to at most N points (every k-th point; "
                         "a scene's own [run] max_output_points wins)")
@@ -550,7 +559,7 @@ def _main(argv, sig) -> int:
     from validation.scenes import SceneError, load_scenes
 
     try:
-        scenes = load_scenes(args.scene or None, quick=args.quick)
+        scenes = load_scenes(args.scene or None, quick=args.quick, allow_code=True if args.allow_code else None)
         if args.max_output_points is not None:
             scenes = [s if s.max_output_points is not None else _with_max_points(s, args.max_output_points)
                       for s in scenes]

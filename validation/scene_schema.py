@@ -640,6 +640,21 @@ extension Even Better TOML, put a schema directive on the first line of a scene 
 ```
 
 (the path is relative to the scene file), and keys, types and descriptions complete as you type.
+
+## Security: a scene can run code
+
+A scene looks like data, but three keys name code that runs with your user's rights:
+`[methods.NAME] command = [...]` starts that program, `[methods.NAME] python = "module:function"`
+imports that module and `model = "module:Class"` imports that module (importing a module runs its
+top-level code; the module is looked up on Python's path, which may include the current directory).
+Every other key is data: a `potential` is parsed by the harness's own parser, never evaluated.
+For a scene the project does not ship (any file outside `validation/scenes/` of the installed
+package, a copy of a shipped one included), these keys are refused before anything is imported or
+started, exit 2, one line naming the file and the key, unless you pass `--allow-code` (to
+`run_all.py`/`rk4h run` and `advise.py`/`rk4h advise`), set `RK4H_ALLOW_CODE=1`, or call the loaders
+with `allow_code=True`. Before you allow a scene from someone else, read it: search it for
+`command`, `python` and a `model` with a `:`, and read every program and module those name (and what
+they import).
 """
 
 _SWEEP = """\

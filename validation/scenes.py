@@ -115,6 +115,26 @@ than one point (field ``sweep``), as does :func:`scene_from_dict` for a
 document; :func:`scene_points_from_dict` is the sweep-aware form of the latter.
 ``load_scenes(["BASE@TOKEN=VALUE"])`` (``run_all --scene``) loads that one
 point of a shipped scene.
+
+Code in a scene
+---------------
+A scene looks like data but can name code: a ``command`` method starts a
+program, a ``python`` method and a ``model = "package.module:Class"`` import
+a module (which runs whatever that module runs at import time). The loaders
+(:func:`load_scene`, :func:`load_scene_points`, :func:`load_scenes`) accept
+such keys only in a *shipped* scene -- a regular file directly in
+:data:`SCENE_DIR` (resolved path, so a symbolic link elsewhere is not one) and
+whose content is the content validated -- or with ``allow_code=True``. Their
+default ``allow_code=None`` reads the environment: ``RK4H_ALLOW_CODE=1``
+allows, anything else refuses. A refusal is a :class:`SceneError` naming the
+file and the key (``model``, ``methods.NAME.python`` or
+``methods.NAME.command``), raised after the file is parsed as TOML and before
+anything is imported or started. A copy of a shipped scene elsewhere is the
+user's file and needs the flag too. :func:`scene_from_dict` and
+:func:`scene_points_from_dict` take a document the caller built: code the
+caller wrote is the caller's own, so their ``allow_code`` defaults to
+``True``; a caller who hands them a document read from somewhere else should
+pass ``allow_code=False``.
 """
 from __future__ import annotations
 
@@ -140,7 +160,8 @@ from .scene_schema import OUTPUTS
 
 __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scenes", "resolve_scene",
            "scene_from_dict", "scene_points_from_dict", "output_stride", "OUTPUTS", "SCENE_DIR",
-           "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS", "default_outputs"]
+           "MAX_SCENE_BYTES", "MAX_SWEEP_POINTS", "SWEEP_RUN_KEYS", "default_outputs", "ALLOW_CODE_ENV",
+           "code_allowed", "is_shipped", "code_keys"]
 
 #: Degrees of freedom above which no dense eigenproblem is solved (modes,
 #: the exact modal reference): minutes of O(n^3) work; the budget
@@ -148,6 +169,9 @@ __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scene
 #: what would need one.
 MAX_DENSE_DOF = 5000
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
+#: Environment variable that allows code from a scene the project does not ship
+#: (value ``1``; the command-line flag is ``--allow-code``).
+ALLOW_CODE_ENV = "RK4H_ALLOW_CODE"
 
 _TOP = set(scene_schema.TOP_KEYS)
 _INITIAL = set(scene_schema.INITIAL_KEYS)
@@ -363,25 +387,95 @@ def _read_text(path: Path) -> str:
 
 
 def _read_doc(path: Path) -> dict:
-    text = _read_text(path)
+    return _parse(path, _read_text(path))
+
+
+def _parse(path, text: str) -> dict:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError(path, "file", f"is not valid TOML: {e}") from None
 
 
-def load_scene(path) -> Scene:
+def code_allowed(allow_code=None) -> bool:
+    """Whether code named by a non-shipped scene may run: ``allow_code`` when it
+    is a bool, else the environment (``RK4H_ALLOW_CODE=1`` allows; unset, empty
+    or ``0`` refuses). Any other value of the variable raises :class:`SceneError`
+    (field ``RK4H_ALLOW_CODE``), rather than guessing what it meant."""
+    if allow_code is not None:
+        return bool(allow_code)
+    value = os.environ.get(ALLOW_CODE_ENV, "")
+    if value not in ("", "0", "1"):
+        raise SceneError("environment", ALLOW_CODE_ENV, "must be 1 (allow code from scenes) or 0/unset", value)
+    return value == "1"
+
+
+def is_shipped(path, text: str | None = None) -> bool:
+    """Whether ``path`` is a scene the project ships: a regular file directly
+    in :data:`SCENE_DIR` (paths compared resolved, so a link to a file
+    elsewhere is not one) and, when ``text`` is given, whose content is
+    ``text`` (the text that was validated)."""
+    try:
+        resolved = Path(path).resolve(strict=True)
+        if resolved.parent != SCENE_DIR.resolve() or resolved.suffix != ".toml" or not resolved.is_file():
+            return False
+        return text is None or _read_text(resolved) == text
+    except (OSError, RuntimeError, SceneError):
+        return False
+
+
+def code_keys(doc) -> list[tuple[str, object]]:
+    """``(field, value)`` of every key of a scene document that names code: a
+    ``model`` of the form ``package.module:Class`` and the ``python`` and
+    ``command`` keys of ``[methods.NAME]`` tables. Reads the document only."""
+    found = []
+    if not isinstance(doc, dict):
+        return found
+    model = doc.get("model")
+    if isinstance(model, str) and ":" in model:
+        found.append(("model", model))
+    methods = doc.get("methods")
+    if isinstance(methods, dict):
+        for name, table in methods.items():
+            if isinstance(table, dict):
+                for key in ("python", "command"):
+                    if key in table:
+                        found.append((f"methods.{name}.{key}", table[key]))
+    return found
+
+
+def _refuse_code(path, doc) -> None:
+    keys = code_keys(doc)
+    if keys:
+        fld, value = keys[0]
+        what = "starts a program" if fld.endswith(".command") else "imports a Python module"
+        raise SceneError(path, fld, f"{what}, and this scene is not one the project ships: read the scene, then "
+                         f"pass --allow-code (or set {ALLOW_CODE_ENV}=1; allow_code=True in Python) to run it",
+                         value)
+
+
+def _load_file(path, allow_code) -> list[Scene]:
+    path = Path(path)
+    text = _read_text(path)
+    doc = _parse(path, text)
+    allowed = code_allowed(allow_code) or not code_keys(doc) or is_shipped(path, text)
+    return scene_points_from_dict(doc, path, allow_code=allowed)
+
+
+def load_scene(path, *, allow_code=None) -> Scene:
     """Read and validate one scene file. Raises :class:`SceneError`, also for a
-    file whose ``[sweep]`` gives more than one scene (use :func:`load_scene_points`)."""
+    file whose ``[sweep]`` gives more than one scene (use :func:`load_scene_points`),
+    and for code in a scene the project does not ship unless ``allow_code``
+    (module docstring, "Code in a scene"; ``None``: ``RK4H_ALLOW_CODE``)."""
     path = Path(path)
-    return _only(scene_points_from_dict(_read_doc(path), path), path)
+    return _only(_load_file(path, allow_code), path)
 
 
-def load_scene_points(path) -> list[Scene]:
+def load_scene_points(path, *, allow_code=None) -> list[Scene]:
     """Read and validate one scene file: one :class:`Scene` per point of its
-    ``[sweep]`` (module docstring, "Sweeps"), or the one scene of an unswept file."""
-    path = Path(path)
-    return scene_points_from_dict(_read_doc(path), path)
+    ``[sweep]`` (module docstring, "Sweeps"), or the one scene of an unswept
+    file. ``allow_code`` as for :func:`load_scene`."""
+    return _load_file(path, allow_code)
 
 
 def _only(scenes: list, path) -> Scene:
@@ -391,12 +485,17 @@ def _only(scenes: list, path) -> Scene:
     return scenes[0]
 
 
-def scene_from_dict(doc: dict, path="<scene>") -> Scene:
+def scene_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True) -> Scene:
     """Validate a parsed scene document (see the module docstring). A document
     whose ``[sweep]`` gives more than one point is validated, then refused
-    (field ``sweep``): use :func:`scene_points_from_dict`."""
+    (field ``sweep``): use :func:`scene_points_from_dict`. With
+    ``allow_code=False`` a document naming code is refused before anything is
+    imported (module docstring, "Code in a scene"); the default allows it: a
+    document built in the caller's own code is the caller's code."""
     if isinstance(doc, dict) and "sweep" in doc:
-        return _only(scene_points_from_dict(doc, path), path)
+        return _only(scene_points_from_dict(doc, path, allow_code=allow_code), path)
+    if not allow_code:
+        _refuse_code(path, doc)
     return _scene_from_dict(doc, path)
 
 
@@ -611,9 +710,12 @@ class _Axis:
     values: tuple
 
 
-def scene_points_from_dict(doc: dict, path="<scene>") -> list[Scene]:
+def scene_points_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True) -> list[Scene]:
     """Validate a parsed scene document: one :class:`Scene` per point of its
-    ``[sweep]`` (module docstring, "Sweeps"), or ``[scene]`` without one."""
+    ``[sweep]`` (module docstring, "Sweeps"), or ``[scene]`` without one.
+    ``allow_code`` as for :func:`scene_from_dict`."""
+    if not allow_code:
+        _refuse_code(path, doc)
     if not isinstance(doc, dict) or "sweep" not in doc:
         return [_scene_from_dict(doc, path)]
     _unknown_keys(path, "", doc, _TOP)
@@ -824,11 +926,11 @@ def resolve_scene(arg) -> Path:
     """``--scene`` argument -> file: an existing path as given, else a shipped
     scene named by its ``name`` (``three-blocks``) or file stem (``three_blocks``)."""
     p = Path(arg)
-    if p.exists() or os.sep in str(arg) or str(arg).endswith(".toml"):
+    if _exists(p) or os.sep in str(arg) or str(arg).endswith(".toml"):
         return p
     stem = str(arg).replace("-", "_")
     candidate = SCENE_DIR / f"{stem}.toml"
-    if candidate.is_file():
+    if _NAME.fullmatch(stem) and len(stem) <= _NAME_MAX and candidate.is_file():
         return candidate
     for f in sorted(SCENE_DIR.glob("*.toml")):
         try:
@@ -837,10 +939,11 @@ def resolve_scene(arg) -> Path:
         except (OSError, tomllib.TOMLDecodeError, UnicodeDecodeError):
             continue
     shipped = ", ".join(sorted(f.stem.replace("_", "-") for f in SCENE_DIR.glob("*.toml")))
-    raise SceneError(arg, "file", f"is neither a file nor a shipped scene (shipped: {shipped})")
+    raise SceneError(_show(str(arg)) if len(str(arg)) > 80 else arg, "file",
+                     f"is neither a file nor a shipped scene (shipped: {shipped})")
 
 
-def load_scenes(paths=None, *, quick=False) -> list[Scene]:
+def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
     """Load ``paths`` (default: every ``*.toml`` in :data:`SCENE_DIR`, sorted).
 
     Returns one :class:`Scene` per sweep point (module docstring, "Sweeps"),
@@ -848,14 +951,15 @@ def load_scenes(paths=None, *, quick=False) -> list[Scene]:
     ``BASE@TOKEN=VALUE...``. With ``quick``, keep the scenes marked ``quick =
     true``. Every file is validated before any is run; the first bad one raises
     :class:`SceneError`; two scenes with one name (or one figure-file stem) are
-    refused too.
+    refused too. ``allow_code`` as for :func:`load_scene`.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
+    allow = code_allowed(allow_code)
     if not paths:
-        scenes = [s for f in sorted(SCENE_DIR.glob("*.toml")) for s in load_scene_points(f)]
+        scenes = [s for f in sorted(SCENE_DIR.glob("*.toml")) for s in load_scene_points(f, allow_code=allow)]
     else:
-        scenes = [s for p in paths for s in _load_arg(p)]
+        scenes = [s for p in paths for s in _load_arg(p, allow)]
     seen = {}
     for s in scenes:
         # figure files are named after the scene's stem (validation.figures.slug: '-', '_', '@', '='
@@ -871,20 +975,28 @@ def load_scenes(paths=None, *, quick=False) -> list[Scene]:
     return scenes
 
 
-def _load_arg(arg) -> list[Scene]:
+def _exists(p) -> bool:
+    """``Path(p).exists()``, False for a name the system refuses (too long...)."""
+    try:
+        return Path(p).exists()
+    except (OSError, ValueError):
+        return False
+
+
+def _load_arg(arg, allow_code=None) -> list[Scene]:
     """The scenes one ``paths`` entry of :func:`load_scenes` stands for."""
     text = str(arg)
     base, at, _ = text.partition("@")
-    if at and not Path(arg).exists() and os.sep not in text and not text.endswith(".toml"):
+    if at and not _exists(arg) and os.sep not in text and not text.endswith(".toml"):
         try:
             f = resolve_scene(base)
         except SceneError as e:
             raise SceneError(text, "file", f"names no point of a shipped scene: {base!r} {e.problem}") from None
-        points = load_scene_points(f)
+        points = load_scene_points(f, allow_code=allow_code)
         chosen = [s for s in points if s.name == text]
         if not chosen:
             names = ", ".join(s.name for s in points[:3])
             names += f", ... ({len(points)} in all)" if len(points) > 3 else ""
             raise SceneError(f, "name", f"has no point {text!r} (points: {names})")
         return chosen
-    return load_scene_points(resolve_scene(arg))
+    return load_scene_points(resolve_scene(arg), allow_code=allow_code)

@@ -16,7 +16,8 @@ message names it and how to install it). Never raises for the program.
 
 ``nfev``: ``stats.json``'s count when the program writes one; else
 ``nfev_per_step * n_steps`` when the method declares its cost; else 0, and
-``extra["nfev_note"]`` says it is unknown. ``wall_s`` is the program's whole
+``extra["nfev_note"]`` says it is unknown; 0 for an ``unavailable`` program
+(``extra["nfev_source"]`` is ``"not run"``; the report shows no count). ``wall_s`` is the program's whole
 run, its start-up included (GNU Octave: about 0.3 s).
 """
 from __future__ import annotations
@@ -186,6 +187,9 @@ def run_command_method(name: str, argv, model, y0, t_eval, h: float, *, nfev_per
         extra["nfev_note"] = ("the program wrote no stats.json and the method declares no nfev_per_step: "
                               "nfev is unknown, reported as 0")
     status = _STATUS[res.status]
+    if status is Status.UNAVAILABLE:  # the program never ran: no evaluations to count
+        nfev, extra["nfev_source"] = 0, "not run"
+        extra.pop("nfev_note", None)
     message = f"{name}: {res.message}" if res.message else f"{name}: reached t_end"
     if status is not Status.OK:
         return SolverRun(name, h, t_eval, y_out, nfev, 0, res.wall_s, status=status, message=message,

@@ -13,6 +13,13 @@ Scene key ``potential`` (``[params]``):
 * ``constants`` -- optional table of named numbers used in the text
   (substituted as their double values).
 
+The text's cost is bounded before it is paid: besides the parser's length and
+nesting limits, a product of more than :data:`rk4core.expr.MAX_FACTORS`
+factors is refused while parsing, and the gradient and Hessian together may
+take at most :data:`rk4core.expr.MAX_DERIVATIVE_WORK` units of work (a
+:class:`rk4core.expr.Budget`); either refusal is a ``ValueError`` naming
+``potential`` and the limit, in seconds.
+
 Everything else is derived from the one parsed expression, never written by
 hand: the force ``F = -grad V`` by symbolic differentiation
 (:func:`rk4core.expr.diff`); the numpy right-hand side from the
@@ -110,8 +117,11 @@ class PotentialModel(Model):
 
         names = self.coordinates
         try:
-            self.force_exprs = [ex.neg(g) for g in ex.gradient(self.V, names)]
-            self.hessian_exprs = ex.hessian(self.V, names)
+            # one budget for every derivative, so a V whose derivatives would take
+            # minutes is refused in about a second (rk4core.expr.MAX_DERIVATIVE_WORK)
+            budget = ex.Budget()
+            self.force_exprs = [ex.neg(g) for g in ex.gradient(self.V, names, budget=budget)]
+            self.hessian_exprs = ex.hessian(self.V, names, budget=budget)
             # Broadcasting versions (any shapes) and unchecked ones for one
             # state (q of shape (n,), whose entries are numpy scalars).
             self._V_fn = ex.lambdify(self.V, names)
