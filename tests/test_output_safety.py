@@ -160,8 +160,6 @@ def test_a_report_changed_by_hand_is_refused(tmp_path, scene, capsys, how):
 
 def _full_report(out: Path):
     """A complete report marked as a full run (as `python validation/run_all.py` leaves it)."""
-    out.mkdir()
-    (out / "index.md").write_text("the full report\n")
     tmp = atomic.fresh_dir(out)
     (tmp / "index.md").write_text("the full report\n")
     atomic.swap_into_place(tmp, out, scope="full", scenes=[f"s{i}" for i in range(23)])
@@ -257,24 +255,87 @@ def _leftover(parent: Path, name: str, marker: dict | None, files=("index.md",))
 
 def test_recover_touches_only_its_own_leftovers(tmp_path):
     target = _full_report(tmp_path / "reports")
-    ours = _leftover(tmp_path, ".reports.tmp-aaaa", {"state": "incomplete", "target": "reports"})
+    ours = atomic.fresh_dir(target)  # as a killed run leaves it: marked incomplete, half-written
+    (ours / "index.md").write_text("half")
+    hand_made = _leftover(tmp_path, ".reports.tmp-aaaaaaaaaaaa", {"state": "incomplete", "target": "reports"})
     unmarked = _leftover(tmp_path, ".reports.tmp-bbbb", None)
     other_target = _leftover(tmp_path, ".reports.tmp-cccc", {"state": "incomplete", "target": "elsewhere"})
-    someone_elses = _leftover(tmp_path, ".reports.tmp-dddd", {"state": "incomplete", "target": "reports"})
+    someone_elses = atomic.fresh_dir(target)
     os.chown(someone_elses, 12345, 12345) if os.getuid() == 0 else None
     kept_aside = _leftover(tmp_path, ".reports.kept-eeee", {"state": "complete", "target": "reports"})
     done = atomic.recover(target)
-    assert not ours.exists() and len(done) == 1 + (os.getuid() != 0)
-    assert unmarked.exists() and other_target.exists() and kept_aside.exists()
+    assert not ours.exists() and done[0] == f"removed {ours.name} left by a killed run"
+    assert hand_made.exists() and unmarked.exists() and other_target.exists() and kept_aside.exists()
+    assert len(done) == 2 + (os.getuid() != 0)
+    for d in (hand_made, unmarked, other_target, kept_aside):
+        assert d.name in done[-1], done  # named, in one line
     if os.getuid() == 0:
-        assert someone_elses.exists()
+        assert someone_elses.exists() and f"{someone_elses.name} (owned by another user)" in done[-1]
+
+
+def _backup_of(report: Path, name: str) -> Path:
+    """A copy of ``report`` (marker included) under ``name`` beside it."""
+    import shutil
+
+    return Path(shutil.copytree(report, report.parent / name))
 
 
 def test_recover_restores_a_backup_when_killed_between_the_two_renames(tmp_path):
+    report = _full_report(tmp_path / "reports")
+    backup = report.rename(tmp_path / ".reports.old-0123456789ab")
+    atomic.recover(report)
+    assert not backup.exists() and (report / "index.md").read_text() == "the full report\n"
+
+
+def test_recover_does_not_restore_a_backup_it_cannot_verify(tmp_path):
+    report = _full_report(tmp_path / "reports")
+    backup = report.rename(tmp_path / ".reports.old-0123456789ab")
+    (backup / "index.md").write_text("edited since")
+    done = atomic.recover(report)
+    assert not report.exists() and (backup / "index.md").read_text() == "edited since"
+    assert done == [f"left beside reports, as not provably leftovers of this tool: {backup.name} (its manifest "
+                    f"does not vouch for index.md)"]
+
+
+# A copy of a report (its marker copied along) under a leftover's name, then
+# worked on: its manifest does not verify, so it is not this tool's to delete.
+COPIES = [".reports.old-backup", ".reports.tmp-mywork", ".reports.old-0123456789ab", ".reports.kept-0123456789ab"]
+
+
+@pytest.mark.parametrize("name", COPIES)
+def test_a_copied_marker_does_not_make_a_directory_deletable(tmp_path, name):
+    report = _full_report(tmp_path / "reports")
+    copy = _backup_of(report, name)
+    (copy / "my-work.txt").write_text("days of work")
+    before = _tree(copy)
+    done = atomic.recover(report)
+    assert _tree(copy) == before
+    assert len(done) == 1 and done[0].startswith("left beside reports") and name in done[0], done
+
+
+@pytest.mark.parametrize("name", [".reports.tmp-0123456789ab", ".reports.kept-0123456789ab"])
+def test_a_leftover_whose_manifest_verifies_is_removed(tmp_path, name):
+    report = _full_report(tmp_path / "reports")
+    copy = _backup_of(report, name)
+    assert atomic.recover(report) == [f"removed {name} left by a killed run"] and not copy.exists()
+
+
+def test_a_copy_of_an_incomplete_directory_is_not_removed(tmp_path):
+    """The marker of a killed run's directory names that directory (name,
+    device, inode): a copy of it, even under a name of the tool's form, is not
+    the tool's to delete."""
+    import shutil
+
     target = tmp_path / "reports"
-    backup = _leftover(tmp_path, ".reports.old-ffff", {"state": "complete", "target": "reports"})
-    atomic.recover(target)
-    assert not backup.exists() and (target / "index.md").read_text() == "half"
+    stale = atomic.fresh_dir(target)
+    (stale / "index.md").write_text("half")
+    copy = Path(shutil.copytree(stale, tmp_path / ".reports.tmp-0123456789ab"))
+    (copy / "mine.txt").write_text("mine")
+    shutil.rmtree(stale)
+    done = atomic.recover(target)
+    assert (copy / "mine.txt").read_text() == "mine"
+    assert done == [f"left beside reports, as not provably leftovers of this tool: {copy.name} (its marker was "
+                    f"written for another directory)"]
 
 
 # -- environment failures: one line, exit 3 ----------------------------------------------------------
