@@ -621,7 +621,9 @@ def _why_not_ours(target: Path, p: Path, kind: str, st: os.stat_result) -> str |
     if marker.get("target") != target.name:
         return "its marker names another report"
     if marker.get("state") == "incomplete":
-        if kind != "tmp" or marker != _incomplete_marker(target, p, st):
+        if kind != "tmp":
+            return "an unfinished run's marker under another kind of name"
+        if marker != _incomplete_marker(target, p, st):
             return "its marker was written for another directory"
         try:  # every entry must be readable, or the removal would stop half-way
             _files(p)
