@@ -160,8 +160,6 @@ def test_a_report_changed_by_hand_is_refused(tmp_path, scene, capsys, how):
 
 def _full_report(out: Path):
     """A complete report marked as a full run (as `python validation/run_all.py` leaves it)."""
-    out.mkdir()
-    (out / "index.md").write_text("the full report\n")
     tmp = atomic.fresh_dir(out)
     (tmp / "index.md").write_text("the full report\n")
     atomic.swap_into_place(tmp, out, scope="full", scenes=[f"s{i}" for i in range(23)])
@@ -257,24 +255,334 @@ def _leftover(parent: Path, name: str, marker: dict | None, files=("index.md",))
 
 def test_recover_touches_only_its_own_leftovers(tmp_path):
     target = _full_report(tmp_path / "reports")
-    ours = _leftover(tmp_path, ".reports.tmp-aaaa", {"state": "incomplete", "target": "reports"})
+    ours = atomic.fresh_dir(target)  # as a killed run leaves it: marked incomplete, half-written
+    (ours / "index.md").write_text("half")
+    hand_made = _leftover(tmp_path, ".reports.tmp-aaaaaaaaaaaa", {"state": "incomplete", "target": "reports"})
     unmarked = _leftover(tmp_path, ".reports.tmp-bbbb", None)
     other_target = _leftover(tmp_path, ".reports.tmp-cccc", {"state": "incomplete", "target": "elsewhere"})
-    someone_elses = _leftover(tmp_path, ".reports.tmp-dddd", {"state": "incomplete", "target": "reports"})
+    someone_elses = atomic.fresh_dir(target)
     os.chown(someone_elses, 12345, 12345) if os.getuid() == 0 else None
     kept_aside = _leftover(tmp_path, ".reports.kept-eeee", {"state": "complete", "target": "reports"})
     done = atomic.recover(target)
-    assert not ours.exists() and len(done) == 1 + (os.getuid() != 0)
-    assert unmarked.exists() and other_target.exists() and kept_aside.exists()
+    assert not ours.exists() and done[0] == f"removed {ours.name} left by a killed run"
+    assert hand_made.exists() and unmarked.exists() and other_target.exists() and kept_aside.exists()
+    assert len(done) == 2 + (os.getuid() != 0)
+    for d in (hand_made, unmarked, other_target, kept_aside):
+        assert d.name in done[-1], done  # named, in one line
     if os.getuid() == 0:
-        assert someone_elses.exists()
+        assert someone_elses.exists() and f"{someone_elses.name} (owned by another user)" in done[-1]
+
+
+def _backup_of(report: Path, name: str) -> Path:
+    """A copy of ``report`` (marker included) under ``name`` beside it."""
+    import shutil
+
+    return Path(shutil.copytree(report, report.parent / name))
 
 
 def test_recover_restores_a_backup_when_killed_between_the_two_renames(tmp_path):
+    report = _full_report(tmp_path / "reports")
+    backup = report.rename(tmp_path / ".reports.old-0123456789ab")
+    atomic.recover(report)
+    assert not backup.exists() and (report / "index.md").read_text() == "the full report\n"
+
+
+def test_recover_does_not_restore_a_backup_it_cannot_verify(tmp_path):
+    report = _full_report(tmp_path / "reports")
+    backup = report.rename(tmp_path / ".reports.old-0123456789ab")
+    (backup / "index.md").write_text("edited since")
+    done = atomic.recover(report)
+    assert not report.exists() and (backup / "index.md").read_text() == "edited since"
+    assert done == [f"left beside reports, as not provably leftovers of this tool: {backup.name} (its manifest "
+                    f"does not vouch for index.md)"]
+
+
+# A copy of a report (its marker copied along) under a leftover's name, then
+# worked on: its manifest does not verify, so it is not this tool's to delete.
+COPIES = [".reports.old-backup", ".reports.tmp-mywork", ".reports.old-0123456789ab", ".reports.kept-0123456789ab"]
+
+
+@pytest.mark.parametrize("name", COPIES)
+def test_a_copied_marker_does_not_make_a_directory_deletable(tmp_path, name):
+    report = _full_report(tmp_path / "reports")
+    copy = _backup_of(report, name)
+    (copy / "my-work.txt").write_text("days of work")
+    before = _tree(copy)
+    done = atomic.recover(report)
+    assert _tree(copy) == before
+    assert len(done) == 1 and done[0].startswith("left beside reports") and name in done[0], done
+
+
+@pytest.mark.parametrize("name", [".reports.tmp-0123456789ab", ".reports.kept-0123456789ab"])
+def test_a_leftover_whose_manifest_verifies_is_removed(tmp_path, name):
+    report = _full_report(tmp_path / "reports")
+    copy = _backup_of(report, name)
+    assert atomic.recover(report) == [f"removed {name} left by a killed run"] and not copy.exists()
+
+
+def test_a_copy_of_an_incomplete_directory_is_not_removed(tmp_path):
+    """The marker of a killed run's directory names that directory (name,
+    device, inode): a copy of it, even under a name of the tool's form, is not
+    the tool's to delete."""
+    import shutil
+
     target = tmp_path / "reports"
-    backup = _leftover(tmp_path, ".reports.old-ffff", {"state": "complete", "target": "reports"})
-    atomic.recover(target)
-    assert not backup.exists() and (target / "index.md").read_text() == "half"
+    stale = atomic.fresh_dir(target)
+    (stale / "index.md").write_text("half")
+    copy = Path(shutil.copytree(stale, tmp_path / ".reports.tmp-0123456789ab"))
+    (copy / "mine.txt").write_text("mine")
+    shutil.rmtree(stale)
+    done = atomic.recover(target)
+    assert (copy / "mine.txt").read_text() == "mine"
+    assert done == [f"left beside reports, as not provably leftovers of this tool: {copy.name} (its marker was "
+                    f"written for another directory)"]
+
+
+# -- what cannot be read is not replaced -------------------------------------------------------------
+# Root reads every directory, so these run as an unprivileged user: this user
+# if it is not root, else uid/gid 65534 (``nobody``) in a child process that
+# drops its privileges with os.setuid after importing what it needs (the
+# interpreter's own files may be unreadable to that user).
+AS_USER = r"""
+import json, os, sys
+sys.path.insert(0, sys.argv[1])
+uid, gid = int(sys.argv[2]), int(sys.argv[3])
+warm_up, code = json.loads(sys.argv[4]), sys.argv[5]
+from validation import atomic
+from validation.run_all import main
+if warm_up:  # one run as the starting user imports all that a run imports
+    assert main(warm_up) == 0
+if os.getuid() != uid:
+    os.setgroups([])
+    os.setgid(gid)
+    os.setuid(uid)
+exec(code)
+"""
+
+
+@pytest.fixture
+def unprivileged():
+    """``(uid, gid, base)``: an unprivileged user and a directory it owns."""
+    import shutil
+    import tempfile
+
+    uid, gid = (os.getuid(), os.getgid()) if os.getuid() != 0 else (65534, 65534)
+    base = Path(tempfile.mkdtemp(prefix="rk4h-unprivileged-"))  # /tmp: pytest's tmp_path is root's alone
+    base.chmod(0o755)
+    drop = f"os.setgroups([]); os.setgid({gid}); os.setuid({uid}); " if os.getuid() != uid else ""
+    probe = subprocess.run([sys.executable, "-c", f"import os; {drop}os.listdir({str(base)!r})"],
+                           capture_output=True, text=True)
+    if probe.returncode != 0:
+        shutil.rmtree(base)
+        pytest.skip(f"cannot run as an unprivileged user here: {probe.stderr.strip().splitlines()[-1:]}")
+    os.chown(base, uid, gid)
+    yield uid, gid, base
+    for d, dirs, _ in os.walk(base):  # as root, or as the owner of every directory here
+        for name in dirs:
+            os.chmod(os.path.join(d, name), 0o755)
+    shutil.rmtree(base)
+
+
+def _as_user(unprivileged, code, warm_up=()):
+    uid, gid, base = unprivileged
+    home = base / "home"  # for matplotlib's and the tool's caches
+    home.mkdir(exist_ok=True)
+    os.chown(home, uid, gid)
+    env = {**os.environ, "MPLBACKEND": "Agg", "HOME": str(home), "MPLCONFIGDIR": str(home / ".mpl"),
+           "XDG_CACHE_HOME": str(home / ".cache")}
+    return subprocess.run([sys.executable, "-c", AS_USER, str(REPO), str(uid), str(gid),
+                           json.dumps([str(a) for a in warm_up]), code], capture_output=True, text=True, env=env,
+                          timeout=300)
+
+
+def _listing(d: Path) -> list:
+    return sorted(p.relative_to(d).as_posix() for p in d.rglob("*"))
+
+
+def _chown_tree(d: Path, uid, gid):
+    os.chown(d, uid, gid)
+    for p in d.rglob("*"):
+        os.chown(p, uid, gid, follow_symlinks=False)
+
+
+@pytest.mark.parametrize("what", ["directory", "file"])
+def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged, capsys, what):
+    """The hostile-test case: a report in R, then ``mkdir R/private; chmod 000
+    R/private`` and a rerun. Before: the walk skipped private/, the rerun
+    replaced R, lost the previous report and said "R left unchanged"."""
+    uid, gid, base = unprivileged
+    scene = base / "tiny.toml"
+    scene.write_text(TINY)
+    out = base / "R"
+    assert _main(_run_args(scene, out), capsys)[0] == 0
+    if what == "directory":  # not in the manifest, and empty: the walk must still read it
+        private = out / "private"
+        private.mkdir()
+    else:  # a file of the report: it cannot be verified
+        private = out / "index.md"
+    _chown_tree(base, uid, gid)
+    private.chmod(0)
+    before, listing = _tree(out), _listing(base)
+    r = _as_user(unprivileged, f"sys.exit(main({[str(a) for a in _run_args(scene, out)]!r}))",
+                 warm_up=_run_args(scene, base / "warm"))
+    private.chmod(0o700)
+    assert r.returncode == 3, r.stderr
+    err = r.stderr.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "Permission denied" in err and str(private) in err and f"{out} left unchanged" in err, err
+    assert _tree(out) == before, "the previous report changed"
+    warm = {"warm", ".warm.lock", "home"}
+    assert [p for p in _listing(base) if p.split("/")[0] not in warm] == \
+        [p for p in listing if p.split("/")[0] not in warm], "something was added or moved beside R"
+
+
+def test_an_unreadable_directory_found_at_the_swap_is_kept_aside(unprivileged):
+    """An entry that turns unreadable while the run runs (after the checks):
+    the previous report is kept aside, whole, not deleted."""
+    code = r"""
+from pathlib import Path
+base = Path(sys.argv[6])
+out = base / "R"
+tmp = atomic.fresh_dir(out)
+(tmp / "index.md").write_text("previous")
+atomic.swap_into_place(tmp, out, scope="full", scenes=["a"])
+atomic.check_target(out, scope="full", n_scenes=1)
+new = atomic.fresh_dir(out)
+(new / "index.md").write_text("new")
+(out / "private").mkdir()
+(out / "private" / "notes.txt").write_text("mine")
+(out / "private").chmod(0)
+atomic.swap_into_place(new, out, scope="full", scenes=["a"])
+print(atomic.swap_into_place.kept.name)
+"""
+    uid, gid, base = unprivileged
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    r = subprocess.run([sys.executable, "-c", AS_USER, str(REPO), str(uid), str(gid), "[]", code, str(base)],
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    kept = base / r.stdout.strip()
+    kept.joinpath("private").chmod(0o700)
+    assert kept.name.startswith(".R.kept-") and (kept / "private" / "notes.txt").read_text() == "mine"
+    assert (kept / "index.md").read_text() == "previous" and (base / "R" / "index.md").read_text() == "new"
+
+
+# -- a full disk leaves nothing that disowns the next run ---------------------------------------------
+@pytest.mark.parametrize("how", ["write", "fsync"])
+@pytest.mark.parametrize("existing", [False, True], ids=["new", "replaced"])
+def test_write_json_atomic_on_a_full_disk_leaves_the_old_file_or_none(tmp_path, monkeypatch, how, existing):
+    import errno
+
+    path = tmp_path / "state.json"
+    if existing:
+        atomic.write_json_atomic(path, {"magic": "old"})
+    before = path.read_bytes() if existing else None
+    real_write = os.write
+
+    def write(fd, data):  # half the bytes reach the disk, then it is full
+        real_write(fd, bytes(data[:len(data) // 2]))
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def fsync(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, how, write if how == "write" else fsync)
+    with pytest.raises(OSError) as info:
+        atomic.write_json_atomic(path, {"magic": "new", "pad": "x" * 1000})
+    monkeypatch.undo()
+    assert info.value.errno == errno.ENOSPC
+    assert sorted(p.name for p in tmp_path.iterdir()) == (["state.json"] if existing else [])
+    if existing:
+        assert path.read_bytes() == before
+
+
+@pytest.mark.parametrize("when", ["fresh-dir", "swap", "fsync"])
+def test_a_report_marker_cut_short_by_a_full_disk_leaves_out_as_it_was(tmp_path, scene, capsys, monkeypatch,
+                                                                       when):
+    """A marker write that finds the disk full, and no clean-up after it (as
+    if the process was killed then): --out is as it was, and the next run
+    removes the half-made directory and works."""
+    import errno
+
+    out = tmp_path / "out"
+    assert _main(_run_args(scene, out), capsys)[0] == 0
+    before = _tree(out)
+    real = getattr(atomic, "write_json_atomic", None)
+
+    def full(path, data):
+        if data.get("state") == ("incomplete" if when == "fresh-dir" else "complete"):
+            Path(f"{path}.tmp-0000").write_text("")  # what a process killed just now would leave
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        real(path, data)
+
+    def fsync(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    if when == "fsync":  # the first fsync of the run: the new directory's marker
+        monkeypatch.setattr(os, "fsync", fsync)
+    else:
+        monkeypatch.setattr(atomic, "write_json_atomic", full)
+    monkeypatch.setattr(atomic.shutil, "rmtree", lambda *a, **k: None)  # and no clean-up ran
+    rc, _, err = _main(_run_args(scene, out), capsys)
+    monkeypatch.undo()
+    assert rc == 3 and "No space left on device" in err and f"{out} left unchanged" in err, err
+    assert _tree(out) == before
+    rc, _, err = _main(_run_args(scene, out), capsys)  # the next run works, and cleans up
+    assert rc == 0, err
+    assert "removed .out.tmp-" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.lock", "out", "tiny.toml"]
+
+
+def test_a_record_store_marker_cut_short_does_not_disown_the_next_run(tmp_path, scene, capsys, monkeypatch):
+    """Issue 26 item 8: a full disk while the record store was made left
+    ``.out.records`` with a zero-length marker; every later run then exited 2
+    ("not written by this tool"). Simulated: any write of the store's marker
+    (plain or atomic) finds the disk full after creating the file."""
+    import errno
+    import pathlib
+
+    from validation import records
+
+    def full(*_a, **_k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    real_write_text, real_atomic = pathlib.Path.write_text, getattr(atomic, "write_json_atomic", None)
+
+    def write_text(self, *a, **k):
+        if self.name.startswith(records.STORE_MARKER):
+            self.touch()
+            full()
+        return real_write_text(self, *a, **k)
+
+    def write_json_atomic(path, data):
+        if Path(path).name.startswith(records.STORE_MARKER):
+            Path(f"{path}.tmp-0000").touch()
+            full()
+        return real_atomic(path, data)
+
+    monkeypatch.setattr(pathlib.Path, "write_text", write_text)
+    monkeypatch.setattr(atomic, "write_json_atomic", write_json_atomic, raising=False)
+    out = tmp_path / "out"
+    rc, _, err = _main(_run_args(scene, out), capsys)
+    monkeypatch.undo()
+    assert rc == 3 and "No space left on device" in err, err
+    store = tmp_path / ".out.records"
+    assert store.is_dir()  # the state the issue found (the simulation took effect)
+    rc, _, err = _main(_run_args(scene, out), capsys)
+    assert rc == 0, err
+    assert "removed .out.records" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.lock", "out", "tiny.toml"]
+
+
+def test_a_record_store_with_records_is_never_removed_as_cut_short(tmp_path):
+    target = tmp_path / "out"
+    store = tmp_path / ".out.records"
+    store.mkdir()
+    (store / ".rk4h-records").write_text("")
+    (store / ("0" * 24 + ".json")).write_text("{}")
+    assert atomic.recover(target) == [] and len(list(store.iterdir())) == 2
+    (store / ("0" * 24 + ".json")).unlink()
+    (store / ".rk4h-records").write_text('{"magic": "something else"')
+    assert atomic.recover(target) == [] and store.exists()
 
 
 # -- environment failures: one line, exit 3 ----------------------------------------------------------
@@ -344,3 +652,22 @@ def test_sigint_in_the_first_milliseconds_is_one_line(tmp_path, scene):
         assert "Traceback" not in err and len(err.strip().splitlines()) == 1, (delay, err)
         assert "interrupted (SIGINT)" in err
     assert landed >= 4
+
+
+def test_a_full_disk_at_the_start_does_not_disown_the_next_run(tmp_path, tmpfs, scene, capsys):
+    """The same on a real full disk: the run stops (exit 3) wherever its first
+    write lands; once space is freed, the next run works."""
+    filler = tmpfs / "filler"
+    with open(filler, "wb", buffering=0) as f:
+        try:
+            while True:
+                f.write(b"\0" * 4096)
+        except OSError:
+            pass
+    out = tmpfs / "out"
+    rc, _, err = _main(_run_args(scene, out), capsys)
+    assert rc == 3 and "No space left on device" in err, err
+    filler.unlink()
+    rc, _, err = _main(_run_args(scene, out), capsys)
+    assert rc == 0, err
+    assert sorted(p.name for p in tmpfs.iterdir()) == [".out.lock", "out"]

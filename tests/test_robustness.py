@@ -370,5 +370,7 @@ def test_fresh_dir_has_plain_mkdir_permissions(tmp_path):
     umask = os.umask(0)
     os.umask(umask)
     assert d.stat().st_mode & 0o777 == 0o777 & ~umask
-    assert atomic.read_marker(d) == {"magic": "rk4h-report v1", "state": "incomplete", "target": "reports"}
+    st = os.lstat(d)
+    assert atomic.read_marker(d) == {"magic": "rk4h-report v1", "state": "incomplete", "target": "reports",
+                                     "dir": d.name, "dev": st.st_dev, "ino": st.st_ino}
 

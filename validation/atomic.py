@@ -40,9 +40,42 @@ and :func:`swap_into_place` puts it in place at the end:
    then removed; if anything was added or changed in it during the run it is
    kept aside under ``.<name>.kept-<random>`` and said so.
 
+Reading before deciding
+-----------------------
+Every walk that feeds a replace or delete decision fails closed: an entry it
+cannot read (a directory without read permission, a file it cannot open)
+stops the decision with :class:`EnvironmentRefused` (exit 3) before anything
+is moved, instead of being skipped (``os.walk`` skips unreadable directories
+silently unless told otherwise). A directory that no manifest entry lies
+under counts as an entry the manifest does not vouch for, even when empty.
+
+Markers are written atomically (:func:`write_json_atomic`: a temporary name,
+``fsync``, ``rename``, ``fsync`` of the directory): a full disk leaves the
+previous marker or none, never a truncated one.
+
+Leftovers
+---------
 :func:`recover`, called with the lock held, handles leftovers of killed runs
-into the same target: a temporary or backup directory is removed only if it
-is owned by this user and carries a marker naming this target.
+into the same target, ``.<name>.tmp-*``, ``.<name>.old-*`` and
+``.<name>.kept-*``. It removes (or, for a backup whose target is missing,
+renames back) only what is provably this tool's: a name of the exact form the
+tool gives (``<kind>-`` and 12 hex digits), owned by this user, and
+
+- a ``complete`` marker naming the target whose manifest verifies byte for
+  byte (the same check as ``--out`` itself); or
+- an ``incomplete`` marker written by :func:`fresh_dir` for this very
+  directory (it records the directory's name, device and inode: a copy
+  elsewhere, or under another name, does not match); or
+- no marker, and nothing in it but temporary marker files whose bytes are a
+  prefix of what :func:`fresh_dir` writes for it (a run killed, or stopped by
+  a full disk, while it made the directory).
+
+Everything else that carries one of those prefixes is left as it is and named
+in one line. The record store beside the target (``.<name>.records``) is
+removed only when it holds nothing but a cut-short marker: zero bytes, or a
+proper prefix of the marker the tool writes there (what a full disk leaves
+when the store is being created); an empty store loses nothing, and without
+this every later run would refuse the directory as not ours.
 """
 from __future__ import annotations
 
@@ -52,6 +85,7 @@ import fcntl
 import hashlib
 import json
 import os
+import re
 import secrets
 import shutil
 import stat
@@ -59,7 +93,7 @@ from pathlib import Path
 
 __all__ = ["MARKER", "TargetRefused", "EnvironmentRefused", "Lock", "check_target", "fresh_dir",
            "swap_into_place", "recover", "exchange_supported", "read_marker", "ENVIRONMENT_ERRNOS",
-           "is_environment_error"]
+           "is_environment_error", "write_json_atomic"]
 
 #: The ownership marker in every report directory this tool writes.
 MARKER = ".rk4h-report"
@@ -104,14 +138,43 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+def _json_bytes(data: dict) -> bytes:
+    return (json.dumps(data, indent=1, sort_keys=True) + "\n").encode("utf-8")
+
+
+def write_json_atomic(path, data: dict) -> None:
+    """Write ``data`` as JSON to ``path`` atomically.
+
+    The bytes go to a new temporary file beside ``path`` (``<name>.tmp-<hex>``,
+    created exclusively, never through a symbolic link), which is ``fsync``-ed
+    and renamed over ``path``; then the directory is ``fsync``-ed. If any step
+    fails (a full disk: ``ENOSPC``), the temporary file is removed and the
+    error raised: ``path`` holds its previous content, or does not exist --
+    never a truncated file. Indented with one space, keys sorted, one final
+    newline."""
+    path = Path(path)
+    tmp = path.parent / f"{path.name}.tmp-{secrets.token_hex(4)}"
+    blob = memoryview(_json_bytes(data))
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | os.O_CLOEXEC, 0o644)
+    try:
+        try:
+            while blob:
+                blob = blob[os.write(fd, blob):]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_path(path.parent, directory=True)
+
+
 def _write_marker(directory: Path, data: dict) -> None:
-    tmp = directory / f"{MARKER}.tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        json.dump({"magic": _MAGIC, **data}, f, indent=1, sort_keys=True)
-        f.write("\n")
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, directory / MARKER)
+    write_json_atomic(directory / MARKER, {"magic": _MAGIC, **data})
 
 
 def read_marker(directory) -> dict | None:
@@ -131,15 +194,22 @@ def read_marker(directory) -> dict | None:
     return data if isinstance(data, dict) and data.get("magic") == _MAGIC else None
 
 
+def _unreadable(e: OSError):
+    """``os.walk``'s ``onerror``: an entry that cannot be read stops the decision."""
+    raise EnvironmentRefused(e.errno, f"cannot read {e.filename} ({e.strerror}); it may hold files this tool "
+                                      f"cannot verify")
+
+
 def _files(directory: Path) -> dict[str, os.stat_result]:
-    """Every entry below ``directory`` (relative POSIX path -> lstat), marker and
-    its temporary file excluded; directories themselves are not listed."""
+    """Every entry below ``directory`` (relative POSIX path -> lstat),
+    directories included, the marker excluded. Raises
+    :class:`EnvironmentRefused` on an entry it cannot read."""
     out = {}
-    for dirpath, dirnames, filenames in os.walk(directory):
-        for name in filenames + [d for d in dirnames if os.path.islink(os.path.join(dirpath, d))]:
+    for dirpath, dirnames, filenames in os.walk(directory, onerror=_unreadable):
+        for name in filenames + dirnames:
             p = Path(dirpath) / name
             rel = p.relative_to(directory).as_posix()
-            if rel not in (MARKER, f"{MARKER}.tmp"):
+            if rel != MARKER:
                 out[rel] = os.lstat(p)
     return out
 
@@ -151,12 +221,19 @@ def _manifest(directory: Path) -> dict:
 
 def _foreign(directory: Path, marker: dict) -> list[str]:
     """Entries of ``directory`` that its manifest does not vouch for (added,
-    changed, not regular files); missing ones are harmless and not listed."""
+    changed, not regular files, directories no manifest entry lies under);
+    missing ones are harmless and not listed. Raises
+    :class:`EnvironmentRefused` or ``OSError`` on an entry it cannot read."""
     manifest = marker.get("manifest")
     if not isinstance(manifest, dict):
         return sorted(_files(directory))
+    parents = {rel.rsplit("/", i)[0] for rel in manifest for i in range(1, rel.count("/") + 1)}
     bad = []
     for rel, st in sorted(_files(directory).items()):
+        if stat.S_ISDIR(st.st_mode):
+            if rel not in parents:
+                bad.append(rel)
+            continue
         entry = manifest.get(rel)
         if (not isinstance(entry, dict) or not stat.S_ISREG(st.st_mode) or entry.get("size") != st.st_size
                 or entry.get("sha256") != _sha256(directory / rel)):
@@ -252,15 +329,27 @@ def _new_name(target: Path, kind: str) -> Path:
     return target.parent / f"{_prefix(target, kind)}{secrets.token_hex(6)}"
 
 
+def _ours_by_name(target: Path, name: str, kind: str) -> bool:
+    """Whether ``name`` has the exact form :func:`_new_name` gives."""
+    return re.fullmatch(re.escape(_prefix(target, kind)) + "[0-9a-f]{12}", name) is not None
+
+
+def _incomplete_marker(target: Path, directory: Path, st: os.stat_result) -> dict:
+    """What :func:`fresh_dir` writes into ``directory`` (``st``: its lstat)."""
+    return {"magic": _MAGIC, "state": "incomplete", "target": target.name, "dir": directory.name,
+            "dev": st.st_dev, "ino": st.st_ino}
+
+
 def fresh_dir(target) -> Path:
     """A new empty directory beside ``target`` for a run to write into, with the
     permissions a plain ``mkdir`` gives, and an ``incomplete`` marker naming
-    ``target`` (so :func:`recover` knows it as ours)."""
+    ``target`` and the directory itself (its name, device and inode: so
+    :func:`recover` knows this directory, and not a copy of it, as ours)."""
     target = Path(target)
     tmp = _new_name(target, "tmp")
     os.mkdir(tmp)
     try:
-        _write_marker(tmp, {"state": "incomplete", "target": target.name})
+        write_json_atomic(tmp / MARKER, _incomplete_marker(target, tmp, os.lstat(tmp)))
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -279,7 +368,7 @@ def _fsync_path(path: Path, directory=False):
 
 
 def _fsync_tree(root: Path):
-    for dirpath, _, files in os.walk(root):
+    for dirpath, _, files in os.walk(root, onerror=_unreadable):
         for f in files:
             _fsync_path(Path(dirpath) / f)
         _fsync_path(Path(dirpath), directory=True)
@@ -321,75 +410,230 @@ def swap_into_place(tmp, target, *, scope: str = "full", scenes=()) -> str:
     """Put directory ``tmp`` (from :func:`fresh_dir`) in place of ``target``
     (see the module docstring). Returns ``"exchange"``, ``"rename"`` (no
     previous target) or ``"two renames"``; ``swap_into_place.kept`` names a
-    previous report kept aside because it changed during the run (else None)."""
+    previous report kept aside because it could not be verified (it changed
+    during the run, or could not be read) or removed, else None, and
+    ``swap_into_place.why`` says which.
+
+    An error before the swap leaves ``target`` as it was; once the new report
+    is in place nothing raises (the previous report is then only ever kept
+    aside, never lost to a caller's clean-up of ``tmp``)."""
     tmp, target = Path(tmp), Path(target)
-    swap_into_place.kept = None
+    swap_into_place.kept = swap_into_place.why = None
     _write_marker(tmp, {"state": "complete", "target": target.name, "scope": scope,
                         "scenes": list(scenes), "manifest": _manifest(tmp)})
     _fsync_tree(tmp)
     if not target.exists():
         os.rename(tmp, target)
-        _fsync_path(target.parent, directory=True)
+        _fsync_parent(target)
         return "rename"
     if _exchange(tmp, target):
         how, old = "exchange", tmp  # tmp now holds the previous report
     else:
         old = _new_name(target, "old")
         os.rename(target, old)
-        os.rename(tmp, target)
+        try:
+            os.rename(tmp, target)
+        except BaseException:
+            os.rename(old, target)
+            raise
         how = "two renames"
-    _fsync_path(target.parent, directory=True)
+    _fsync_parent(target)
     _discard_previous(old, target)
     return how
 
 
-swap_into_place.kept = None
+swap_into_place.kept = swap_into_place.why = None
+
+
+def _fsync_parent(target: Path) -> None:
+    try:
+        _fsync_path(target.parent, directory=True)
+    except OSError:  # the rename is done; durability is the filesystem's best effort
+        pass
+
+
+def _verified(directory: Path) -> bool:
+    """Whether ``directory`` is empty, or carries our marker and holds nothing
+    its manifest does not vouch for, byte for byte. False (never an error)
+    when anything in it cannot be read."""
+    try:
+        if not os.listdir(directory):
+            return True
+        marker = read_marker(directory)
+        return marker is not None and isinstance(marker.get("manifest"), dict) and not _foreign(directory, marker)
+    except OSError:
+        return False
+
+
+def _remove_ours(directory: Path) -> None:
+    """Remove ``directory`` (verified as ours by the caller), its marker last:
+    a process killed half-way leaves a directory that still verifies (missing
+    files are harmless), so the next :func:`recover` finishes the job."""
+    for dirpath, dirnames, filenames in os.walk(directory, topdown=False, onerror=_unreadable):
+        for name in filenames + [d for d in dirnames if os.path.islink(os.path.join(dirpath, d))]:
+            if not (dirpath == str(directory) and name == MARKER):
+                os.unlink(os.path.join(dirpath, name))
+        if dirpath != str(directory):
+            os.rmdir(dirpath)
+    try:
+        os.unlink(directory / MARKER)
+    except FileNotFoundError:
+        pass
+    os.rmdir(directory)
 
 
 def _discard_previous(old: Path, target: Path) -> None:
     """Remove the previous report only if it is still exactly what its manifest
-    says (or empty); otherwise keep it aside and say where."""
-    entries = os.listdir(old)
-    marker = read_marker(old)
-    if not entries or (marker is not None and not _foreign(old, marker)):
-        shutil.rmtree(old)
-        return
+    says (or empty); otherwise keep it aside and say where. Never raises."""
+    if _verified(old):
+        try:
+            _remove_ours(old)
+            return
+        except OSError as e:
+            why = f"it could not be removed ({e.strerror})"
+    else:
+        why = "it changed during the run, or could not be read"
     kept = _new_name(target, "kept")
-    os.rename(old, kept)
-    swap_into_place.kept = kept
+    try:
+        os.rename(old, kept)
+    except OSError:
+        kept = old
+    swap_into_place.kept, swap_into_place.why = kept, why
 
 
-_OWNED_KINDS = ("tmp", "old")
+_KINDS = ("tmp", "old", "kept")
+
+
+def _half_made(target: Path, directory: Path, st: os.stat_result) -> bool:
+    """Whether ``directory`` (no marker) holds nothing but temporary marker
+    files whose bytes are a prefix of what :func:`fresh_dir` writes into it:
+    a run stopped while it made the directory (killed, or a full disk)."""
+    expected = _json_bytes(_incomplete_marker(target, directory, st))
+    try:
+        for entry in os.scandir(directory):
+            if not entry.name.startswith(f"{MARKER}.tmp-") or not entry.is_file(follow_symlinks=False):
+                return False
+            with open(entry.path, "rb") as f:
+                data = f.read(len(expected) + 1)
+            if not expected.startswith(data):
+                return False
+    except OSError:
+        return False
+    return True
+
+
+def _cut_short_store(target: Path) -> Path | None:
+    """The record store beside ``target`` if it holds nothing but a marker
+    (or its temporary files) cut short: zero bytes, or a proper prefix of the
+    JSON the tool writes there (a full disk while the store was created)."""
+    from .records import _MAGIC as store_magic, STORE_MARKER
+
+    store = target.parent / f".{target.name}.records"
+    try:
+        st = os.lstat(store)
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
+            return None
+        whole = {"magic": store_magic, "target": target.name}
+        renderings = (json.dumps(whole).encode(), _json_bytes(whole))
+        entries = list(os.scandir(store))
+        for entry in entries:
+            if entry.name != STORE_MARKER and not entry.name.startswith(f"{STORE_MARKER}.tmp"):
+                return None
+            if not entry.is_file(follow_symlinks=False):
+                return None
+            with open(entry.path, "rb") as f:
+                data = f.read(_MARKER_MAX)
+            if not any(len(data) < len(r) and r.startswith(data) for r in renderings):
+                return None
+    except (OSError, ImportError):
+        return None
+    return store if entries else None
 
 
 def recover(target) -> list[str]:
-    """Clean up after runs into ``target`` that were killed (``kill -9``).
+    """Clean up after runs into ``target`` that were killed (``kill -9``) or
+    stopped by a full disk.
 
     Call it with the target's :class:`Lock` held: then no live run writes into
-    any ``.<name>.tmp-*`` directory. Only directories owned by this user and
-    carrying a marker that names ``target`` are touched: a backup is renamed
-    back to ``target`` if ``target`` is missing (the process died between the
-    two renames of the fallback swap); other leftovers are removed. Returns
-    what was done, one line each."""
+    any ``.<name>.tmp-*`` directory. Only what is provably this tool's is
+    touched (see "Leftovers" in the module docstring): a verified backup is
+    renamed back to ``target`` if ``target`` is missing (the process died
+    between the two renames of the fallback swap); other provable leftovers
+    are removed. Returns what was done, one line each; the last line names
+    what was left because it could not be verified."""
     target = Path(target)
     if not target.parent.is_dir():
         return []
-    done = []
+    done, left = [], []
     for p in sorted(target.parent.iterdir()):
-        kind = next((k for k in _OWNED_KINDS if p.name.startswith(_prefix(target, k))), None)
+        kind = next((k for k in _KINDS if p.name.startswith(_prefix(target, k))), None)
         if kind is None:
             continue
         try:
             st = os.lstat(p)
         except OSError:
             continue
-        marker = read_marker(p) if stat.S_ISDIR(st.st_mode) else None
-        if st.st_uid != os.getuid() or marker is None or marker.get("target") != target.name:
+        why = _why_not_ours(target, p, kind, st)
+        if why:
+            left.append(f"{p.name} ({why})")
             continue
-        if kind == "old" and not target.exists() and marker.get("state") == "complete":
-            os.rename(p, target)
-            done.append(f"restored the previous report from {p.name}")
-        else:
-            shutil.rmtree(p)
-            done.append(f"removed {p.name} left by a killed run")
+        try:
+            if kind == "old" and not os.path.lexists(target):
+                os.rename(p, target)
+                done.append(f"restored the previous report from {p.name}")
+            elif read_marker(p) is None:
+                for entry in os.scandir(p):
+                    os.unlink(entry.path)
+                os.rmdir(p)
+                done.append(f"removed {p.name}, a directory a stopped run had only begun")
+            else:
+                _remove_ours(p)
+                done.append(f"removed {p.name} left by a killed run")
+        except OSError as e:
+            left.append(f"{p.name} (could not be removed: {e.strerror})")
+    store = _cut_short_store(target)
+    if store is not None:
+        try:
+            for entry in os.scandir(store):
+                os.unlink(entry.path)
+            os.rmdir(store)
+            done.append(f"removed {store.name}: an empty record store whose marker was cut short "
+                        f"(a full disk while it was made)")
+        except OSError as e:
+            left.append(f"{store.name} (could not be removed: {e.strerror})")
+    if left:
+        done.append(f"left beside {target.name}, as not provably leftovers of this tool: {'; '.join(left)}")
     return done
+
+
+def _why_not_ours(target: Path, p: Path, kind: str, st: os.stat_result) -> str | None:
+    """None when leftover ``p`` is provably this tool's (see "Leftovers" in the
+    module docstring), else why not, in a few words."""
+    if not stat.S_ISDIR(st.st_mode):
+        return "not a directory"
+    if st.st_uid != os.getuid():
+        return "owned by another user"
+    if not _ours_by_name(target, p.name, kind):
+        return "not a name this tool gives"
+    marker = read_marker(p)
+    if marker is None:
+        return None if kind == "tmp" and _half_made(target, p, st) else "no marker of this tool"
+    if marker.get("target") != target.name:
+        return "its marker names another report"
+    if marker.get("state") == "incomplete":
+        if kind != "tmp":
+            return "an unfinished run's marker under another kind of name"
+        if marker != _incomplete_marker(target, p, st):
+            return "its marker was written for another directory"
+        try:  # every entry must be readable, or the removal would stop half-way
+            _files(p)
+        except OSError:
+            return "not all of it can be read"
+        return None
+    if marker.get("state") != "complete" or not isinstance(marker.get("manifest"), dict):
+        return "its marker is not a complete report's"
+    try:
+        foreign = _foreign(p, marker)
+    except OSError:
+        return "not all of it can be read"
+    return f"its manifest does not vouch for {_list(foreign)}" if foreign else None

@@ -665,8 +665,8 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
     finally:
         sig.held, sig.pending = False, None
     if atomic.swap_into_place.kept is not None:
-        sys.stderr.write(f"run_all: the previous report changed during the run; it was kept aside as "
-                         f"{atomic.swap_into_place.kept}\n")
+        sys.stderr.write(f"run_all: the previous report was not removed ({atomic.swap_into_place.why}); it "
+                         f"was kept aside as {atomic.swap_into_place.kept}\n")
     phases = ", ".join(f"{k} {v:.1f} s" for k, v in getattr(stats, "phases", {}).items())
     print(f"{stats.planned} runs planned, {stats.resumed} resumed, {stats.executed} executed "
           f"({'Dask at ' + args.scheduler if args.scheduler else f'{workers} worker(s)'}); {phases}")
