@@ -39,6 +39,8 @@ COLUMNS = {
     "thesis_code": ["scene", "program", "variant", "case", "quantity", "value", "expected", "tolerance",
                     "passed", "status", "message"],
     "thesis_errata": ["scene", "item", "quantity", "thesis", "corrected", "note"],
+    "methods": ["scene", "method", "order_p", "conditions", "max_residual", "tolerance", "holds", "order",
+                "precision", "coefficient_tol", "stages", "partitioned"],
 }
 
 #: Columns that hold timings (not reproducible); whole tables built on timings.
@@ -107,6 +109,11 @@ DESCRIPTIONS = {
                    "consequences of the printed code's errors computed from the runs.",
     "thesis_errata": "the thesis' code errata computed from runs of its programs: what the printed "
                      "program gives (`thesis`) beside the corrected one (`corrected`).",
+    "methods": "the scenes' own tableau methods: per order p (up to the computed order plus one), the largest "
+               "residual |b^T Phi(t) - 1/gamma(t)| of the order conditions of order p, the residual the "
+               "coefficients' precision allows for that condition (`tolerance`; 0 for exact rationals), and "
+               "whether every condition of order p holds; `order` is the computed order, `precision` what it "
+               "and the stability boundaries are judged at (rk4core.methods.Tableau.coefficient_tol).",
 }
 
 
@@ -274,13 +281,18 @@ def trust_lines(rows) -> list[str]:
     return lines
 
 
-def limits_rows(stability_rows) -> list[dict]:
+def limits_rows(stability_rows, methods=None) -> list[dict]:
     """The limits a user needs, one line each, from the stability study's
     rows: the largest stable omega_max h, the round-off floor, the long-run
-    energy change and the cost at the stiffest point of each cost sweep."""
+    energy change and the cost at the stiffest point of each cost sweep.
+
+    ``methods`` maps a scene to the method its study is about (its
+    ``stability.method``: given, or the first classical tableau it runs);
+    a scene not in it gets the fixed-step method of its round-off or
+    long-horizon rows, else rk4."""
     out = []
     rows = list(stability_rows or [])
-    method = {}
+    method = dict(methods or {})
     for r in rows:
         if r["study"] in ("roundoff", "long_horizon") and r["solver"] not in ("-", "heyoka", "cvode-bdf"):
             method.setdefault(r["scene"], r["solver"])
@@ -355,9 +367,14 @@ def _figure_lines(results, out_dir) -> list[str]:
 
 
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
-                seconds, n_scenes=None, timing=None) -> Path:
+                seconds, n_scenes=None, timing=None, stability_methods=None, load=None) -> Path:
     """Write ``index.md``: the trust table, the limits and the failures first;
-    then findings, tables, figures, errata, versions."""
+    then findings, tables, figures, errata, versions.
+
+    ``stability_methods``: scene -> the method its stability study is about
+    (:func:`limits_rows`). ``load``: the timing context
+    (:func:`validation.timing_context.load_context`), or None when not
+    recorded."""
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
     lines.append(f"Mode: **{mode}**, {n_scenes if n_scenes is not None else len(results)} scene(s), wall time {seconds:.0f} s. Each timed run is "
@@ -381,7 +398,7 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "[cheapest.csv](cheapest.csv).", ""]
         lines += trust
         lines.append("")
-    limits = limits_rows(tables.get("stability"))
+    limits = limits_rows(tables.get("stability"), stability_methods)
     if limits:
         lines += ["## Limits: stability, round-off, long horizons, stiffness", ""]
         lines += _md_table(["scene", "limit", "value", "detail"], limits)

@@ -363,7 +363,9 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     report.write_index(out_dir, results=results, tables=tables, table_paths=paths,
                        failures=failures, findings=findings, mode="quick" if quick else "full",
                        repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes),
-                       timing=getattr(stats, "timing", None))
+                       timing=getattr(stats, "timing", None),
+                       stability_methods={s.name: (s.stability or {}).get("method") for s in scenes
+                                          if (s.stability or {}).get("method")})
     if stats is not None:
         stats.phases = {"plan": t_run - t0, "runs": t_measure - t_run, "measure": t_draw - t_measure,
                         "figures": t_write - t_draw, "write": time.perf_counter() - t_write}
