@@ -88,7 +88,9 @@ DESCRIPTIONS = {
                 "time, the cheapest other run reaching the target (by RHS calls), and three verdicts: "
                 "`verdict_rhs` (RHS calls, deterministic), `verdict_amortized` (time, compile excluded) and "
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
-                "medians differ 3x and the repeats do not overlap (validation.trust).",
+                "medians differ 3x and the repeats do not overlap (validation.trust), and every time verdict "
+                "is `tie`, with the reason in `note`, when the load average exceeded the CPUs during the "
+                "timed runs (validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
@@ -366,22 +368,28 @@ def _figure_lines(results, out_dir) -> list[str]:
     return lines
 
 
+_NO_LOAD = object()  # write_index called without a timing context
+
+
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
-                seconds, n_scenes=None, timing=None, stability_methods=None, load=None) -> Path:
+                seconds, n_scenes=None, timing=None, stability_methods=None, load=_NO_LOAD) -> Path:
     """Write ``index.md``: the trust table, the limits and the failures first;
     then findings, tables, figures, errata, versions.
 
     ``stability_methods``: scene -> the method its stability study is about
     (:func:`limits_rows`). ``load``: the timing context
-    (:func:`validation.timing_context.load_context`), or None when not
-    recorded."""
+    (:func:`validation.timing_context.load_context`; None: no timed run),
+    said in the header and the environment section; not given: not said."""
+    from validation import timing_context
+
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
     lines.append(f"Mode: **{mode}**, {n_scenes if n_scenes is not None else len(results)} scene(s), wall time {seconds:.0f} s. Each timed run is "
                  f"the median of {repeats} repeat(s) (runs longer than 0.1 s: one); compile time (heyoka JIT, numba) is kept apart in "
                  f"`compile_s`. Errors are measured against exact modal solutions (linear models) or "
                  f"heyoka in quadruple precision (nonlinear models)."
-                 + (f" Timed runs: {timing}." if timing else ""))
+                 + (f" Timed runs: {timing}." if timing else "")
+                 + (" " + timing_context.sentence(load) if load is not _NO_LOAD else ""))
     lines.append("")
     trust = trust_lines(tables.get("cheapest"))
     if trust:
@@ -394,7 +402,10 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "\"no h (round-off)\" where sqrt(n) eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
                   "run that reached the target: **calls** (deterministic), time amortized over many runs (compile "
                   "excluded) and, where it differs, for one run (compile and start-up included). A time verdict is "
-                  "`tie` unless the medians differ 3x and the repeats do not overlap. Details: "
+                  "`tie` unless the medians differ 3x and the repeats do not overlap"
+                  + (", and every one is `tie` here: the load average exceeded the CPUs during the timed runs "
+                     "(see the header)" if load is not _NO_LOAD and timing_context.is_loaded(load) else "")
+                  + ". Details: "
                   "[cheapest.csv](cheapest.csv).", ""]
         lines += trust
         lines.append("")
@@ -431,6 +442,8 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
         lines += _md_table(["item", "quantity", "thesis", "corrected", "note"], code)
     lines += ["", "## Environment", ""]
     lines += [f"- {k}: {v}" for k, v in versions().items()]
+    if load is not _NO_LOAD:
+        lines += timing_context.environment_lines(load)
     lines.append("")
     path = out_dir / "index.md"
     path.write_text("\n".join(lines), encoding="utf-8")
