@@ -30,15 +30,30 @@ def test_a_load_above_the_cpus_makes_every_time_verdict_a_tie():
     assert [r["verdict_amortized"] for r in out] == ["tie", "tie"]
     assert [r["verdict_one_run"] for r in out] == ["tie", "tie"]
     assert [r["verdict_rhs"] for r in out] == ["rk4", "dop853"]  # calls are deterministic: kept
-    assert out[0]["note"].startswith("rk4 at h = 0.01 s; time verdicts are ties: load average 6.30 exceeded the 2 CPUs")
+    assert [r["note"] for r in out] == [r["note"] for r in ROWS]  # a deterministic column: kept
+    assert out[0]["time_context"] == ("load 1.50 -> 6.30 (1 min, before -> after the timed runs) on 2 CPUs; time "
+                                      "verdicts are ties: load average 6.30 exceeded the 2 CPUs during the timed "
+                                      "runs (timings include waiting for a CPU)")
     assert ROWS[0]["verdict_amortized"] == "rk4"  # the input is not modified
+
+
+def test_the_context_column_is_a_timing_column():
+    from validation.compare_reports import TIMING
+    from validation.report import COLUMNS, TIMING as REPORT_TIMING
+    from validation.trust import TIMING_COLUMNS
+
+    assert "time_context" in TIMING_COLUMNS and "time_context" in TIMING and "time_context" in COLUMNS["cheapest"]
+    assert "time_context" in REPORT_TIMING["cheapest"] and "note" not in TIMING_COLUMNS
 
 
 @pytest.mark.parametrize("before, after", [(1.5, 2.0), (0.1, 0.2)])
 def test_a_load_within_the_cpus_keeps_the_verdicts(before, after):
     ctx = tc.load_context(_snap(before), _snap(after), executed_timed=3)
     assert not ctx["loaded"]
-    assert tc.gate_time_verdicts(ROWS, ctx) == ROWS
+    out = tc.gate_time_verdicts(ROWS, ctx)
+    assert [{k: v for k, v in r.items() if k != "time_context"} for r in out] == ROWS
+    assert out[0]["time_context"] == f"load {before:.2f} -> {after:.2f} (1 min, before -> after the timed runs) on 2 CPUs"
+    assert tc.gate_time_verdicts(ROWS, None) == ROWS
 
 
 def test_unknown_or_absent_context():
@@ -75,11 +90,12 @@ def test_the_report_records_the_load_and_ties_under_it(tmp_path, monkeypatch, lo
     assert "shares the machine with other timed runs only" not in index
     header = index.splitlines()[2]
     assert f"Load average (1 min) {load:.2f} before the timed runs and {load:.2f} after them, on 2 CPUs" in header
+    assert cheapest.time_context.str.startswith(f"load {load:.2f} -> {load:.2f} (1 min").all()
     if load > 2:
         assert set(cheapest.verdict_amortized) == {"tie"} and set(cheapest.verdict_one_run) == {"tie"}
-        assert cheapest.note.str.contains("load average 9.00 exceeded the 2 CPUs").all()
+        assert cheapest.time_context.str.contains("load average 9.00 exceeded the 2 CPUs").all()
         assert "every time verdict is `tie`" in header and "ties (load above the CPUs)" in env
         assert "and every one is `tie` here" in index
     else:
-        assert not cheapest.note.fillna("").str.contains("load average").any()
+        assert not cheapest.time_context.str.contains("ties").any()
         assert "every time verdict is `tie`" not in header and "as measured (load within the CPUs)" in env

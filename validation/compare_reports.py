@@ -25,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 TIMING = {"wall_s", "compile_s", "wall_min", "wall_max", "time_s", "alt_time_s", "alt_compile_s",
-          "verdict_one_run", "verdict_amortized"}
+          "verdict_one_run", "verdict_amortized", "time_context", "measured_timed"}
 _KEYS = ("scene", "solver", "setting", "quantity", "study")
 
 

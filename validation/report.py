@@ -89,8 +89,8 @@ DESCRIPTIONS = {
                 "`verdict_rhs` (RHS calls, deterministic), `verdict_amortized` (time, compile excluded) and "
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
                 "medians differ 3x and the repeats do not overlap (validation.trust), and every time verdict "
-                "is `tie`, with the reason in `note`, when the load average exceeded the CPUs during the "
-                "timed runs (validation.timing_context).",
+                "is `tie` when the load average exceeded the CPUs during the timed runs; `time_context` "
+                "holds the loads before and after the timed runs and the CPUs (validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "

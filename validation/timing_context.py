@@ -23,7 +23,8 @@ import math
 import os
 import time
 
-__all__ = ["snapshot", "load_context", "is_loaded", "gate_time_verdicts", "sentence", "environment_lines",
+__all__ = ["snapshot", "load_context", "is_loaded", "gate_time_verdicts", "context_text", "sentence",
+           "environment_lines",
            "TIME_VERDICT_COLUMNS"]
 
 #: The time-verdict columns of ``cheapest.csv`` (validation.trust).
@@ -72,24 +73,40 @@ def _reason(ctx) -> str:
 
 
 def gate_time_verdicts(rows, ctx) -> list[dict]:
-    """``cheapest.csv`` rows with every time verdict :data:`validation.trust.TIE`
-    and the reason appended to ``note`` when the timed runs ran under load
-    (:func:`is_loaded`); the rows unchanged otherwise. The RHS-call verdict is
-    deterministic and kept. Returns new dicts."""
+    """``cheapest.csv`` rows with their timing context in ``time_context``
+    (a timing column: the loads and CPUs, :func:`context_text`) and, when
+    the timed runs ran under load (:func:`is_loaded`), every time verdict
+    :data:`validation.trust.TIE`, the reason in ``time_context``. The
+    RHS-call verdict is deterministic and kept, and so is ``note``.
+    Returns new dicts; ``ctx`` None (no timed run) leaves the rows as they
+    are."""
     from .trust import TIE
 
     rows = [dict(r) for r in (rows or [])]
-    if not is_loaded(ctx):
+    if ctx is None:
         return rows
-    why = f"time verdicts are ties: {_reason(ctx)}"
+    text = context_text(ctx)
     for r in rows:
-        if not any(c in r for c in TIME_VERDICT_COLUMNS):
-            continue
-        for c in TIME_VERDICT_COLUMNS:
-            if c in r:
-                r[c] = TIE
-        r["note"] = f"{r['note']}; {why}" if r.get("note") else why
+        if any(c in r for c in TIME_VERDICT_COLUMNS):
+            if is_loaded(ctx):
+                for c in TIME_VERDICT_COLUMNS:
+                    if c in r:
+                        r[c] = TIE
+            r["time_context"] = text
     return rows
+
+
+def context_text(ctx) -> str:
+    """The context in one cell: ``"load 1.20 -> 1.50 (1 min, before -> after
+    the timed runs) on 2 CPUs"``, and when loaded ``"; time verdicts are
+    ties: load average 6.30 exceeded the 2 CPUs ..."``."""
+    text = f"load {_fmt1(ctx['before'])} -> {_fmt1(ctx['after'])} (1 min, before -> after the timed runs) " \
+           f"on {ctx['cpus']} CPUs"
+    if ctx["resumed_timed"]:
+        text += f"; {ctx['resumed_timed']} timed record(s) resumed, load not known"
+    if is_loaded(ctx):
+        text += f"; time verdicts are ties: {_reason(ctx)}"
+    return text
 
 
 def _fmt(snap) -> str:
