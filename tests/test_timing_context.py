@@ -96,6 +96,8 @@ def test_the_report_records_the_load_and_ties_under_it(tmp_path, monkeypatch, lo
         assert cheapest.time_context.str.contains("load average 9.00 exceeded the 2 CPUs").all()
         assert "every time verdict is `tie`" in header and "ties (load above the CPUs)" in env
         assert "and every one is `tie` here" in index
+        assert "- Timed under load: load average 9.00 exceeded the 2 CPUs" in index
     else:
         assert not cheapest.time_context.str.contains("ties").any()
         assert "every time verdict is `tie`" not in header and "as measured (load within the CPUs)" in env
+        assert "Timed under load" not in index

@@ -366,7 +366,7 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     for r in results:
         failures += r.failures
         findings += r.findings
-    findings = report.summarize(tables) + findings
+    findings = timing_context.findings(load) + report.summarize(tables) + findings
     front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
     paths = report.write_tables(out_dir, tables, front=front)
     report.write_index(out_dir, results=results, tables=tables, table_paths=paths,

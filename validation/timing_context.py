@@ -24,7 +24,7 @@ import os
 import time
 
 __all__ = ["snapshot", "load_context", "is_loaded", "gate_time_verdicts", "context_text", "sentence",
-           "environment_lines",
+           "environment_lines", "findings",
            "TIME_VERDICT_COLUMNS"]
 
 #: The time-verdict columns of ``cheapest.csv`` (validation.trust).
@@ -107,6 +107,17 @@ def context_text(ctx) -> str:
     if is_loaded(ctx):
         text += f"; time verdicts are ties: {_reason(ctx)}"
     return text
+
+
+def findings(ctx) -> list[str]:
+    """A finding for index.md when the timed runs ran under load: the time
+    verdicts are ties and the timed fits (the large-N time slopes, the
+    cost sweeps' wall times) are no evidence of speed; empty otherwise."""
+    if not is_loaded(ctx):
+        return []
+    return [f"Timed under load: {_reason(ctx)}; every time verdict is `tie`, and the wall times and the fits "
+            f"made from them (large-N time per step ~ N^p, the cost sweeps' time panels) describe this load, "
+            f"not the methods."]
 
 
 def _fmt(snap) -> str:
