@@ -57,12 +57,20 @@ from . import order_conditions
 
 __all__ = ["Tableau", "make_tableau", "RK4", "RK38", "HEUN3", "RALSTON", "EULER", "SYMPLECTIC_EULER",
            "STORMER_VERLET", "METHODS", "get_method", "rk_step", "stage_time", "start_slope", "end_slope",
-           "ORDER_TOL"]
+           "ORDER_TOL", "EXACT_DECIMALS", "FLOAT_ULPS"]
 
-#: Relative tolerance of the order conditions for a tableau holding floats
-#: that are not the decimals they print as (``Tableau.inexact``): 2**-40.
+#: Former relative tolerance of the order conditions for float tableaux,
+#: kept for callers of :func:`rk4core.order_conditions.order` (``tol=``);
+#: a :class:`Tableau` uses its coefficient uncertainty instead
+#: (:attr:`Tableau.coefficient_tol`).
 ORDER_TOL = Fraction(1, 2**40)
-_ROW_SUM_TOL = 8 * Fraction(2.0**-52)  # the same for the row-sum check: 8 ulps of the row's size
+#: A decimal entry with at most this many decimal places (``0.5``, ``0.4``,
+#: ``0.375``) is read as exact; one with more (``0.29697761``, a float
+#: printed as ``0.16666666666666666``) as rounded to its last place.
+EXACT_DECIMALS = 3
+#: Uncertainty of a float entry from its binary rounding: this many units of
+#: 2**-52 relative (a correctly rounded value is within half of one).
+FLOAT_ULPS = 4
 
 
 # -- parsing ------------------------------------------------------------------------------------------
@@ -76,6 +84,8 @@ class _Parse:
     def __init__(self, name: str):
         self.name = name
         self.inexact: list[str] = []
+        #: where -> (decimal places, significant digits, is a float) of every decimal entry
+        self.decimals: dict[str, tuple[int, int, bool]] = {}
 
     def fail(self, field_: str, text: str):
         raise ValueError(f"method {self.name!r}: `{field_}` {text}")
@@ -96,16 +106,19 @@ class _Parse:
             f = Fraction(xf)
             if Fraction(repr(xf)) != f:  # 0.1, 1/3 as floats: the binary value is kept, and noted
                 self.inexact.append(where)
+            self._decimal(where, repr(xf), True)
         elif isinstance(x, str):
             try:
                 f = Fraction(x.strip())
             except (ValueError, ZeroDivisionError):
                 self.fail(field_, bad)
+            self._decimal(where, x, False)
         else:
             try:
                 f = Fraction(x)  # decimal.Decimal
             except (TypeError, ValueError, ZeroDivisionError, OverflowError):
                 self.fail(field_, bad)
+            self._decimal(where, str(x), False)
         try:
             finite = math.isfinite(float(f))
         except OverflowError:
@@ -113,6 +126,11 @@ class _Parse:
         if not finite:
             self.fail(field_, f"entry {where} = {x!r:.40} is not finite in double precision")
         return f
+
+    def _decimal(self, where: str, text: str, is_float: bool):
+        digits = decimal_digits(text)
+        if digits is not None:
+            self.decimals[where] = (*digits, is_float)
 
     @staticmethod
     def _seq(x):
@@ -145,6 +163,67 @@ class _Parse:
         if len(entries) != s:
             self.fail(field_, f"must have {s} entries ({what} of the {s} x {s} `A`), got {len(entries)}")
         return tuple(self.entry(field_, f"{field_}[{i}]", x) for i, x in enumerate(entries))
+
+
+def decimal_digits(text: str):
+    """``(decimal places, significant digits)`` of a decimal numeral
+    (``"0.29697761"`` -> (8, 8), ``"-3.05096516"`` -> (8, 9), ``"1e-05"`` ->
+    (5, 1), ``"2.5E+3"`` -> (0, 2)); None for an integer or a rational
+    (``"2"``, ``"1/3"``), which are exact. Trailing zeros count: they were typed."""
+    t = str(text).strip().lower().lstrip("+-")
+    if "/" in t or not ("." in t or "e" in t):
+        return None
+    mant, _, exp = t.partition("e")
+    try:
+        e = int(exp) if exp else 0
+    except ValueError:
+        return None
+    whole, _, frac = mant.partition(".")
+    if not (whole + frac).isdigit():
+        return None
+    sig = len((whole + frac).lstrip("0")) or 1
+    return max(len(frac) - e, 0), sig
+
+
+def _uncertainty(P: "_Parse", mats: dict) -> tuple[dict, int | None, int | None]:
+    """Per-entry uncertainty (Fraction, absolute) of each coefficient, from the
+    precision it was given with: ``(name -> matrix/vector of bounds, D, S)``.
+
+    A tableau is *rounded* when some decimal entry has more than
+    :data:`EXACT_DECIMALS` decimal places; ``D`` and ``S`` are then the most
+    decimal places and significant digits of those entries, and every nonzero
+    decimal entry ``x`` may be off by ``max(10**-D, 10**(1-S) |x|, FLOAT_ULPS
+    2**-52 |x|)`` (one unit in the last place, absolute for tables printed to
+    fixed decimals, relative for tables printed to fixed significant digits;
+    never finer than double precision: 17 printed digits of a value computed
+    in floats carry its few ulps of round-off). A float entry may in addition
+    be :data:`FLOAT_ULPS` units of ``2**-52 |x|`` off (binary rounding).
+    Integers, rational strings and zeros are exact.
+    """
+    rounded = [v for v in P.decimals.values() if v[0] > EXACT_DECIMALS]
+    D = max((v[0] for v in rounded), default=None)
+    S = max((v[1] for v in rounded), default=None)
+    ulp = FLOAT_ULPS * Fraction(1, 2**52)
+
+    def one(where, x):
+        if x == 0 or where not in P.decimals:
+            return Fraction(0)
+        u = Fraction(0)
+        if D is not None:  # never finer than double precision, in which the integrators use it
+            u = max(Fraction(1, 10**D), abs(x) * max(Fraction(1, 10**(S - 1)), ulp))
+        if where in P.inexact:  # a float whose binary value is not its decimal
+            u += ulp * abs(x)
+        return u
+
+    out = {}
+    for key, M in mats.items():
+        if M is None:
+            out[key] = None
+        elif isinstance(M[0], tuple):
+            out[key] = tuple(tuple(one(f"{key}[{i}][{j}]", x) for j, x in enumerate(row)) for i, row in enumerate(M))
+        else:
+            out[key] = tuple(one(f"{key}[{i}]", x) for i, x in enumerate(M))
+    return out, D, S
 
 
 def _floats(M):
@@ -186,9 +265,28 @@ class Tableau:
     inexact : tuple of str
         Entries given as floats that are not the decimal they print as
         (``1/3`` typed as ``0.3333333333333333``), e.g. ``("b[1]",)``: the
-        exact binary value is kept; the order conditions and the row-sum check
-        then allow a relative round-off (:data:`ORDER_TOL`). Give such
-        entries as strings (``"1/3"``) to have them exact.
+        exact binary value is kept and judged at its binary precision (see
+        ``coefficient_tol``). Give such entries as strings (``"1/3"``) to have
+        them exact.
+    rounded : tuple of str
+        Decimal entries with more than :data:`EXACT_DECIMALS` decimal places
+        (``"0.29697761"``, or a float printed so): the tableau is then read as
+        given to that precision.
+    precision : str
+        ``"exact"``, ``"binary float rounding"`` or ``"D decimals, S
+        significant digits"`` (the finest of the rounded entries).
+    coefficient_tol : Fraction
+        The one tolerance every property computed from the tableau uses:
+        ``10**-D`` for a rounded tableau (each nonzero decimal entry ``x`` may
+        be ``max(10**-D, 10**(1-S) |x|, FLOAT_ULPS 2**-52 |x|)`` off, plus
+        :data:`FLOAT_ULPS` ulps for floats), ``FLOAT_ULPS * 2**-52`` (relative) for floats that are
+        otherwise exact decimals, 0 for exact entries. The order conditions
+        (:attr:`order`, :attr:`order_residuals`), the row-sum check and the
+        stability boundaries (:mod:`rk4core.stability_function`) each accept
+        a residual no larger than what entries that far off can produce
+        (:attr:`uncertainty` propagated through the same formula with
+        absolute values). Ralston's fourth-order method printed to 8 decimals
+        has residuals up to 6.6e-9 in its order-2..4 conditions: order 4.
     order : int
         Computed from the order conditions (:func:`rk4core.order_conditions.order`;
         bi-coloured trees for a partitioned method), up to 10 (8 partitioned).
@@ -233,6 +331,10 @@ class Tableau:
     b_v_exact: tuple | None = None
     description: str = field(default="", compare=False)
     inexact: tuple = field(default=(), compare=False)
+    coefficient_tol: Fraction = field(default=Fraction(0), compare=False)
+    precision: str = field(default="exact", compare=False)
+    rounded: tuple = field(default=(), compare=False)
+    _uncertainty: dict = field(default=None, compare=False)
 
     def __init__(self, name, A, b, c=None, order=None, A_v=None, b_v=None, description="", *, row_sum=True):
         if not isinstance(name, str) or not name:
@@ -255,15 +357,24 @@ class Tableau:
             b_v_e = P.vector("b_v", b_v, s, "one velocity weight per stage")
         _check_explicit(P, A_e, A_v_e)
         row_sums = tuple(sum(row, Fraction(0)) for row in A_e)
+        c_e = None if c is None else P.vector("c", c, s, "one node per stage")
+        unc, D, S = _uncertainty(P, {"A": A_e, "b": b_e, "c": c_e, "A_v": A_v_e, "b_v": b_v_e})
         if c is None:
             c_e = row_sums
-        else:
-            c_e = P.vector("c", c, s, "one node per stage")
-            if row_sum:
-                _check_row_sums(P, A_e, c_e, row_sums)
+            unc["c"] = tuple(sum(row, Fraction(0)) for row in unc["A"])
+        elif row_sum:
+            _check_row_sums(P, A_e, c_e, row_sums, unc)
+        tol = Fraction(1, 10**D) if D is not None else Fraction(0)
+        if D is None and any(any(u) if not isinstance(u[0], tuple) else any(map(any, u))
+                             for u in unc.values() if u is not None):
+            tol = FLOAT_ULPS * Fraction(1, 2**52)  # floats only: binary rounding, relative
+        precision = (f"{D} decimals, {S} significant digits" if D is not None else
+                     "binary float rounding" if tol else "exact")
         for key, value in (("name", name), ("A_exact", A_e), ("b_exact", b_e), ("c_exact", c_e),
                            ("A_v_exact", A_v_e), ("b_v_exact", b_v_e), ("description", description),
-                           ("inexact", tuple(P.inexact)),
+                           ("inexact", tuple(P.inexact)), ("coefficient_tol", tol), ("precision", precision),
+                           ("rounded", tuple(w for w, v in P.decimals.items() if v[0] > EXACT_DECIMALS)),
+                           ("_uncertainty", unc),
                            ("A", _floats(A_e)), ("b", _floats(b_e)), ("c", _floats(c_e)),
                            ("A_v", _floats(A_v_e)), ("b_v", _floats(b_v_e))):
             object.__setattr__(self, key, value)
@@ -294,11 +405,34 @@ class Tableau:
                            ("nfev_per_step", first - (fsal is not None))):
             object.__setattr__(self, key, value)
 
+    @property
+    def uncertainty(self):
+        """``(dA, db, dA_v, db_v)``: how far each coefficient may be from the
+        intended one at the precision it was given with (Fractions, absolute;
+        zeros for exact entries; see :attr:`coefficient_tol`); None when every
+        entry is exact."""
+        u = self._uncertainty
+        vals = (u["A"], u["b"], u["A_v"], u["b_v"])
+        flat = [x for m in vals if m is not None for row in m for x in (row if isinstance(row, tuple) else (row,))]
+        return vals if any(flat) else None
+
     @cached_property
     def order(self) -> int:
-        """Order from the order conditions (see the class docstring)."""
-        tol = ORDER_TOL if self.inexact else 0
-        return order_conditions.order(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact, tol=tol)
+        """Order from the order conditions (see the class docstring), each
+        held to the tableau's coefficient precision (:attr:`uncertainty`)."""
+        return order_conditions.order(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
+                                      uncertainty=self.uncertainty)
+
+    @cached_property
+    def order_residuals(self) -> list[dict]:
+        """Per order ``p`` up to ``order + 1`` (at most the highest order
+        checked): the largest residual ``|b^T Phi(t) - 1/gamma(t)|`` over the
+        conditions of order ``p``, the tolerance of that condition (what the
+        coefficients' precision allows, 0 for an exact tableau) and whether
+        every condition of order ``p`` holds
+        (:func:`rk4core.order_conditions.residuals`)."""
+        return order_conditions.residuals(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
+                                          uncertainty=self.uncertainty, max_order=self.order + 1)
 
     @property
     def n_stages(self) -> int:
@@ -334,14 +468,12 @@ def _check_explicit(P: _Parse, A, A_v):
                         f"implicit); A[{i}][{i}] = {_fmt(A[i][i])}, A_v[{i}][{i}] = {_fmt(A_v[i][i])}")
 
 
-def _check_row_sums(P: _Parse, A, c, row_sums):
+def _check_row_sums(P: _Parse, A, c, row_sums, unc):
     for i, (ci, si) in enumerate(zip(c, row_sums)):
         if ci == si:
             continue
-        if P.inexact and any(w.startswith((f"A[{i}]", f"c[{i}]")) for w in P.inexact):
-            size = abs(ci) + sum((abs(x) for x in A[i]), Fraction(0))
-            if abs(ci - si) <= _ROW_SUM_TOL * size:
-                continue
+        if abs(ci - si) <= unc["c"][i] + sum(unc["A"][i], Fraction(0)):  # within the coefficients' precision
+            continue
         P.fail("c", f"must equal the row sums of `A` (c_i = sum_j a_ij; pass row_sum=False to allow it); "
                     f"row {i}: c[{i}] = {_fmt(ci)} but sum_j A[{i}][j] = {_fmt(si)}")
 

@@ -21,11 +21,18 @@ the colour of a child picks the matrix on the edge to it (``A`` for colour 0,
 colour 1 the velocity half ``v``.
 
 All arithmetic is in :class:`fractions.Fraction`: a condition holds or it
-does not. A tableau whose entries came from binary floats that are not the
-intended decimals (``1/3`` typed as ``0.333...``) can pass ``tol``: a
-condition then holds when ``|b^T Phi(t) - 1/gamma(t)| <= tol *
-|b|^T Phi_|A|(t)`` (the same weight formed with absolute values: the size of
-the rounding a float tableau carries).
+does not. A tableau whose entries are not the intended values (decimals
+printed to 8 places, ``1/3`` typed as ``0.333...``) passes with its
+``uncertainty``: bounds ``dA, db`` (``dA_v, db_v``) on how far each entry may
+be off. A condition then holds when
+
+    |b^T Phi(t) - 1/gamma(t)| <= (|b| + db)^T Phi_{|A| + dA}(t) - |b|^T Phi_{|A|}(t),
+
+the right side being the most that entries within those bounds can change
+the weight (each term of the weight is a product of entries; with absolute
+values and every entry at its bound, the sum can only grow). An exact entry
+has bound 0, so an exact tableau is judged exactly. The older ``tol``
+(relative, ``|residual| <= tol * |b|^T Phi_|A|(t)``) is kept for callers.
 
 Trees are nested tuples: a tree is the sorted tuple of its subtrees, the
 single vertex is ``()``; a bi-coloured tree is ``(colour, children)`` with
@@ -47,7 +54,7 @@ from functools import lru_cache
 from typing import Sequence
 
 __all__ = ["MAX_ORDER", "MAX_ORDER_PARTITIONED", "rooted_trees", "bicoloured_trees", "tree_order", "density",
-           "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order"]
+           "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order", "residuals"]
 
 #: Highest order :func:`order` checks for a classical method (1205 trees).
 MAX_ORDER = 10
@@ -175,8 +182,62 @@ def elementary_weight(tree, A, b, A_v=None, b_v=None) -> Fraction:
     return sum((x * y for x, y in zip(w, W.phi(tree))), Fraction(0))
 
 
+class _Judge:
+    """The residual and the tolerance of each condition of one method."""
+
+    def __init__(self, A, b, A_v, b_v, uncertainty, tol):
+        partitioned = A_v is not None or b_v is not None
+        if partitioned and (A_v is None or b_v is None):
+            raise ValueError("`A_v` and `b_v` must be given together")
+        A, b = _exact(A), _exact(b)
+        self.partitioned = partitioned
+        self.tol = Fraction(tol)
+        if partitioned:
+            A_v, b_v = _exact(A_v), _exact(b_v)
+            mats, weights = (A, A_v), (b, b_v)
+            self.trees, self.root = bicoloured_trees, (lambda t: t[0])
+        else:
+            mats, weights = (A,), (b,)
+            self.trees, self.root = rooted_trees, (lambda t: 0)
+        self.W, self.weights = _Weights(mats), weights
+        self.abs_weights = tuple(_absv(w) for w in weights)
+        self.Wabs = _Weights(tuple(_absm(M) for M in mats)) if (self.tol or uncertainty) else None
+        self.Wup = None
+        if uncertainty is not None:
+            u = list(uncertainty) + [None] * (4 - len(uncertainty))
+            dmats = (u[0], u[2]) if partitioned else (u[0],)
+            dweights = (u[1], u[3]) if partitioned else (u[1],)
+            dmats = tuple(_exact(d) if d is not None else _zeros_like(M) for d, M in zip(dmats, mats))
+            dweights = tuple(_exact(d) if d is not None else _zeros_like(w) for d, w in zip(dweights, weights))
+            self.Wup = _Weights(tuple(tuple(tuple(abs(x) + y for x, y in zip(r, dr)) for r, dr in zip(M, dM))
+                                      for M, dM in zip(mats, dmats)))
+            self.up_weights = tuple(tuple(abs(x) + y for x, y in zip(w, dw)) for w, dw in zip(weights, dweights))
+
+    def residual(self, t) -> Fraction:
+        w = self.weights[self.root(t)]
+        return sum((x * y for x, y in zip(w, self.W.phi(t))), Fraction(0)) - Fraction(1, density(t))
+
+    def allowed(self, t) -> Fraction:
+        """The largest residual condition ``t`` may have and still hold."""
+        r = self.root(t)
+        out = Fraction(0)
+        if self.Wabs is not None:
+            size = sum((x * y for x, y in zip(self.abs_weights[r], self.Wabs.phi(t))), Fraction(0))
+            out = self.tol * size
+            if self.Wup is not None:
+                up = sum((x * y for x, y in zip(self.up_weights[r], self.Wup.phi(t))), Fraction(0))
+                out = max(out, up - size)
+        return out
+
+
+def _zeros_like(M):
+    if len(M) and isinstance(M[0], tuple):
+        return tuple(tuple(Fraction(0) for _ in row) for row in M)
+    return tuple(Fraction(0) for _ in M)
+
+
 def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,
-          max_order: int | None = None, tol=0) -> int:
+          max_order: int | None = None, tol=0, uncertainty=None) -> int:
     """Order of the (partitioned) Runge-Kutta method from its order conditions.
 
     Parameters
@@ -196,6 +257,12 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
     tol : number, optional
         Relative tolerance for tableaux carrying float round-off (module
         docstring); 0 (the default) demands exact equality.
+    uncertainty : tuple, optional
+        ``(dA, db)`` or ``(dA, db, dA_v, db_v)``: nonnegative bounds, entry by
+        entry, on how far the coefficients may be from the intended ones
+        (:attr:`rk4core.methods.Tableau.uncertainty`); a condition holds when
+        its residual is within what such errors can produce (module
+        docstring). None: exact.
 
     Returns
     -------
@@ -204,36 +271,54 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
         ``<= p`` holds; ``max_order`` means "at least ``max_order``". 0 when
         the weights do not sum to 1.
     """
-    partitioned = A_v is not None or b_v is not None
-    if partitioned and (A_v is None or b_v is None):
-        raise ValueError("`A_v` and `b_v` must be given together")
-    A, b = _exact(A), _exact(b)
+    J = _Judge(A, b, A_v, b_v, uncertainty, tol)
     if max_order is None:
-        max_order = MAX_ORDER_PARTITIONED if partitioned else MAX_ORDER
-    tol = Fraction(tol)
-    if partitioned:
-        A_v, b_v = _exact(A_v), _exact(b_v)
-        W = _Weights((A, A_v))
-        Wabs = _Weights((_absm(A), _absm(A_v))) if tol else None
-        weights, weights_abs = (b, b_v), (_absv(b), _absv(b_v))
-        trees, root = bicoloured_trees, (lambda t: t[0])
-    else:
-        W = _Weights((A,))
-        Wabs = _Weights((_absm(A),)) if tol else None
-        weights, weights_abs = (b,), (_absv(b),)
-        trees, root = rooted_trees, (lambda t: 0)
+        max_order = MAX_ORDER_PARTITIONED if J.partitioned else MAX_ORDER
     for p in range(1, max_order + 1):
-        for t in trees(p):
-            w = weights[root(t)]
-            residual = sum((x * y for x, y in zip(w, W.phi(t))), Fraction(0)) - Fraction(1, density(t))
+        for t in J.trees(p):
+            residual = J.residual(t)
             if residual == 0:
                 continue
-            if tol:
-                size = sum((x * y for x, y in zip(weights_abs[root(t)], Wabs.phi(t))), Fraction(0))
-                if abs(residual) <= tol * size:
-                    continue
+            if abs(residual) <= J.allowed(t):
+                continue
             return p - 1
     return max_order
+
+
+def residuals(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,
+              max_order: int | None = None, tol=0, uncertainty=None) -> list[dict]:
+    """The order conditions' residuals, order by order.
+
+    Parameters are those of :func:`order`. Returns one dict per order ``p =
+    1 .. max_order`` (default: the method's order plus one, at most the
+    highest order checked): ``order`` (p), ``conditions`` (how many trees),
+    ``max_residual`` (the largest ``|w^T Phi(t) - 1/gamma(t)|`` over them,
+    float), ``tolerance`` (the residual the coefficients' precision allows for
+    that same condition, float; 0 for exact coefficients), ``worst_ratio``
+    (the largest residual / allowed over the conditions; inf where an exact
+    condition fails, 0 when all residuals are 0) and ``holds`` (every
+    condition of order ``p`` holds).
+    """
+    J = _Judge(A, b, A_v, b_v, uncertainty, tol)
+    top = MAX_ORDER_PARTITIONED if J.partitioned else MAX_ORDER
+    if max_order is None:
+        max_order = min(order(A, b, A_v, b_v, tol=tol, uncertainty=uncertainty) + 1, top)
+    out = []
+    for p in range(1, min(max_order, top) + 1):
+        worst, worst_allowed, ratio, holds, n = Fraction(0), Fraction(0), 0.0, True, 0
+        for t in J.trees(p):
+            n += 1
+            r = abs(J.residual(t))
+            if r == 0:
+                continue
+            allowed = J.allowed(t)
+            holds = holds and r <= allowed
+            ratio = max(ratio, float(r / allowed) if allowed else float("inf"))
+            if r > worst:
+                worst, worst_allowed = r, allowed
+        out.append({"order": p, "conditions": n, "max_residual": float(worst), "tolerance": float(worst_allowed),
+                    "worst_ratio": ratio, "holds": holds})
+    return out
 
 
 def _absm(M):

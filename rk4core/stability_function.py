@@ -21,6 +21,17 @@ it is stable while both its eigenvalues lie in the closed unit disk, i.e.
 D``. For the symplectic methods ``D = 1`` and the condition is ``|T| <= 2``
 (HLW sec. I.5).
 
+A tableau given to a finite precision (decimals printed to 8 places, floats:
+:attr:`rk4core.methods.Tableau.uncertainty`) is judged with the same
+tolerance as its order conditions: each coefficient of the polynomial whose
+sign decides stability is set to zero when it is no larger than what
+coefficients that far off can produce (the same polynomial formed from the
+entries' absolute values plus their bounds, minus that formed from the
+absolute values alone). Ralston's fourth-order method printed to 8 decimals
+has ``|R(i y)|^2 - 1 = 5.5e-9 y^4 - y^6/72 + ...`` as given: read exactly, it
+is unstable for every ``y > 0``; at its precision the ``y^4`` term is noise
+and the boundary is RK4's ``2 sqrt 2``. An exact tableau is unchanged.
+
 Boundaries are computed from exact polynomials: the odd-multiplicity part of
 the polynomial whose sign says "unstable" (square-free decomposition, Yun's
 algorithm), its smallest positive root isolated with a Sturm sequence and
@@ -207,6 +218,40 @@ def stability_polynomial(tab) -> list[Fraction]:
     return _trim(coeffs) or [Fraction(0)]
 
 
+def _stability_polynomial_bound(tab) -> list[Fraction]:
+    """Bounds on how far each coefficient of :func:`stability_polynomial` may
+    be from the intended method's at the tableau's precision
+    (``tab.uncertainty``): ``(|b| + db)^T (|A| + dA)^{k-1} 1 - |b|^T
+    |A|^{k-1} 1``; zeros for an exact tableau."""
+    s = tab.n_stages
+    unc = getattr(tab, "uncertainty", None)
+    if unc is None:
+        return [Fraction(0)] * (s + 1)
+    dA, db = unc[0], unc[1]
+    A0 = [[abs(x) for x in row] for row in tab.A_exact]
+    A1 = [[abs(x) + d for x, d in zip(row, drow)] for row, drow in zip(tab.A_exact, dA)]
+    b0 = [abs(x) for x in tab.b_exact]
+    b1 = [abs(x) + d for x, d in zip(tab.b_exact, db)]
+    out = [Fraction(0)]
+    v0 = v1 = [Fraction(1)] * s
+    for _ in range(s):
+        out.append(sum((x * y for x, y in zip(b1, v1)), Fraction(0)) - sum((x * y for x, y in zip(b0, v0)),
+                                                                          Fraction(0)))
+        v0 = [sum((a * y for a, y in zip(row, v0)), Fraction(0)) for row in A0]
+        v1 = [sum((a * y for a, y in zip(row, v1)), Fraction(0)) for row in A1]
+    return out
+
+
+def _snap(p, bound):
+    """``p`` with every coefficient no larger than its ``bound`` set to 0."""
+    return _trim([Fraction(0) if i < len(bound) and a != 0 and abs(a) <= bound[i] else a
+                  for i, a in enumerate(p)])
+
+
+def _pad(p, n):
+    return list(p) + [Fraction(0)] * (n - len(p))
+
+
 def R(tab, z):
     """Stability function ``R(z)`` at ``z`` (scalar or array, real or complex;
     numpy, Horner in float64). Classical tableaux only."""
@@ -225,15 +270,35 @@ def _modulus_excess_on_imaginary_axis(r):
     return _add(_add(_mul(even, even), [Fraction(0)] + _mul(odd, odd)), [Fraction(-1)])
 
 
+def _excess_majorant(r):
+    """:func:`_modulus_excess_on_imaginary_axis` with every sign dropped and
+    without the ``-1``: a coefficientwise bound for nonnegative ``r``."""
+    even = [a for k, a in enumerate(r) if k % 2 == 0]
+    odd = [a for k, a in enumerate(r) if k % 2 == 1]
+    return _add(_mul(even, even), [Fraction(0)] + _mul(odd, odd))
+
+
+def _excess_bound(r, beta):
+    """How far each coefficient of ``|R(i y)|^2 - 1`` may move when each
+    ``r_k`` moves by at most ``beta_k``."""
+    n = max(len(r), len(beta))
+    r0 = [abs(a) for a in _pad(r, n)]
+    r1 = [a + b for a, b in zip(r0, _pad(beta, n))]
+    hi, lo = _excess_majorant(r1), _excess_majorant(r0)
+    m = max(len(hi), len(lo))
+    return [a - b for a, b in zip(_pad(hi, m), _pad(lo, m))]
+
+
 def real_axis_boundary(tab) -> float:
     """Largest ``x`` with ``|R(-x')| <= 1`` for every ``0 <= x' <= x``
     (dimensionless, ``x = h |lambda|`` for a decay ``y' = lambda y``, lambda < 0):
     RK4 2.785293563405282, Euler 2. 0.0 if ``|R(-x)| > 1`` just right of 0;
     ``inf`` if never. Classical tableaux only."""
     r = stability_polynomial(tab)
+    beta = _stability_polynomial_bound(tab)
     minus = [a * (-1) ** k for k, a in enumerate(r)]  # R(-x)
-    above = _add(minus, [Fraction(-1)])  # R(-x) - 1 <= 0
-    below = _scale(_add(minus, [Fraction(1)]), -1)  # -(R(-x) + 1) <= 0
+    above = _snap(_add(minus, [Fraction(-1)]), beta)  # R(-x) - 1 <= 0
+    below = _snap(_scale(_add(minus, [Fraction(1)]), -1), beta)  # -(R(-x) + 1) <= 0
     return min(_first_violation(above), _first_violation(below))
 
 
@@ -243,10 +308,50 @@ def _step_matrix_poly(tab):
     """One step on ``q'' = -w^2 q`` with ``h = 1``, ``w^2 = x``, as a 2 x 2
     matrix of exact polynomials in ``x`` acting on ``(q, h v)``; the stage
     order of :func:`rk4core.methods.rk_step`."""
-    s = tab.n_stages
     A, b = tab.A_exact, tab.b_exact
     A_v, b_v = (tab.A_v_exact, tab.b_v_exact) if tab.partitioned else (A, b)
-    minus_x = [Fraction(0), Fraction(-1)]
+    return _step_matrix_of(tab, A, b, A_v, b_v, Fraction(-1))
+
+
+def _step_matrix_bound(tab):
+    """``(trace bound, determinant bound)``: how far each coefficient of the
+    trace and the determinant of :func:`_step_matrix_poly` may move at the
+    tableau's precision (``tab.uncertainty``), from the step matrix formed
+    with absolute values (``+x`` for ``-x``) with and without the bounds;
+    None for an exact tableau."""
+    unc = getattr(tab, "uncertainty", None)
+    if unc is None:
+        return None
+    dA, db, dA_v, db_v = unc
+    if not tab.partitioned:
+        dA_v, db_v = dA, db
+    A, b = tab.A_exact, tab.b_exact
+    A_v, b_v = (tab.A_v_exact, tab.b_v_exact) if tab.partitioned else (A, b)
+    absm = lambda M, dM=None: tuple(tuple(abs(x) + (dM[i][j] if dM else 0) for j, x in enumerate(row))  # noqa: E731
+                                    for i, row in enumerate(M))
+    absv = lambda v, dv=None: tuple(abs(x) + (dv[i] if dv else 0) for i, x in enumerate(v))  # noqa: E731
+    lo = _step_matrix_of(tab, absm(A), absv(b), absm(A_v), absv(b_v), Fraction(1))
+    hi = _step_matrix_of(tab, absm(A, dA), absv(b, db), absm(A_v, dA_v), absv(b_v, db_v), Fraction(1))
+
+    def trace(M):
+        return _add(M[0][0], M[1][1])
+
+    def det(M):  # majorant: both products added
+        return _add(_mul(M[0][0], M[1][1]), _mul(M[0][1], M[1][0]))
+
+    def diff(p, q):
+        n = max(len(p), len(q))
+        return [x - y for x, y in zip(_pad(p, n), _pad(q, n))]
+
+    return diff(trace(hi), trace(lo)), diff(det(hi), det(lo))
+
+
+def _step_matrix_of(tab, A, b, A_v, b_v, sign):
+    """The step matrix of :func:`_step_matrix_poly` from the given
+    coefficients; ``sign`` multiplies ``x`` in the acceleration (-1: the
+    oscillator; +1 with absolute values: a coefficientwise majorant)."""
+    s = tab.n_stages
+    minus_x = [Fraction(0), sign]
     cols = []
     for q0, v0 in (([Fraction(1)], []), ([], [Fraction(1)])):
         Q, V, acc = [None] * s, [None] * s, [None] * s
@@ -318,7 +423,8 @@ def imaginary_axis_boundary(tab) -> float:
     every ``h w``.
     """
     if not tab.partitioned:
-        excess = _modulus_excess_on_imaginary_axis(stability_polynomial(tab))
+        r = stability_polynomial(tab)
+        excess = _snap(_modulus_excess_on_imaginary_axis(r), _excess_bound(r, _stability_polynomial_bound(tab)))
         return math.sqrt(_first_violation(excess))
     (m11, m12), (m21, m22) = _step_matrix_poly(tab)
     trace = _add(m11, m22)
@@ -328,4 +434,10 @@ def imaginary_axis_boundary(tab) -> float:
                   _scale(_add(det, one), -1),  # D >= -1
                   _add(trace, _scale(_add(one, det), -1)),  # T <= 1 + D
                   _scale(_add(trace, _add(one, det)), -1))  # -T <= 1 + D
+    bound = _step_matrix_bound(tab)
+    if bound is not None:
+        bt, bd = bound
+        n = max(len(bt), len(bd))
+        both = [x + y for x, y in zip(_pad(bt, n), _pad(bd, n))]
+        conditions = tuple(_snap(c, bd if k < 2 else both) for k, c in enumerate(conditions))
     return math.sqrt(min(_first_violation(c) for c in conditions))

@@ -36,3 +36,52 @@ def test_bad_directory_exits_2_naming_it(tmp_path, capsys):
     assert main([str(tmp_path / "old"), str(tmp_path / "missing")]) == 2
     err = capsys.readouterr().err
     assert "`new`" in err and "missing" in err and err.count("\n") == 1
+
+
+def _two(tmp_path):
+    _write(tmp_path / "old", ROWS)
+    _write(tmp_path / "new", ROWS)
+    return [str(tmp_path / "old"), str(tmp_path / "new")]
+
+
+def test_a_misspelt_column_fails_with_one_line(tmp_path, capsys):
+    args = _two(tmp_path)
+    assert main(args + ["--columns", "error_maxx"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "`--columns`" in captured.err and "'error_maxx'" in captured.err and captured.err.count("\n") == 1
+    assert main(args + ["--columns", "error_max"]) == 0  # the same with a real column compares it
+    assert capsys.readouterr().out.strip() == "accuracy.csv: identical"
+
+
+def test_a_where_that_matches_nothing_fails(tmp_path, capsys):
+    args = _two(tmp_path)
+    assert main(args + ["--where", "solver=rk5"]) == 1
+    err = capsys.readouterr().err
+    assert "solver=rk5" in err and "matches no row" in err and err.count("\n") == 1
+    assert main(args + ["--where", "solverr=rk4"]) == 1
+    err = capsys.readouterr().err
+    assert "'solverr'" in err and err.count("\n") == 1
+    assert main(args + ["--where", "solver=rk4"]) == 0
+
+
+def test_no_common_table_fails(tmp_path, capsys):
+    (tmp_path / "old").mkdir()
+    (tmp_path / "new").mkdir()
+    assert main([str(tmp_path / "old"), str(tmp_path / "new")]) == 1
+    err = capsys.readouterr().err
+    assert "no table to compare" in err and err.count("\n") == 1
+    _write(tmp_path / "only", ROWS)
+    assert main([str(tmp_path / "only"), str(tmp_path / "new")]) == 1
+    assert "1 CSV file(s)" in capsys.readouterr().err
+
+
+def test_a_table_without_the_named_columns_says_so(tmp_path, capsys):
+    args = _two(tmp_path)
+    pd.DataFrame([{"scene": "a", "mode": 1, "omega_rad_s": 7.1}]).to_csv(tmp_path / "old" / "modes.csv", index=False)
+    pd.DataFrame([{"scene": "a", "mode": 1, "omega_rad_s": 7.1}]).to_csv(tmp_path / "new" / "modes.csv", index=False)
+    assert main(args + ["--columns", "error_max"]) == 0
+    out = capsys.readouterr().out
+    assert "accuracy.csv: identical" in out and "modes.csv: not compared (none of the `--columns`)" in out
+    assert main(args + ["--where", "solver=rk4"]) == 0
+    assert "modes.csv: identical" in capsys.readouterr().out  # no `solver` column: compared whole

@@ -7,7 +7,13 @@ of different shape are reported as such), prints, per numeric column, the
 largest relative difference ``|new - old| / |old|`` and the row where it
 occurs, and per text column the number of rows that differ. Timing columns
 (``wall_s``, ``compile_s``, the trust table's times and time verdicts) are left out unless named with
-``--columns``: they differ on every run. Read-only; exit 0, or 2 on bad input.
+``--columns``: they differ on every run. Read-only.
+
+Exit status: 0 when something was compared (whether or not it differs); 1,
+with one line on stderr, when the comparison compared nothing: no CSV in
+both directories, a ``--columns`` name that no compared table has, or a
+``--where`` whose column no table has or whose value no row holds (a
+misspelt option must not read as "identical"); 2 on bad input.
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ import numpy as np
 import pandas as pd
 
 TIMING = {"wall_s", "compile_s", "wall_min", "wall_max", "time_s", "alt_time_s", "alt_compile_s",
-          "verdict_one_run", "verdict_amortized"}
+          "verdict_one_run", "verdict_amortized", "time_context", "measured_timed"}
 _KEYS = ("scene", "solver", "setting", "quantity", "study")
 
 
@@ -68,15 +74,43 @@ def main(argv=None) -> int:
             print(f"compare_reports: `{name}` must be a report directory, got {str(d)!r}", file=sys.stderr)
             return 2
     columns = {c for c in args.columns.split(",") if c}
-    for f in sorted(old.glob("*.csv")):
-        g = new / f.name
-        if not g.is_file():
-            print(f"{f.name}: only in {old}")
-            continue
+    pairs = [(f, new / f.name) for f in sorted(old.glob("*.csv"))]
+    common = [(f, g) for f, g in pairs if g.is_file()]
+    if not common:
+        print(f"compare_reports: no table to compare: {len(pairs)} CSV file(s) in {str(old)!r}, none of them "
+              f"also in {str(new)!r}", file=sys.stderr)
+        return 1
+    loaded, seen_columns, where_column, where_rows = [], set(), False, 0
+    for f, g in common:
         a, b = pd.read_csv(f), pd.read_csv(g)
-        if where is not None and where[0] in a.columns and a.shape == b.shape:
+        seen_columns.update(a.columns)
+        if where is not None and where[0] in a.columns:
+            where_column = True
             keep = (a[where[0]].astype(str) == where[1]).to_numpy()
-            a, b = a[keep].reset_index(drop=True), b[keep].reset_index(drop=True)
+            where_rows += int(keep.sum())
+            if a.shape == b.shape:
+                a, b = a[keep].reset_index(drop=True), b[keep].reset_index(drop=True)
+        skip = ("no row matches `--where`" if where is not None and where[0] in a.columns and not keep.any() else
+                "none of the `--columns`" if columns and not columns & set(a.columns) else "")
+        loaded.append((f, a, b, skip))
+    missing = sorted(columns - seen_columns)
+    if missing:
+        print(f"compare_reports: `--columns` names {', '.join(repr(c) for c in missing)}, a column no compared "
+              f"table has", file=sys.stderr)
+        return 1
+    if where is not None and not where_column:
+        print(f"compare_reports: `--where` column {where[0]!r} is in no compared table", file=sys.stderr)
+        return 1
+    if where is not None and not where_rows:
+        print(f"compare_reports: `--where` {args.where!r} matches no row of the compared tables", file=sys.stderr)
+        return 1
+    for f, _ in pairs:
+        if not (new / f.name).is_file():
+            print(f"{f.name}: only in {old}")
+    for f, a, b, skip in loaded:
+        if skip:
+            print(f"{f.name}: not compared ({skip})")
+            continue
         lines = compare_table(a, b, columns)
         print(f"{f.name}: {'identical' if not lines else 'differs'}")
         for line in lines:

@@ -15,9 +15,13 @@ Timing
 ------
 Timed specs (:attr:`RunSpec.timed`: the solver runs whose wall times feed the
 work-precision tables and verdicts) run last, after every untimed spec has
-finished, so that a timed run shares the machine only with other timed runs:
-one per worker process, each single-threaded (``benchmarks/bench_timing_lane.py``
+finished, so that a timed run shares the machine with no untimed run of the
+report: one per worker process, each single-threaded (``benchmarks/bench_timing_lane.py``
 measures what a neighbour integrating on the other core does to a timing).
+Other processes on the machine are not under the report's control: the load
+average just before and after the timed stage is recorded
+(``PlanStats.load_before``/``load_after``, :mod:`validation.timing_context`),
+and under a load above the CPU count every time verdict is a tie.
 ``exclusive_timing=True`` (``run_all.py --exclusive-timing``) runs them one at
 a time in one worker process (the *timing lane*) with the other workers idle,
 for a machine where parallel runs do disturb each other's timings.
@@ -58,6 +62,9 @@ class PlanStats:
         self.planned = self.resumed = self.executed = 0
         self.timing = "one at a time in the main process (--workers 1)"
         self.phases = {}
+        #: validation.timing_context.snapshot() just before / after the timed stage ran (None: not run)
+        self.load_before = self.load_after = None
+        self.timed_executed = self.timed_resumed = 0
 
     def __repr__(self):
         return (f"PlanStats(planned={self.planned}, resumed={self.resumed}, executed={self.executed}, "
@@ -161,6 +168,7 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
         if rec is not None:
             records[spec.key] = rec
             stats.resumed += 1
+            stats.timed_resumed += bool(spec.timed)
             tick(f"{spec.label()} (resumed)")
         else:
             todo.append((scene, spec))
@@ -169,6 +177,7 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
               [j for j in todo if j[1].purpose != "truth" and j[1].timed]]
     if cost is not None:
         stages = [sorted(s, key=lambda j: -cost(*j)) for s in stages]
+    stats.timed_executed = len(stages[-1])
 
     def done(spec, rec):
         if store is not None:
@@ -184,9 +193,11 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
 
         clear_problems()  # models built by an earlier run in this process are not reused
 
-        for stage in stages:
+        for i, stage in enumerate(stages):
+            _load_mark(stats, stages, i)
             for scene, spec in stage:
                 done(spec, execute(scene, spec, quick))
+        _load_mark(stats, stages, len(stages))
     else:
         own = pools is None
         pools = pools or LocalPools(workers)
@@ -300,9 +311,11 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
     stats.timing = (f"one at a time after the untimed work, in one process with the other {others} worker(s) "
                     f"idle (--exclusive-timing, --workers {pools.workers})" if exclusive_timing or not others else
                     f"after the untimed work, {pools.workers} at a time, one per worker process "
-                    f"(--workers {pools.workers}): each timed run shares the machine with other timed runs only")
+                    f"(--workers {pools.workers}): no untimed run of this report overlaps them (other processes "
+                    f"on the machine: see the load average)")
     try:
-        for stage in stages:
+        for i, stage in enumerate(stages):
+            _load_mark(stats, stages, i)
             queue = list(stage)
             free = {"lane": 1, "general": max(1, others)}
             pending = {}
@@ -328,9 +341,24 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
                     except Exception as e:  # noqa: BLE001 - a worker that died is a failed record
                         rec = failed_record(spec.key, e)
                     done(spec, rec)
+        _load_mark(stats, stages, len(stages))
     except BaseException:
         pools.close(kill=True)
         raise
+
+
+def _load_mark(stats, stages, i):
+    """Record the machine's load (:func:`validation.timing_context.snapshot`)
+    when the timed stage (the last) is about to start (``i`` its index) or
+    has ended (``i == len(stages)``), if it has specs."""
+    from .timing_context import snapshot
+
+    if not stages[-1]:
+        return
+    if i == len(stages) - 1:
+        stats.load_before = snapshot()
+    elif i == len(stages):
+        stats.load_after = snapshot()
 
 
 #: Seconds to wait for a Dask scheduler before the run ends with exit 3;
@@ -371,7 +399,8 @@ def _dask(stages, quick, address, done, stats):
         timing_worker = any("timing" in (w.get("resources") or {}) for w in info.get("workers", {}).values())
         stats.timing = ("Dask: timed runs on the worker with the `timing` resource" if timing_worker
                         else "Dask: timed runs wherever the scheduler put them (no worker offers `timing`)")
-        for stage in stages:
+        for i, stage in enumerate(stages):
+            _load_mark(stats, stages, i)
             futures = {}
             for scene, spec in stage:
                 kw = {"resources": {"timing": 1}} if spec.timed and timing_worker else {}
@@ -384,6 +413,7 @@ def _dask(stages, quick, address, done, stats):
                 except Exception as e:  # noqa: BLE001
                     rec = failed_record(spec.key, e)
                 done(spec, rec)
+        _load_mark(stats, stages, len(stages))
     finally:
         try:
             client.close(timeout=5)

@@ -107,6 +107,7 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     if by.get("stability"):
         _stability(scene, by["stability"], records, res, quick)
     _thesis_code(scene, by.get("thesis_code", []), records, res)
+    _methods_table(scene, res)
     if scene_sweep(scene):
         cols = scene_sweep(scene)
         for rows in res.tables.values():
@@ -240,6 +241,29 @@ def _tolerance_checks(scene, res):
         res.check(f"{solver} error falls with tolerance", monotone,
                   f"{scene.name}: {solver}'s error does not decrease with the tolerance "
                   f"(relative errors {', '.join(f'{e:.2g}' for e in err)})")
+
+
+# -- the scene's own tableaux --------------------------------------------------------------
+def _methods_table(scene, res):
+    """``methods.csv``: for each tableau method the scene defines itself (its
+    ``[methods]`` tables), per order ``p`` up to its order plus one, the
+    largest residual of the order conditions of order ``p``, the residual the
+    coefficients' precision allows for that condition, and whether every
+    condition of order ``p`` holds (:attr:`rk4core.methods.Tableau.order_residuals`).
+    Computed from the coefficients, not from runs; the built-in tableaux are
+    exact rationals (every residual 0)."""
+    own = getattr(scene, "registry", None) or {}
+    for name in scene.solvers:
+        method = own.get(name)
+        tab = getattr(method, "tableau", None)
+        if tab is None:
+            continue
+        for r in tab.order_residuals:
+            res.add("methods", {"scene": scene.name, "method": name, "order_p": r["order"],
+                                "conditions": r["conditions"], "max_residual": r["max_residual"],
+                                "tolerance": r["tolerance"], "holds": bool(r["holds"]), "order": tab.order,
+                                "precision": tab.precision, "coefficient_tol": float(tab.coefficient_tol),
+                                "stages": tab.n_stages, "partitioned": tab.partitioned})
 
 
 # -- convergence -----------------------------------------------------------------------------

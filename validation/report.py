@@ -39,6 +39,8 @@ COLUMNS = {
     "thesis_code": ["scene", "program", "variant", "case", "quantity", "value", "expected", "tolerance",
                     "passed", "status", "message"],
     "thesis_errata": ["scene", "item", "quantity", "thesis", "corrected", "note"],
+    "methods": ["scene", "method", "order_p", "conditions", "max_residual", "tolerance", "holds", "order",
+                "precision", "coefficient_tol", "stages", "partitioned"],
 }
 
 #: Columns that hold timings (not reproducible); whole tables built on timings.
@@ -86,7 +88,9 @@ DESCRIPTIONS = {
                 "time, the cheapest other run reaching the target (by RHS calls), and three verdicts: "
                 "`verdict_rhs` (RHS calls, deterministic), `verdict_amortized` (time, compile excluded) and "
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
-                "medians differ 3x and the repeats do not overlap (validation.trust).",
+                "medians differ 3x and the repeats do not overlap (validation.trust), and every time verdict "
+                "is `tie` when the load average exceeded the CPUs during the timed runs; `time_context` "
+                "holds the loads before and after the timed runs and the CPUs (validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
@@ -107,6 +111,11 @@ DESCRIPTIONS = {
                    "consequences of the printed code's errors computed from the runs.",
     "thesis_errata": "the thesis' code errata computed from runs of its programs: what the printed "
                      "program gives (`thesis`) beside the corrected one (`corrected`).",
+    "methods": "the scenes' own tableau methods: per order p (up to the computed order plus one), the largest "
+               "residual |b^T Phi(t) - 1/gamma(t)| of the order conditions of order p, the residual the "
+               "coefficients' precision allows for that condition (`tolerance`; 0 for exact rationals), and "
+               "whether every condition of order p holds; `order` is the computed order, `precision` what it "
+               "and the stability boundaries are judged at (rk4core.methods.Tableau.coefficient_tol).",
 }
 
 
@@ -274,13 +283,18 @@ def trust_lines(rows) -> list[str]:
     return lines
 
 
-def limits_rows(stability_rows) -> list[dict]:
+def limits_rows(stability_rows, methods=None) -> list[dict]:
     """The limits a user needs, one line each, from the stability study's
     rows: the largest stable omega_max h, the round-off floor, the long-run
-    energy change and the cost at the stiffest point of each cost sweep."""
+    energy change and the cost at the stiffest point of each cost sweep.
+
+    ``methods`` maps a scene to the method its study is about (its
+    ``stability.method``: given, or the first classical tableau it runs);
+    a scene not in it gets the fixed-step method of its round-off or
+    long-horizon rows, else rk4."""
     out = []
     rows = list(stability_rows or [])
-    method = {}
+    method = dict(methods or {})
     for r in rows:
         if r["study"] in ("roundoff", "long_horizon") and r["solver"] not in ("-", "heyoka", "cvode-bdf"):
             method.setdefault(r["scene"], r["solver"])
@@ -354,17 +368,28 @@ def _figure_lines(results, out_dir) -> list[str]:
     return lines
 
 
+_NO_LOAD = object()  # write_index called without a timing context
+
+
 def write_index(out_dir, *, results, tables, table_paths, failures, findings, mode, repeats,
-                seconds, n_scenes=None, timing=None) -> Path:
+                seconds, n_scenes=None, timing=None, stability_methods=None, load=_NO_LOAD) -> Path:
     """Write ``index.md``: the trust table, the limits and the failures first;
-    then findings, tables, figures, errata, versions."""
+    then findings, tables, figures, errata, versions.
+
+    ``stability_methods``: scene -> the method its stability study is about
+    (:func:`limits_rows`). ``load``: the timing context
+    (:func:`validation.timing_context.load_context`; None: no timed run),
+    said in the header and the environment section; not given: not said."""
+    from validation import timing_context
+
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
     lines.append(f"Mode: **{mode}**, {n_scenes if n_scenes is not None else len(results)} scene(s), wall time {seconds:.0f} s. Each timed run is "
                  f"the median of {repeats} repeat(s) (runs longer than 0.1 s: one); compile time (heyoka JIT, numba) is kept apart in "
                  f"`compile_s`. Errors are measured against exact modal solutions (linear models) or "
                  f"heyoka in quadruple precision (nonlinear models)."
-                 + (f" Timed runs: {timing}." if timing else ""))
+                 + (f" Timed runs: {timing}." if timing else "")
+                 + (" " + timing_context.sentence(load) if load is not _NO_LOAD else ""))
     lines.append("")
     trust = trust_lines(tables.get("cheapest"))
     if trust:
@@ -377,11 +402,14 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "\"no h (round-off)\" where sqrt(n) eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
                   "run that reached the target: **calls** (deterministic), time amortized over many runs (compile "
                   "excluded) and, where it differs, for one run (compile and start-up included). A time verdict is "
-                  "`tie` unless the medians differ 3x and the repeats do not overlap. Details: "
+                  "`tie` unless the medians differ 3x and the repeats do not overlap"
+                  + (", and every one is `tie` here: the load average exceeded the CPUs during the timed runs "
+                     "(see the header)" if load is not _NO_LOAD and timing_context.is_loaded(load) else "")
+                  + ". Details: "
                   "[cheapest.csv](cheapest.csv).", ""]
         lines += trust
         lines.append("")
-    limits = limits_rows(tables.get("stability"))
+    limits = limits_rows(tables.get("stability"), stability_methods)
     if limits:
         lines += ["## Limits: stability, round-off, long horizons, stiffness", ""]
         lines += _md_table(["scene", "limit", "value", "detail"], limits)
@@ -414,6 +442,8 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
         lines += _md_table(["item", "quantity", "thesis", "corrected", "note"], code)
     lines += ["", "## Environment", ""]
     lines += [f"- {k}: {v}" for k, v in versions().items()]
+    if load is not _NO_LOAD:
+        lines += timing_context.environment_lines(load)
     lines.append("")
     path = out_dir / "index.md"
     path.write_text("\n".join(lines), encoding="utf-8")

@@ -322,6 +322,7 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     from validation import atomic, budget, draw, engine, interrupt, measure, report
 
     t_run = time.perf_counter()
+    stats = stats if stats is not None else engine.PlanStats()
     records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
                               store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
                               records=records, pools=pools, exclusive_timing=exclusive_timing)
@@ -351,6 +352,14 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     for r in results:
         for name, rows in r.tables.items():
             tables.setdefault(name, []).extend(rows)
+    from validation import timing_context
+
+    load = timing_context.load_context(
+        stats.load_before, stats.load_after, executed_timed=stats.timed_executed,
+        resumed_timed=stats.timed_resumed,
+        where="of the machine running run_all.py, not of the Dask workers" if scheduler else "")
+    if tables.get("cheapest"):
+        tables["cheapest"] = timing_context.gate_time_verdicts(tables["cheapest"], load)
     extra = []
     if figures and tables.get("cheapest"):
         try:
@@ -366,13 +375,15 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     for r in results:
         failures += r.failures
         findings += r.findings
-    findings = report.summarize(tables) + findings
+    findings = timing_context.findings(load) + report.summarize(tables) + findings
     front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
     paths = report.write_tables(out_dir, tables, front=front)
     report.write_index(out_dir, results=results, tables=tables, table_paths=paths,
                        failures=failures, findings=findings, mode="quick" if quick else "full",
                        repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes),
-                       timing=getattr(stats, "timing", None))
+                       timing=getattr(stats, "timing", None), load=load,
+                       stability_methods={s.name: (s.stability or {}).get("method") for s in scenes
+                                          if (s.stability or {}).get("method")})
     if stats is not None:
         stats.phases = {"plan": t_run - t0, "runs": t_measure - t_run, "measure": t_draw - t_measure,
                         "figures": t_write - t_draw, "write": time.perf_counter() - t_write}

@@ -65,11 +65,13 @@ _EPS = float(np.finfo(float).eps)
 
 COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h_source", "n_steps",
            "rhs", "time_s", "compile_s", "alternative", "alt_setting", "alt_error_rel", "alt_rhs",
-           "alt_time_s", "alt_compile_s", "verdict_rhs", "verdict_one_run", "verdict_amortized", "note"]
+           "alt_time_s", "alt_compile_s", "verdict_rhs", "verdict_one_run", "verdict_amortized", "note",
+           "time_context"]
 #: Columns that are timings (differ between runs; machine-dependent); the two
 #: time verdicts are derived from them with a margin and are compared between
 #: runs on one machine only.
-TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict_one_run", "verdict_amortized"}
+TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict_one_run", "verdict_amortized",
+                  "time_context"}  # time_context: the load around the timed runs (validation.timing_context)
 
 
 #: An observed order ``log(e1/e2)/log(h1/h2)`` agrees with the method's order
