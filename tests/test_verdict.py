@@ -122,6 +122,21 @@ def test_crossover_names_only_confirmed_winners():
     assert [c["solver"] for c in cells["rows"]] == ["rk4", ""]
 
 
+def test_crossover_figure_says_tie_and_unmeasured(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from validation import figures
+
+    rows = _crossover_job(_table() + _table(_rk4([(1e-3, 8e-10)]), [_row("dop853", 1e-12, 5e-10, 4e5)])
+                          ).figures[0].data["rows"]
+    for i, r in enumerate(rows):
+        r["scene"] = f"s{i // 2}"
+    path, caption = figures.crossover(tmp_path, pd.DataFrame(rows))
+    assert path.exists()
+    assert "rk4 2" in str(caption) and "tie 1" in str(caption) and "unmeasured 1" in str(caption)
+
+
 # -- planning the confirmation runs ------------------------------------------------------
 def _scene(output_dt=0.1, adaptive=("dop853", "heyoka")):
     return SimpleNamespace(t_end=T_END, output_dt=output_dt, adaptive_solvers=list(adaptive))

@@ -301,9 +301,12 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         completed(records)
         progress(message)
 
-    def grow(extra):
+    def grow(extra):  # confirmation runs planned after the plan: a scene is complete with them
         for scene, spec in extra:
             keys_of.setdefault(scene.name, set()).add(spec.key)
+            if scene.name in finished:
+                finished.discard(scene.name)
+                run.completed.remove(scene.name)
         extend = getattr(user_progress, "extend", None)
         if callable(extend):
             extend(len(extra))
