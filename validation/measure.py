@@ -215,12 +215,17 @@ def _cheapest(scene, res, confirm_specs=(), records=None):
         return
     method = scene.method(under)
     rows = res.tables.get("work_precision", [])
+    confirmations = confirm.rows_of(confirm_specs, records or {})
+    for c in confirmations:  # said, not failed: the verdict then rests on the other runs
+        if c["status"] != "ok":
+            res.findings.append(f"{scene.name}: the confirmation run of {c['solver']} at {c['setting']:g} "
+                                f"ended {c['status']}; no verdict rests on it.")
     res.tables.setdefault("cheapest", [])
     res.tables["cheapest"] += trust.trust_rows(
         scene.name, rows, method, scene.t_end, trust.stable_step(method, trust.fastest_omega(problem(scene)[0])),
         TARGETS,
         setting_name=lambda sv: scene.method(sv).setting_name,
-        confirmations=confirm.rows_of(confirm_specs, records or {}), output_dt=scene.output_dt)
+        confirmations=confirmations, output_dt=scene.output_dt)
 
 
 def _tolerance_checks(scene, res):

@@ -2,10 +2,11 @@
 what that costs, the cheapest alternative and verdicts that survive a rerun.
 
 Pure functions of run rows (``work_precision`` rows: solver, setting,
-error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status); no
-integration. :mod:`validation.measure` builds ``cheapest.csv`` with
-:func:`trust_rows`, :mod:`validation.advise` uses the same error-constant
-model to predict a step before confirming it with one run.
+error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status, and
+the confirmation runs' rows of the same shape); no integration.
+:mod:`validation.measure` builds ``cheapest.csv`` with :func:`trust_rows`,
+:mod:`validation.advise` uses the same error-constant model to predict a step
+before confirming it with one run.
 
 The step for a target
     A fixed-step method of order ``p`` has ``error_rel(h) ~ C h^p`` in its
@@ -26,15 +27,27 @@ The step for a target
     precision (the round-off study measured RK4's floor at 7.6e-15 after
     7.2e3 steps, where ``sqrt(n) eps = 1.9e-14``).
 
+A verdict needs a run
+    The predicted step is only a prediction: :mod:`validation.confirm` runs
+    the method at it (on the output grid, :func:`on_grid`), and a side
+    counts for a target only with a measured run whose ``error_rel`` is at
+    most the target (:func:`pick_measured`; columns ``confirmed``,
+    ``confirmed_error_rel``, ``alt_confirmed``, ``alt_confirmed_error_rel``).
+    Only one side measured: it takes every verdict; neither:
+    :data:`UNMEASURED`.
+
 Cost verdict (deterministic)
-    Right-hand-side evaluations: the method's ``n`` steps times its calls per
-    step against the cheapest alternative run that reached the target
-    (heyoka: Taylor steps x order, its own cost unit; see the README).
+    Right-hand-side evaluations of the method's cheapest measured run that
+    met the target against the cheapest alternative run that reached it
+    (heyoka: Taylor steps x order, its own cost unit; see the README);
+    equal counts: :data:`TIE`.
 
 Time verdicts (survive a rerun)
-    Time of the method at the predicted step: ``a + b n`` fitted on its runs
-    (median wall times), with the spread of the repeats (min, max) of its
-    run nearest in ``n``; the alternative's median, min and max. A side wins
+    The measured times of the two runs (median, min and max of their
+    repeats); where the method has no measured run, its time at the
+    predicted step is ``a + b n`` fitted on its runs (median wall times),
+    with the spread of the repeats of its run nearest in ``n`` (shown, never
+    a winner). A side wins
     only when its slowest repeat beats the other's fastest *and* the medians
     differ by at least :data:`TIME_MARGIN`; otherwise ``tie``. ``one_run``
     adds each side's compile and start-up time (``compile_s``: heyoka's JIT,
