@@ -72,8 +72,17 @@ def test_trust_row_gives_no_step_without_an_asymptotic_range(target, source):
 
 def test_trust_row_uses_measured_runs_that_bracket_the_target():
     pts = [(0.1, 0.9), (0.05, 0.2), (0.02, 3e-3), (0.01, 4e-4)]  # no order 4 between any two
-    (row,) = trust.trust_rows("s", _wp_rows("rk4", pts), BUILTIN["rk4"], 100.0, math.inf, [1e-3])
-    assert row["h_source"] == "measured bracket" and 0.01 <= row["h"] <= 0.02
+    rows = _wp_rows("rk4", pts)
+    ((h, source, _),) = trust.predicted_steps(rows, BUILTIN["rk4"], 100.0, math.inf, [1e-3])["steps"]
+    assert source == "measured bracket" and 0.01 < h < 0.02
+    # not run at the bracketed step: the table names the measured run at 0.01 s that met the target
+    (row,) = trust.trust_rows("s", rows, BUILTIN["rk4"], 100.0, math.inf, [1e-3])
+    assert row["h"] == 0.01 and row["h_source"] == "measured run" and row["confirmed"]
+    assert row["confirmed_error_rel"] == 4e-4
+    # a confirmation run at the bracketed step that met the target: that step, with its measured error
+    (row,) = trust.trust_rows("s", rows, BUILTIN["rk4"], 100.0, math.inf, [1e-3],
+                              confirmations=_wp_rows("rk4", [(h, 9e-4)]))
+    assert row["h"] == h and row["h_source"] == "measured bracket" and row["confirmed_error_rel"] == 9e-4
 
 
 @pytest.mark.parametrize("ta, tb, want", [
@@ -87,15 +96,18 @@ def test_time_verdict_needs_margin_and_disjoint_repeats(ta, tb, want):
     assert trust.time_verdict("a", ta, "b", tb) == want
 
 
-def _one_run_rows(heyoka_compiles):
+def _one_run_rows(heyoka_compiles, confirm=False):
     """RK4 runs (err = 100 h^4 over 100 s, 4.5 ms at the h = 0.01 s that
-    target 1e-6 needs) and heyoka runs (0.4 ms each, the given compile times)."""
+    target 1e-6 needs) and heyoka runs (0.4 ms each, the given compile times);
+    ``confirm``: only RK4's confirmation run at h = 0.01 s."""
     rows = []
-    for h in H6:
+    for h in ([0.01] if confirm else H6):
         n = round(100 / h)
         w = 4.5e-3 * n / 10_000
-        rows.append(dict(solver="rk4", setting=h, error_rel=100 * h**4, nfev=4 * n, n_steps=n, wall_s=w,
+        rows.append(dict(solver="rk4", setting=h, error_rel=0.99 * 100 * h**4, nfev=4 * n, n_steps=n, wall_s=w,
                          wall_min=0.96 * w, wall_max=1.02 * w, compile_s=1e-4, status="ok", taylor_order=0))
+    if confirm:
+        return rows
     for tol, c in zip((1e-8, 1e-10, 1e-12), heyoka_compiles):
         rows.append(dict(solver="heyoka", setting=tol, error_rel=1e-8, nfev=0, n_steps=10, wall_s=4e-4,
                          wall_min=3.5e-4, wall_max=4.5e-4, compile_s=c, status="ok", taylor_order=20))
@@ -110,8 +122,9 @@ def test_one_run_verdict_spans_the_compile_times_of_the_runs(compiles, one_run):
     """A compile is timed once per run: the one-run time spans the smallest to
     the largest compile of the solver's runs, so heyoka's first compile alone
     (3.1x rk4 here, near the 3x margin, where a rerun flips it) names no winner."""
-    (row,) = trust.trust_rows("s", _one_run_rows(compiles), BUILTIN["rk4"], 100.0, math.inf, [1e-6])
-    assert row["h"] == pytest.approx(0.01) and row["time_s"] == pytest.approx(4.5e-3)
+    (row,) = trust.trust_rows("s", _one_run_rows(compiles), BUILTIN["rk4"], 100.0, math.inf, [1e-6],
+                              confirmations=_one_run_rows((), confirm=True))
+    assert row["h"] == pytest.approx(0.01) and row["time_s"] == pytest.approx(4.5e-3) and row["confirmed"]
     assert row["alternative"] == "heyoka" and row["alt_compile_s"] == max(compiles)
     assert row["verdict_amortized"] == "heyoka"  # 0.4 ms against 4.5 ms, repeats disjoint
     assert row["verdict_one_run"] == one_run

@@ -123,7 +123,7 @@ def spec_steps(scene, spec, model, w, quick=False) -> tuple[float, float]:
             T = min(scene.convergence.get("t_end", 2.0 * math.pi / w), scene.t_end) if w > 0 else 0.0
             return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(T)
         return 0.0, nonlinear * TRUTH_STEPS_PER_PERIOD * periods(scene.t_end)
-    if p in ("run", "figure", "modal"):
+    if p in ("run", "confirm", "figure", "modal"):
         if scene.method(spec.solver).fixed_step:
             return float(_steps(scene.t_end, spec.setting)), 0.0
         return ADAPTIVE_STEPS_PER_PERIOD * periods(scene.t_end), 0.0

@@ -345,6 +345,6 @@ def _thesis_code_spec(scene, spec, quick):
 
 
 _PURPOSE = {"truth": _truth_spec, "run": _run_spec, "figure": _figure_spec, "order": _order_spec,
-            "modal": _modal_spec, "modes": _modes_spec, "dispersion": _dispersion_spec,
+            "confirm": _run_spec, "modal": _modal_spec, "modes": _modes_spec, "dispersion": _dispersion_spec,
             "packet": _packet_spec, "linearization": _linearization_spec, "stability": _stability_spec,
             "thesis_code": _thesis_code_spec}

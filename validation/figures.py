@@ -151,10 +151,12 @@ GENERIC_CAPTIONS = {
                   "two Brillouin zones (the first shaded); dots: a finite chain's eigenfrequencies, which should sit "
                   "on the curve; circles: group velocities measured from RK4 wave packets, to compare with v_g "
                   "(not omega/kp, erratum 7).",
-    "crossover": "For each scene (row) and target relative error (column), the solver that reaches the target "
-                 "with the fewest right-hand-side evaluations, a count that is the same on every rerun (cell "
-                 "colour and its count, key below; 'none': no solver reached the target with the "
-                 "scene's settings): read where RK4 stops being the cheapest choice as the target tightens.",
+    "crossover": "For each scene (row) and target relative error (column), the solver whose measured run "
+                 "reached the target with the fewest right-hand-side evaluations, a count that is the same on "
+                 "every rerun (cell colour and its count, key below). RK4 is named only where a run at its "
+                 "recommended step was made and met the target (a predicted step is not enough); 'tie': equal "
+                 "counts; 'unmeasured': no measured run confirmed a winner. Read where RK4 stops being the "
+                 "cheapest choice as the target tightens.",
     "sweep": "A measured quantity against a swept scene parameter, one line per solver and setting (or per "
              "quantity), over the points of the sweep.",
     "stability_growth": "Amplitude growth factor per step of the fastest mode against omega_max h: lines are the "
@@ -1586,6 +1588,9 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
 
 # -- crossover (optional) ---------------------------------------------------------
 CROSSOVER_NONE = "none: no solver reached this target with the scene's settings"
+#: Keys of the cells that name no solver, by the cell's text (column ``cell``).
+CROSSOVER_EMPTY = {"tie": "tie: both sides' measured runs need the same RHS calls",
+                   "unmeasured": "unmeasured: no measured run confirmed a winner for this target"}
 _ROW_IN = 0.36           # inches per scene row of the crossover grid (two 8-pt lines)
 
 
@@ -1600,7 +1605,9 @@ def crossover(out_dir, df) -> tuple[Path, str]:
         ``target``), ``solver`` (the cheapest one reaching the target; empty
         or NaN when none does) and optionally its cost: ``rhs`` (right-hand-side
         calls; the grid then ranks by RHS calls, as the trust table's
-        ``verdict_rhs``) or else ``wall_s`` (s; ranked by wall time).
+        ``verdict_rhs``) or else ``wall_s`` (s; ranked by wall time), and
+        ``cell``: the text of a cell without a solver (``tie``,
+        ``unmeasured``: :data:`CROSSOVER_EMPTY`; default "none").
 
     Returns
     -------
@@ -1625,13 +1632,18 @@ def crossover(out_dir, df) -> tuple[Path, str]:
     _suptitle(fig, "cheapest solver for each target error " + ("(fewest RHS calls)" if by_rhs else "(wall time)"))
     ax = fig.subplots()
     counts: dict = {}
+    empty: dict = {}
     for r in df.itertuples():
         i, j = scenes.index(r.scene), targets.index(float(getattr(r, tcol)))
         solver = r.solver if isinstance(r.solver, str) and r.solver else None
+        cell = getattr(r, "cell", "")
+        blank = cell if isinstance(cell, str) and cell in CROSSOVER_EMPTY else "none"
+        if solver is None:
+            empty[blank] = empty.get(blank, 0) + 1
         counts[solver] = counts.get(solver, 0) + 1
         color = solver_style(solver)[0] if solver else "#ffffff"
         ax.add_patch(_rect(j, i, color, alpha=0.45 if solver else 1.0))
-        txt = solver or "none"
+        txt = solver or blank
         cost = getattr(r, "rhs" if by_rhs else "wall_s", None)
         if solver and cost is not None and np.isfinite(cost):
             txt += f"\n{cost:.2g} RHS" if by_rhs else f"\n{cost:.2g} s"
@@ -1644,11 +1656,14 @@ def crossover(out_dir, df) -> tuple[Path, str]:
     ax.tick_params(length=0)
     solvers = _in_palette_order([s for s in counts if s])
     handles = [Patch(facecolor=solver_style(s)[0], alpha=0.45, edgecolor="0.6", label=s) for s in solvers]
-    if None in counts:
-        handles.append(Patch(facecolor="#ffffff", edgecolor="0.6", label=CROSSOVER_NONE))
+    for key in ("none", *CROSSOVER_EMPTY):
+        if key in empty:
+            handles.append(Patch(facecolor="#ffffff", edgecolor="0.6",
+                                 label=CROSSOVER_NONE if key == "none" else CROSSOVER_EMPTY[key]))
     _legend_below(fig, handles, [h.get_label() for h in handles], title="cell colour: the cheapest solver")
     path = _save(fig, out_dir, "crossover")
-    tally = ", ".join(f"{s} {counts[s]}" for s in solvers) + (f", none {counts[None]}" if None in counts else "")
+    tally = ", ".join([f"{s} {counts[s]}" for s in solvers]
+                      + [f"{k} {empty[k]}" for k in ("none", *CROSSOVER_EMPTY) if k in empty])
     sentence = (f"{len(scenes)} scenes x {len(targets)} targets ({_fmt(targets[0])} to {_fmt(targets[-1])}); "
                 f"cells per cheapest solver: {tally}." if targets else "No scene or target to draw.")
     return path, Caption(sentence, "crossover")

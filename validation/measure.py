@@ -95,7 +95,7 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     for s in by.get("truth", []):
         if s.grid == "scene":
             res.truth_kind = records[s.key].values.get("truth_kind", "")
-    _runs(scene, by.get("run", []), records, res, draw)
+    _runs(scene, by.get("run", []), records, res, draw, by.get("confirm", []))
     _state_figure(scene, by.get("figure", []) + [s for s in by.get("truth", []) if s.grid == "figure"],
                   records, res)
     _linearization(scene, by.get("linearization", []), records, res)
@@ -139,7 +139,7 @@ def _with_values(specs, records, res):
 
 
 # -- accuracy, energy, work-precision --------------------------------------------------
-def _runs(scene, specs, records, res, draw):
+def _runs(scene, specs, records, res, draw, confirm_specs=()):
     series = {}
     for spec in specs:
         rec = records[spec.key]
@@ -178,7 +178,7 @@ def _runs(scene, specs, records, res, draw):
                 label = f"{spec.solver} {scene.method(spec.solver).setting_name}={spec.setting:g}"
                 series[spec.solver] = (label, rec.arrays["energy_t"], rec.arrays["energy_rel"])
     if "work_precision" in scene.outputs and specs:
-        _cheapest(scene, res)
+        _cheapest(scene, res, confirm_specs, records)
         if draw:
             wp = [r for r in res.tables.get("work_precision", []) if r["error_rel"] <= 10.0]
             res.figures.append(FigureJob(scene.name, "work_precision", {"rows": wp}))
@@ -207,18 +207,28 @@ def _energy_row(scene, spec, rec, row, res):
     return out
 
 
-def _cheapest(scene, res):
-    """``cheapest.csv``: the trust table of the method under test (:mod:`validation.trust`)."""
+def _cheapest(scene, res, confirm_specs=(), records=None):
+    """``cheapest.csv``: the trust table of the method under test
+    (:mod:`validation.trust`), with the confirmation runs of ``confirm_specs``
+    (:mod:`validation.confirm`)."""
+    from . import confirm
+
     under = under_test(scene)
     if under is None:
         return
     method = scene.method(under)
     rows = res.tables.get("work_precision", [])
+    confirmations = confirm.rows_of(confirm_specs, records or {})
+    for c in confirmations:  # said, not failed: the verdict then rests on the other runs
+        if c["status"] != "ok":
+            res.findings.append(f"{scene.name}: the confirmation run of {c['solver']} at {c['setting']:g} "
+                                f"ended {c['status']}; no verdict rests on it.")
     res.tables.setdefault("cheapest", [])
     res.tables["cheapest"] += trust.trust_rows(
         scene.name, rows, method, scene.t_end, trust.stable_step(method, trust.fastest_omega(problem(scene)[0])),
         TARGETS,
-        setting_name=lambda sv: scene.method(sv).setting_name)
+        setting_name=lambda sv: scene.method(sv).setting_name,
+        confirmations=confirmations, output_dt=scene.output_dt)
 
 
 def _tolerance_checks(scene, res):

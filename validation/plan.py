@@ -38,6 +38,11 @@ Purposes (``RunSpec.purpose``):
 ``thesis_code``
     the thesis' programs run in GNU Octave and compared with rk4core and the
     truth (:func:`references.thesis_code.compare`), with their computed errata.
+``confirm``
+    a ``run`` made to confirm a verdict of the trust table (the method under
+    test at a predicted step, a reference at a tighter tolerance); planned
+    after the plan has run, from its records (:mod:`validation.confirm`),
+    not by :func:`plan`.
 
 The order of the plan is the order of the report; execution order is the
 engine's business (:mod:`validation.engine`).
@@ -73,7 +78,7 @@ EULER_THETAS = (0.01, 0.005, 0.0025, 0.00125)
 #: Wave packets of the dispersion output (carrier in units of pi/d).
 PACKET_KP = (0.3, 0.6)
 PURPOSES = ("truth", "run", "figure", "order", "modal", "modes", "dispersion", "packet", "linearization", "stability",
-            "thesis_code")
+            "thesis_code", "confirm")
 #: Points of the trajectory drawn in the state figures (at most).
 FIGURE_POINTS = 4000
 #: Stability units whose rows hold timings (they run with the timed specs).
@@ -109,7 +114,7 @@ class RunSpec:
     @property
     def timed(self) -> bool:
         """Whether the record holds a wall time that a verdict reads."""
-        return self.purpose == "run" or (self.purpose == "stability" and self.unit.split(":")[0] in TIMED_UNITS)
+        return self.purpose in ("run", "confirm") or (self.purpose == "stability" and self.unit.split(":")[0] in TIMED_UNITS)
 
     def param(self, name, default=None):
         return dict(self.params).get(name, default)
@@ -123,7 +128,8 @@ class RunSpec:
 
     def label(self) -> str:
         """A short description for the progress line."""
-        what = {"run": f"{self.solver} {self.setting:g}", "order": f"{self.solver} order theta={self.setting:g}",
+        what = {"run": f"{self.solver} {self.setting:g}", "confirm": f"{self.solver} {self.setting:g} (confirmation)",
+                "order": f"{self.solver} order theta={self.setting:g}",
                 "truth": f"reference ({self.grid} grid)", "stability": f"stability {self.unit}",
                 "modal": f"modal energy {self.solver}", "packet": f"wave packet {self.setting:g} pi/d"}
         return f"{self.scene}: {what.get(self.purpose, self.purpose)}"

@@ -84,11 +84,18 @@ DESCRIPTIONS = {
               "weighted by the modal energy fractions.",
     "cheapest": "the trust table: for each scene and target relative error (1e-3 ... 1e-12), the step the "
                 "method under test needs (from its error constant C h^p fitted on its runs, capped at 0.9 of "
-                "its stability limit, refused below the round-off level sqrt(n) eps), its RHS calls and "
-                "time, the cheapest other run reaching the target (by RHS calls), and three verdicts: "
-                "`verdict_rhs` (RHS calls, deterministic), `verdict_amortized` (time, compile excluded) and "
+                "its stability limit, refused below the round-off level sqrt(n) eps, put on the output grid), "
+                "RUN to confirm it: `h`, `n_steps`, `rhs`, `time_s` are those of the method's cheapest measured "
+                "run that met the target (the confirmation run, or a scene run at a larger step), "
+                "`confirmed_error_rel` its measured error and `confirmed` true; without one `h` is the "
+                "prediction, `confirmed` false and `confirmed_error_rel` the error measured at the predicted step "
+                "(empty if not run). The cheapest other run reaching the target (by RHS calls; the references "
+                "are run at tighter tolerances, down to each one's floor, where none did) with "
+                "`alt_confirmed_error_rel`, `alt_confirmed`; and three verdicts: `verdict_rhs` (RHS calls, "
+                "deterministic; equal counts: `tie`), `verdict_amortized` (time, compile excluded) and "
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
-                "medians differ 3x and the repeats do not overlap (validation.trust), and every time verdict "
+                "medians differ 3x and the repeats do not overlap. Only a side with a measured run at most "
+                "the target can win; neither: `unmeasured` (validation.trust, validation.confirm); every time verdict "
                 "is `tie` when the load average exceeded the CPUs during the timed runs; `time_context` "
                 "holds the loads before and after the timed runs and the CPUs (validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
@@ -273,14 +280,36 @@ def trust_lines(rows) -> list[str]:
             if r is None:
                 cells.append("")
                 continue
-            h = r["h"]
-            step = (f"h {_g(h, ' s')}, {_g(r['rhs'])} calls" if isinstance(h, float) and math.isfinite(h)
-                    else f"no h ({r['h_source']})")
-            cells.append(f"{step}; calls: **{r['verdict_rhs']}**; time: {r['verdict_amortized']}"
-                         + (f" (1 run: {r['verdict_one_run']})" if r["verdict_one_run"] != r["verdict_amortized"]
-                            else ""))
+            cells.append(_trust_cell(r))
         lines.append(f"| {sc} | {method[sc]} | " + " | ".join(cells) + " |")
     return lines
+
+
+def _confirmed(x) -> bool:
+    return str(x).strip().lower() == "true"  # bool, numpy.bool_ or the CSV's text
+
+
+def _trust_cell(r) -> str:
+    """One cell of the trust table: the method's step and calls, marked
+    "measured E" when a run at that step met the target (``confirmed``) and
+    "predicted, unconfirmed" otherwise; the verdicts, the calls verdict in
+    bold only when it names a solver whose run was measured (never a
+    ``tie`` or ``unmeasured``)."""
+    h = r["h"]
+    if isinstance(h, float) and math.isfinite(h):
+        step = f"h {_g(h, ' s')}, {_g(r['rhs'])} calls"
+        step += (f", measured {r['confirmed_error_rel']:.3g}" if _confirmed(r.get("confirmed"))
+                 else ", predicted, unconfirmed")
+    else:
+        step = f"no h ({r['h_source']})"
+    v = r["verdict_rhs"]
+    side = ((v == r["method"] and _confirmed(r.get("confirmed")))
+            or (v == r.get("alternative") and _confirmed(r.get("alt_confirmed"))))
+    calls = f"**{v}**" if side else v
+    if v == "unmeasured":
+        return f"{step}; unmeasured"
+    return (f"{step}; calls: {calls}; time: {r['verdict_amortized']}"
+            + (f" (1 run: {r['verdict_one_run']})" if r["verdict_one_run"] != r["verdict_amortized"] else ""))
 
 
 def limits_rows(stability_rows, methods=None) -> list[dict]:
@@ -399,13 +428,17 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "so not limited to the scene's step list; else between the two runs that bracket the target; "
                   "\"no h (no asymptotic fit)\" when the runs show neither: `python validation/advise.py SCENE "
                   "--target T` then halves the step until it brackets the target; capped at 0.9 of its stability limit; "
-                  "\"no h (round-off)\" where sqrt(n) eps exceeds the target), its right-hand-side calls, and the verdicts against the cheapest other "
-                  "run that reached the target: **calls** (deterministic), time amortized over many runs (compile "
-                  "excluded) and, where it differs, for one run (compile and start-up included). A time verdict is "
-                  "`tie` unless the medians differ 3x and the repeats do not overlap"
+                  "\"no h (round-off)\" where sqrt(n) eps exceeds the target), run at that step to confirm it "
+                  "(\"measured E\": the run's error met the target; \"predicted, unconfirmed\": no run of the "
+                  "method met it, so it wins nothing), its right-hand-side calls, and the verdicts against the "
+                  "cheapest other run that reached the target (the references run tighter where none did): "
+                  "**calls** (deterministic; bold only for a measured winner; equal counts: `tie`), time "
+                  "amortized over many runs (compile excluded) and, where it differs, for one run (compile and "
+                  "start-up included). A time verdict is `tie` unless the medians differ 3x and the repeats do "
+                  "not overlap"
                   + (", and every one is `tie` here: the load average exceeded the CPUs during the timed runs "
                      "(see the header)" if load is not _NO_LOAD and timing_context.is_loaded(load) else "")
-                  + ". Details: "
+                  + ". `unmeasured`: no run of any method reached the target. Details: "
                   "[cheapest.csv](cheapest.csv).", ""]
         lines += trust
         lines.append("")

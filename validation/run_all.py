@@ -184,6 +184,10 @@ class Progress:
             self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s{eta} {msg}\n")
         self.stream.flush()
 
+    def extend(self, n: int):
+        """``n`` more specs to come (confirmation runs planned from the records)."""
+        self.total += int(n)
+
     def close(self):
         if self.tty:
             self.stream.write("\n")
@@ -306,26 +310,64 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         completed(records)
         progress(message)
 
+    def grow(extra):  # confirmation runs planned after the plan: a scene is complete with them
+        for scene, spec in extra:
+            keys_of.setdefault(scene.name, set()).add(spec.key)
+            if scene.name in finished:
+                finished.discard(scene.name)
+                run.completed.remove(scene.name)
+        extend = getattr(user_progress, "extend", None)
+        if callable(extend):
+            extend(len(extra))
+
     own = pools is None
     if own:
         pools = engine.LocalPools(workers) if workers > 1 else None
     try:
         return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
-                    tick, completed, t0, broken, exclusive_timing)
+                    tick, completed, t0, broken, exclusive_timing, grow)
     finally:
         if own and pools is not None:
             pools.close()
 
 
 def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
-         completed, t0, broken, exclusive_timing=False):
-    from validation import atomic, budget, draw, engine, interrupt, measure, report
+         completed, t0, broken, exclusive_timing=False, grow=None):
+    from validation import atomic, budget, confirm, draw, engine, interrupt, measure, report
 
     t_run = time.perf_counter()
     stats = stats if stats is not None else engine.PlanStats()
     records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
                               store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
                               records=records, pools=pools, exclusive_timing=exclusive_timing)
+    # Confirmation runs of the trust table (validation.confirm): planned from the records, in rounds.
+    unplanned = {}
+    for _ in range(confirm.MAX_ROUNDS):
+        extra = []
+        for scene in scenes:
+            if scene.name in broken or scene.name in unplanned:
+                continue
+            try:
+                extra += [(scene, s) for s in confirm.next_specs(scene, [s for sc, s in jobs if sc is scene],
+                                                                 records)]
+            except Exception as e:  # noqa: BLE001 - one scene's fault is its failure line
+                if atomic.is_environment_error(e) or interrupt.pending():
+                    raise
+                unplanned[scene.name] = (f"{scene.name}: the confirmation runs could not be planned: "
+                                         f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}")
+        if not extra:
+            break
+        if grow is not None:
+            grow(extra)
+        jobs = jobs + extra
+        more = engine.PlanStats()
+        engine.run_plan(extra, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
+                        store=store, progress=tick, cost=budget.spec_cost_function(), stats=more,
+                        records=records, pools=pools, exclusive_timing=exclusive_timing)
+        if stats is not None:
+            stats.planned += more.planned
+            stats.resumed += more.resumed
+            stats.executed += more.executed
     completed(records)
     t_measure = time.perf_counter()
     results, tables, failures, findings = [], {}, [], []
@@ -346,6 +388,8 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
             r = measure.SceneTables(scene.name)
             r.check("scene", False, f"{scene.name}: the scene raised {type(e).__name__}: "
                                     f"{str(e).splitlines()[0] if str(e) else ''}")
+        if scene.name in unplanned:
+            r.check("confirmation runs planned", False, unplanned[scene.name])
         results.append(r)
     figure_jobs = draw.sweep_jobs(scenes, results) if figures else []
     by_name = {s.name: s for s in scenes}
@@ -390,6 +434,11 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     return results, failures
 
 
+def _true(x) -> bool:
+    """A ``confirmed`` cell: True, or its CSV spelling."""
+    return str(x).strip().lower() == "true"  # bool, numpy.bool_ or the CSV's text
+
+
 #: Relative drawing cost of a figure job by kind (a state job draws two or
 #: three figures; ``python benchmarks/bench_figures.py`` gives each kind's time).
 _DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
@@ -397,15 +446,24 @@ _DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
 
 def _crossover_job(cheapest):
     """The all-scenes crossover grid (a figure job), from the trust table's
-    rows: each cell shows the RHS-call verdict (deterministic)."""
+    rows: each cell shows the RHS-call verdict (deterministic), a solver only
+    where its winning run was measured and met the target (``confirmed`` /
+    ``alt_confirmed``); ``tie`` and ``unmeasured`` cells name no solver."""
     import pandas as pd
 
     from validation import measure
 
-    trust = pd.DataFrame(cheapest)
-    trust = trust.assign(solver=trust["verdict_rhs"].where(trust["verdict_rhs"] != "none", ""),
-                         rhs=trust["rhs"].where(trust["verdict_rhs"] == trust["method"], trust["alt_rhs"]))
-    rows = trust[["scene", "target_error", "solver", "rhs"]].to_dict("records")
+    rows = []
+    for r in pd.DataFrame(cheapest).to_dict("records"):
+        v = r["verdict_rhs"]
+        if v == r["method"] and _true(r.get("confirmed")):
+            solver, rhs = v, r["rhs"]
+        elif v == r["alternative"] and v and _true(r.get("alt_confirmed")):
+            solver, rhs = v, r["alt_rhs"]
+        else:
+            solver, rhs = "", float("nan")
+        rows.append({"scene": r["scene"], "target_error": r["target_error"], "solver": solver, "rhs": rhs,
+                     "cell": "" if solver else (v if v in ("tie", "unmeasured") else "unmeasured")})
     res = measure.SceneTables("all scenes")
     res.figures.append(measure.FigureJob("all scenes", "crossover", {"rows": rows}))
     return res

@@ -2,10 +2,11 @@
 what that costs, the cheapest alternative and verdicts that survive a rerun.
 
 Pure functions of run rows (``work_precision`` rows: solver, setting,
-error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status); no
-integration. :mod:`validation.measure` builds ``cheapest.csv`` with
-:func:`trust_rows`, :mod:`validation.advise` uses the same error-constant
-model to predict a step before confirming it with one run.
+error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status, and
+the confirmation runs' rows of the same shape); no integration.
+:mod:`validation.measure` builds ``cheapest.csv`` with :func:`trust_rows`,
+:mod:`validation.advise` uses the same error-constant model to predict a step
+before confirming it with one run.
 
 The step for a target
     A fixed-step method of order ``p`` has ``error_rel(h) ~ C h^p`` in its
@@ -26,15 +27,27 @@ The step for a target
     precision (the round-off study measured RK4's floor at 7.6e-15 after
     7.2e3 steps, where ``sqrt(n) eps = 1.9e-14``).
 
+A verdict needs a run
+    The predicted step is only a prediction: :mod:`validation.confirm` runs
+    the method at it (on the output grid, :func:`on_grid`), and a side
+    counts for a target only with a measured run whose ``error_rel`` is at
+    most the target (:func:`pick_measured`; columns ``confirmed``,
+    ``confirmed_error_rel``, ``alt_confirmed``, ``alt_confirmed_error_rel``).
+    Only one side measured: it takes every verdict; neither:
+    :data:`UNMEASURED`.
+
 Cost verdict (deterministic)
-    Right-hand-side evaluations: the method's ``n`` steps times its calls per
-    step against the cheapest alternative run that reached the target
-    (heyoka: Taylor steps x order, its own cost unit; see the README).
+    Right-hand-side evaluations of the method's cheapest measured run that
+    met the target against the cheapest alternative run that reached it
+    (heyoka: Taylor steps x order, its own cost unit; see the README);
+    equal counts: :data:`TIE`.
 
 Time verdicts (survive a rerun)
-    Time of the method at the predicted step: ``a + b n`` fitted on its runs
-    (median wall times), with the spread of the repeats (min, max) of its
-    run nearest in ``n``; the alternative's median, min and max. A side wins
+    The measured times of the two runs (median, min and max of their
+    repeats); where the method has no measured run, its time at the
+    predicted step is ``a + b n`` fitted on its runs (median wall times),
+    with the spread of the repeats of its run nearest in ``n`` (shown, never
+    a winner). A side wins
     only when its slowest repeat beats the other's fastest *and* the medians
     differ by at least :data:`TIME_MARGIN`; otherwise ``tie``. ``one_run``
     adds each side's compile and start-up time (``compile_s``: heyoka's JIT,
@@ -51,7 +64,8 @@ from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
 
 __all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "ORDER_TOLERANCE", "asymptotic_fit", "bracket_step",
            "fit_constant", "measured_step", "in_fit_range", "error_constant", "step_for", "roundoff_level",
-           "time_model", "time_verdict", "compile_spread", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS"]
+           "time_model", "time_verdict", "compile_spread", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS",
+           "UNMEASURED", "on_grid", "predicted_steps", "pick_measured", "rhs_verdict"]
 
 #: A time verdict needs the medians this far apart (and the repeats disjoint):
 #: between two --quick reports on the shared 2-core machine (one repeat per
@@ -63,9 +77,13 @@ STABILITY_MARGIN = 0.9
 TIE = "tie"
 _EPS = float(np.finfo(float).eps)
 
+#: The verdict of a target that no measured run of any method reached.
+UNMEASURED = "unmeasured"
+
 COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h_source", "n_steps",
-           "rhs", "time_s", "compile_s", "alternative", "alt_setting", "alt_error_rel", "alt_rhs",
-           "alt_time_s", "alt_compile_s", "verdict_rhs", "verdict_one_run", "verdict_amortized", "note",
+           "rhs", "time_s", "compile_s", "confirmed_error_rel", "confirmed", "alternative", "alt_setting",
+           "alt_error_rel", "alt_rhs", "alt_time_s", "alt_compile_s", "alt_confirmed_error_rel", "alt_confirmed",
+           "verdict_rhs", "verdict_one_run", "verdict_amortized", "note",
            "time_context"]
 #: Columns that are timings (differ between runs; machine-dependent); the two
 #: time verdicts are derived from them with a margin and are compared between
@@ -327,57 +345,160 @@ def measured_step(points, target: float, t_span: float, h_stab: float, fit_sourc
     return t_span / n, source, n
 
 
-def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
-               setting_name=lambda s: "setting") -> list[dict]:
-    """One row per target (:data:`COLUMNS`): the step ``method`` (a
-    :class:`references.registry.Method`: name, order, RHS calls per step)
-    needs over ``t_span`` s, its cost, the
-    cheapest other run of ``rows`` reaching the target (by RHS calls), and the
-    three verdicts. ``h_stab``: the method's largest stable step on the
-    model's fastest mode (inf when unknown)."""
-    ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
-    name = method.name
-    mine = [r for r in ok if r["solver"] == name]
+def on_grid(h: float, output_dt=None) -> float:
+    """The step (s) a confirmation run uses for a predicted step ``h``: the
+    largest step ``<= h`` that divides the output spacing ``output_dt`` (s),
+    ``output_dt / k`` with the smallest integer ``k`` (``output_dt`` itself
+    when ``h`` exceeds it), so that every output time is a step and none is
+    interpolated (off the step grid a fixed-step run interpolates its
+    outputs, a third-order error: :mod:`references.solvers.fixed`). ``h``
+    unchanged when ``output_dt`` is None or not positive; NaN stays NaN."""
+    if not math.isfinite(h) or h <= 0 or output_dt is None or not output_dt > 0:
+        return h
+    dt = float(output_dt)
+    return dt / math.ceil(dt / h * (1 - 1e-12)) if h < dt else dt
+
+
+def predicted_steps(rows, method, t_span: float, h_stab: float, targets) -> dict:
+    """The step the fixed-step ``method`` needs for each target, predicted
+    from its runs among ``rows`` (no integration): ``{"C", "fit_source",
+    "observed_order", "steps": [(h, source, n_steps), ...]}``, one step per
+    target (:func:`step_for` from the error constant, else
+    :func:`measured_step`; ``h`` NaN where neither gives one). The prediction
+    a confirmation run checks (:mod:`validation.confirm`)."""
+    ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"]) and r["solver"] == method.name]
     order = int(method.order)
-    pts = sorted(((r["setting"], r["error_rel"]) for r in mine), reverse=True)
+    pts = sorted(((r["setting"], r["error_rel"]) for r in ok), reverse=True)
     C, fit_source, q_obs = fit_constant(*zip(*pts), order) if pts else (math.nan, "no run", math.nan)
-    timing = time_model(mine)
-    compile_m = compile_spread(mine)
-    out = []
+    steps = []
     for target in targets:
         h, source, n = step_for(target, C, order, t_span, h_stab)
         if source == "error constant":
             source = fit_source
         elif source == "no fit":
             h, source, n = measured_step(pts, target, t_span, h_stab, fit_source, q_obs)
-        rhs = fixed_rhs(method, n) if math.isfinite(h) else math.nan
-        tm = timing(n) if math.isfinite(h) else (math.nan,) * 3
-        alts = [r for r in ok if r["solver"] != name and r["error_rel"] <= target]
-        alt = min(alts, key=lambda r: (rhs_calls(r), r["setting"]), default=None)
+        steps.append((h, source, n))
+    return {"C": C, "fit_source": fit_source, "observed_order": q_obs, "steps": steps}
+
+
+def pick_measured(runs, target: float):
+    """The cheapest run of ``runs`` (rows with ``status``, ``error_rel``,
+    ``nfev``, ``n_steps``, ``setting``) whose measured ``error_rel`` is at most
+    ``target``: fewest RHS calls (:func:`rhs_calls`), then the larger
+    setting; None when no run reached it. Only such a run can make its method
+    a winner."""
+    met = [r for r in runs if r["status"] == "ok" and np.isfinite(r["error_rel"]) and r["error_rel"] <= target]
+    return min(met, key=lambda r: (rhs_calls(r), -float(r["setting"])), default=None)
+
+
+def rhs_verdict(a: str, rhs_a: float, b: str, rhs_b: float) -> str:
+    """``a`` or ``b``, whichever needs fewer RHS calls; :data:`TIE` when the
+    counts are equal."""
+    if rhs_a < rhs_b:
+        return a
+    if rhs_b < rhs_a:
+        return b
+    return TIE
+
+
+def _timing_of(r) -> tuple:
+    return (float(r["wall_s"]), float(r.get("wall_min", r["wall_s"])), float(r.get("wall_max", r["wall_s"])))
+
+
+def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
+               setting_name=lambda s: "setting", confirmations=(), output_dt=None) -> list[dict]:
+    """One row per target (:data:`COLUMNS`): the step ``method`` (a
+    :class:`references.registry.Method`: name, order, RHS calls per step)
+    needs over ``t_span`` s, its cost, the cheapest other run reaching the
+    target (by RHS calls), and the three verdicts. ``h_stab``: the method's
+    largest stable step on the model's fastest mode (inf when unknown).
+
+    ``rows`` are the scene's runs (``work_precision`` rows) and predict the
+    step (:func:`predicted_steps`, put on the output grid with
+    :func:`on_grid` when ``output_dt`` (s) is given); ``confirmations`` are
+    the extra runs made to check it (:mod:`validation.confirm`: the method
+    at the predicted steps, the references at tighter tolerances), rows of
+    the same shape.
+
+    A verdict needs a run: a side counts only with a measured run whose
+    ``error_rel`` is at most the target (:func:`pick_measured`, over
+    ``rows`` and ``confirmations``). The method's side is its cheapest such
+    run (``h``, ``n_steps``, ``rhs``, ``time_s`` are that run's,
+    ``confirmed_error_rel`` its error, ``confirmed`` true); without one, ``h``
+    is the prediction, ``confirmed`` false, ``confirmed_error_rel`` the error
+    of the run at the predicted step (NaN when it was not run) and the method
+    wins nothing. The alternative likewise (``alt_confirmed``). Neither side
+    measured: every verdict is :data:`UNMEASURED`. Equal RHS calls:
+    :data:`TIE`.
+    """
+    ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
+    extra = [r for r in confirmations if r["status"] == "ok" and np.isfinite(r["error_rel"])]
+    name = method.name
+    mine = [r for r in ok if r["solver"] == name]
+    mine_all = mine + [r for r in extra if r["solver"] == name]
+    others = [r for r in ok + extra if r["solver"] != name]
+    order = int(method.order)
+    pred = predicted_steps(rows, method, t_span, h_stab, targets)
+    C = pred["C"]
+    timing = time_model(mine)
+    compile_m = compile_spread(mine_all)
+    out = []
+    for target, (h, source, n) in zip(targets, pred["steps"]):
+        if math.isfinite(h) and output_dt is not None:
+            h = on_grid(h, output_dt)
+            n = int(round(t_span / h))
+        at_h = [r for r in mine_all if math.isfinite(h) and math.isclose(float(r["setting"]), h, rel_tol=1e-9)]
+        got = pick_measured(mine_all, target)
+        if got is not None:
+            h_run = float(got["setting"])
+            confirming = any(r is got for r in extra)
+            row_src = (source if confirming and math.isfinite(h) and math.isclose(h_run, h, rel_tol=1e-9)
+                       else "confirmation run" if confirming else "measured run")
+            h, n, rhs, tm = h_run, int(got["n_steps"]), rhs_calls(got), _timing_of(got)
+            source = row_src
+            conf_err = float(got["error_rel"])
+        else:
+            rhs = fixed_rhs(method, n) if math.isfinite(h) else math.nan
+            tm = timing(n) if math.isfinite(h) else (math.nan,) * 3
+            conf_err = float(min(r["error_rel"] for r in at_h)) if at_h else math.nan
+        alt = min((r for r in others if r["error_rel"] <= target), key=lambda r: (rhs_calls(r), r["setting"]),
+                  default=None)
         row = {"scene": scene, "target_error": target, "method": name, "order": order, "error_constant": C,
                "h": h, "h_source": source, "n_steps": n if math.isfinite(h) else 0, "rhs": rhs,
-               "time_s": tm[0], "compile_s": compile_m[0], "alternative": "", "alt_setting": math.nan,
-               "alt_error_rel": math.nan, "alt_rhs": math.nan, "alt_time_s": math.nan, "alt_compile_s": math.nan}
+               "time_s": tm[0], "compile_s": compile_m[0], "confirmed_error_rel": conf_err,
+               "confirmed": got is not None, "alternative": "", "alt_setting": math.nan,
+               "alt_error_rel": math.nan, "alt_rhs": math.nan, "alt_time_s": math.nan, "alt_compile_s": math.nan,
+               "alt_confirmed_error_rel": math.nan, "alt_confirmed": False}
+        missed = ("" if got is not None or not math.isfinite(conf_err) else
+                  f"; {name} at the predicted h = {h:.3g} s measured {conf_err:.2g}, above the target")
         if alt is None:
-            reached = math.isfinite(h)
-            row.update(verdict_rhs=name if reached else "none", verdict_one_run=name if reached else "none",
-                       verdict_amortized=name if reached else "none",
-                       note="no other run of the scene reaches the target" + ("" if reached else
-                                                                            f"; {name}: {source}"))
+            if got is None:
+                what = (f"{name} predicted h = {h:.3g} s ({source}), not confirmed by a run" if math.isfinite(h)
+                        else f"{name}: {source}")
+                row.update(verdict_rhs=UNMEASURED, verdict_one_run=UNMEASURED, verdict_amortized=UNMEASURED,
+                           note=f"no run of any method reached the target; {what}" + missed)
+            else:
+                row.update(verdict_rhs=name, verdict_one_run=name, verdict_amortized=name,
+                           note=f"{name} at h = {h:.3g} s measured {conf_err:.2g}; no other run of the scene "
+                                f"reached the target")
             out.append(row)
             continue
-        ta = (alt["wall_s"], alt.get("wall_min", alt["wall_s"]), alt.get("wall_max", alt["wall_s"]))
-        ca = compile_spread([r for r in ok if r["solver"] == alt["solver"]])
+        ta = _timing_of(alt)
+        ca = compile_spread([r for r in ok + extra if r["solver"] == alt["solver"]])
         row.update(alternative=alt["solver"], alt_setting=alt["setting"], alt_error_rel=alt["error_rel"],
-                   alt_rhs=rhs_calls(alt), alt_time_s=ta[0], alt_compile_s=ca[0])
-        if not math.isfinite(h):
+                   alt_rhs=rhs_calls(alt), alt_time_s=ta[0], alt_compile_s=ca[0],
+                   alt_confirmed_error_rel=alt["error_rel"], alt_confirmed=True)
+        reached = (f"{alt['solver']} {setting_name(alt['solver'])} {alt['setting']:g} reached "
+                   f"{alt['error_rel']:.2g}")
+        if got is None:
+            why = (f"{name} predicted h = {h:.3g} s ({source}), not confirmed by a run" if math.isfinite(h)
+                   else f"{name}: {source}")
             row.update(verdict_rhs=alt["solver"], verdict_one_run=alt["solver"], verdict_amortized=alt["solver"],
-                       note=f"{name}: {source}")
+                       note=f"{why}{missed}; {reached}")
         else:
-            row["verdict_rhs"] = name if rhs < rhs_calls(alt) else alt["solver"]
+            row["verdict_rhs"] = rhs_verdict(name, rhs, alt["solver"], rhs_calls(alt))
             row["verdict_amortized"] = time_verdict(name, tm, alt["solver"], ta)
             row["verdict_one_run"] = time_verdict(name, _plus(tm, compile_m), alt["solver"], _plus(ta, ca))
-            row["note"] = (f"{name} at h = {h:.3g} s ({source}); {alt['solver']} "
-                           f"{setting_name(alt['solver'])} {alt['setting']:g} reached {alt['error_rel']:.2g}")
+            row["note"] = f"{name} at h = {h:.3g} s ({source}) measured {conf_err:.2g}; {reached}"
         out.append(row)
     return out
