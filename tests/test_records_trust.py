@@ -182,7 +182,7 @@ def test_an_arrays_file_linked_to_dev_zero_is_not_read(tmp_path):
     path = store.path / f"{rec.key}.npz"
     path.unlink()
     path.symlink_to("/dev/zero")
-    # in a child under a 1 GiB address-space limit: reading /dev/zero would end in MemoryError
+    # in a child under a 3 GiB address-space limit: reading /dev/zero would end in MemoryError
     code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (2**30 * 3, 2**30 * 3)); "
             f"from validation import records; s = records.RecordStore({str(tmp_path / 'out')!r}, resume=True); "
             f"print(s.get({rec.key!r}))")
