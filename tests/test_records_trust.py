@@ -4,6 +4,7 @@ covers a record's JSON and arrays, only regular files are read, and a run
 over an earlier run's records resumes, moves them aside or refuses."""
 import os
 import re
+import secrets
 import subprocess
 import sys
 from pathlib import Path
@@ -55,15 +56,22 @@ def _cli(tmp_path, args, timeout=300):
 
 
 def _scenes(tmp_path):
-    """A scene using the user's stepper module ``usersteps`` and a plain one."""
-    (tmp_path / "usersteps.py").write_text(RK4)
+    """A scene using a user's stepper module (``tmp_path / <name>.py``, a name
+    of its own: this process imports it) and a plain one."""
+    module = f"usersteps_{secrets.token_hex(4)}"
+    (tmp_path / "usersteps").write_text(module)
+    (tmp_path / f"{module}.py").write_text(RK4)
     user = tmp_path / "user.toml"
     user.write_text(one_mass("trust-user", t_end=4.0, h="[0.1, 0.05]", solvers='["mine", "dop853"]',
                              outputs='["state", "convergence"]',
-                             extra='[methods.mine]\npython = "usersteps:step"\norder = 4\n'))
+                             extra=f'[methods.mine]\npython = "{module}:step"\norder = 4\n'))
     plain = tmp_path / "plain.toml"
     plain.write_text(one_mass("trust-plain", t_end=4.0, h="[0.1, 0.05]", outputs='["state", "convergence"]'))
     return [str(user), str(plain)]
+
+
+def _stepper(tmp_path) -> Path:
+    return tmp_path / f"{(tmp_path / 'usersteps').read_text()}.py"
 
 
 def _store_of_earlier_run(tmp_path, paths, monkeypatch, out):
@@ -103,7 +111,7 @@ def test_editing_a_user_stepper_changes_its_scenes_keys_only(tmp_path, monkeypat
     paths = _scenes(tmp_path)
     user, plain = load_scenes(paths)
     before = ([s.key for s in plan.plan(user)], [s.key for s in plan.plan(plain)])
-    (tmp_path / "usersteps.py").write_text(HEUN)
+    _stepper(tmp_path).write_text(HEUN)
     after = ([s.key for s in plan.plan(user)], [s.key for s in plan.plan(plain)])
     assert not set(before[0]) & set(after[0])
     assert before[1] == after[1]
@@ -200,7 +208,7 @@ def test_resume_reruns_what_changed_and_equals_a_fresh_run(tmp_path, monkeypatch
     user, plain = by_scene["trust-user"], by_scene["trust-plain"]
     store = tmp_path / ".out.records"
     # the user's stepper changes after the records were made
-    (tmp_path / "usersteps.py").write_text(HEUN)
+    _stepper(tmp_path).write_text(HEUN)
     # one record of the plain scene edited by one digit, one a FIFO, one with its arrays linked to /dev/zero
     runs = [s for s in plain if s.purpose == "run"]
     edited, fifo, zero = runs[0].key, runs[1].key, runs[2].key
