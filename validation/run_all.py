@@ -665,8 +665,9 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
         names = ", ".join(done) or "none"
         state = (f"the report was written to {target}" if swapped
                  else f"{args.out} left unchanged")
-        kept = "" if swapped or not store.keys() else (f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded: "
-                                   f"rerun with --resume to run only the rest")
+        kept = "" if swapped or not store.keys() else (
+            f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded in {store.path}: "
+            f"rerun with --resume to run only the rest")
         sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
                          f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
         return 128 + signum
