@@ -35,7 +35,8 @@ import shutil
 import stat
 import sys
 
-__all__ = ["LIBRARIES", "environment_digest", "library_versions", "user_code_digest", "file_digest"]
+__all__ = ["LIBRARIES", "environment_digest", "library_versions", "user_code_digest", "file_digest",
+           "module_files"]
 
 #: Distributions whose version is part of every spec key.
 LIBRARIES = ("numpy", "scipy", "heyoka", "scikit-sundae", "numba")

@@ -354,9 +354,7 @@ class RecordStore:
         (another key); ``unused``: records whose keys no spec of ``planned``
         (keys) has and that are not stale."""
         planned = set(planned)
-        names = set()
-        for p in self.path.iterdir():
-            names.add(p.name)
+        names = {p.name for p in self.path.iterdir()}
         mismatch = [s for s in rerun if f"{s.key}.json" in names]
         others = {}
         for key in self.keys() - planned:
