@@ -151,11 +151,15 @@ def test_next_run_after_kill_9_mid_run_succeeds_and_cleans_up(setup, tmp_path):
     (stale / "index.md").write_text("half-written")
     foreign = tmp_path / ".reports.tmp-not-ours"  # no marker: not this tool's, never removed
     foreign.mkdir()
-    r = subprocess.run(_cli(["--scene", str(b), "--out", str(out), "--repeats", "1", "--no-figures"]),
+    # the killed run's records are never dropped silently: --fresh moves them aside and says where
+    recorded = any((tmp_path / ".reports.records").glob("*.json"))
+    r = subprocess.run(_cli(["--scene", str(b), "--out", str(out), "--repeats", "1", "--no-figures", "--fresh"]),
                        cwd=REPO, env=_env(), capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert f"removed {stale.name} left by a killed run" in r.stderr
-    assert _leftovers(tmp_path) == [foreign.name]
+    aside = [n for n in _leftovers(tmp_path) if n.startswith(".reports.records-aside-")]
+    assert len(aside) == recorded and all(n in r.stderr for n in aside), (aside, r.stderr)
+    assert sorted(set(_leftovers(tmp_path)) - set(aside)) == [foreign.name]
     assert _tree(out).keys() == _tree(prev).keys()
 
 

@@ -598,7 +598,7 @@ def tmpfs(tmp_path):
     subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
-def test_disk_full_is_exit_3_one_line_and_leaves_nothing(tmp_path, tmpfs, capsys):
+def test_disk_full_is_exit_3_one_line_and_keeps_only_its_records(tmp_path, tmpfs, capsys):
     scene = tmp_path / "figs.toml"
     scene.write_text(TINY_FIGURES)
     subprocess.run(["mount", "-o", "remount,size=24k", str(tmpfs)], check=True)  # the figures do not fit
@@ -606,7 +606,11 @@ def test_disk_full_is_exit_3_one_line_and_leaves_nothing(tmp_path, tmpfs, capsys
     rc, _, err = _main(["--scene", scene, "--out", out, "--repeats", "1"], capsys)
     assert rc == 3, err
     assert len(err.strip().splitlines()) == 1 and "No space left on device" in err and "Traceback" not in err
-    assert sorted(p.name for p in tmpfs.iterdir()) == [".out.lock"]
+    # the records it made stay for --resume, and the line says where; nothing else is left
+    store = tmpfs / ".out.records"
+    kept = len(list(store.glob("*.json"))) if store.exists() else 0
+    assert (f"{kept} record(s) kept in {store}: rerun with --resume" in err) == (kept > 0), err
+    assert sorted(p.name for p in tmpfs.iterdir()) == [".out.lock"] + ([".out.records"] if kept else [])
 
 
 def test_read_only_filesystem_is_exit_3(tmp_path, tmpfs, scene, capsys):

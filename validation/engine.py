@@ -56,10 +56,15 @@ def default_workers() -> int:
 
 class PlanStats:
     """What :func:`run_plan` did: specs ``planned``, ``resumed`` (read from the
-    store), ``executed``; ``timing`` says how timed runs were placed."""
+    store), ``executed``; ``timing`` says how timed runs were placed.
+    ``audit`` (:meth:`validation.records.RecordStore.audit`): of the executed
+    specs, how many had a record that did not verify (``mismatch``) or one
+    made by other code or libraries (``stale``); records matching no planned
+    spec (``unused``)."""
 
     def __init__(self):
         self.planned = self.resumed = self.executed = 0
+        self.audit = {"mismatch": 0, "stale": 0, "unused": 0}
         self.timing = "one at a time in the main process (--workers 1)"
         self.phases = {}
         #: validation.timing_context.snapshot() just before / after the timed stage ran (None: not run)
@@ -172,6 +177,8 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
             tick(f"{spec.label()} (resumed)")
         else:
             todo.append((scene, spec))
+    if store is not None and hasattr(store, "audit"):
+        stats.audit = store.audit([s for _, s in todo], [s.key for _, s in jobs])
     stages = [[j for j in todo if j[1].purpose == "truth"],
               [j for j in todo if j[1].purpose != "truth" and not j[1].timed],
               [j for j in todo if j[1].purpose != "truth" and j[1].timed]]
@@ -181,7 +188,7 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
 
     def done(spec, rec):
         if store is not None:
-            store.put(rec)
+            store.put(rec, spec)
         records[spec.key] = rec
         stats.executed += 1
         tick(spec.label())

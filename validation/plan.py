@@ -144,12 +144,14 @@ def _key(spec: RunSpec) -> str:
 @lru_cache(maxsize=1)
 def code_digest() -> str:
     """SHA-256 over the sources of the packages a record depends on
-    (``rk4core``, ``references``, ``validation``): a record made by other
-    code is never resumed."""
+    (``rk4core``, ``references``, ``validation``: their Python files and the
+    thesis' GNU Octave programs in ``rk4core/thesis_code``): a record made by
+    other code is never resumed."""
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
-    for pkg in ("rk4core", "references", "validation"):
-        for p in sorted((root / pkg).rglob("*.py")):
+    for pkg, pattern in (("rk4core", "*.py"), ("references", "*.py"), ("validation", "*.py"),
+                         ("rk4core/thesis_code", "*.m")):
+        for p in sorted((root / pkg).rglob(pattern)):
             h.update(str(p.relative_to(root)).encode())
             h.update(p.read_bytes())
     return h.hexdigest()[:16]
@@ -157,12 +159,17 @@ def code_digest() -> str:
 
 def scene_digest(scene) -> str:
     """Digest of everything in ``scene`` that a run depends on (not its file
-    path or description) and of the code."""
+    path or description), of the harness code (:func:`code_digest`), of the
+    user's code the scene names and of the library versions and BLAS kernel
+    (:mod:`validation.provenance`)."""
+    from .provenance import environment_digest, user_code_digest
+
     d = dataclasses.asdict(scene)
     for k in ("path", "description"):
         d.pop(k, None)
     text = json.dumps(d, sort_keys=True, default=str)
-    return hashlib.sha256((code_digest() + text).encode()).hexdigest()[:16]
+    head = code_digest() + environment_digest() + user_code_digest(scene)
+    return hashlib.sha256((head + text).encode()).hexdigest()[:16]
 
 
 def settings_of(scene, solver) -> list:

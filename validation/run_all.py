@@ -5,7 +5,7 @@ Usage::
     python validation/run_all.py [--quick] [--out DIR] [--scene PATH ...] [--repeats N] [--no-figures]
                                  [--max-output-points N] [--max-steps N] [--max-truth-steps N]
                                  [--replace] [--workers N] [--exclusive-timing] [--scheduler ADDRESS]
-                                 [--resume] [--allow-code]
+                                 [--resume | --fresh] [--allow-code]
     python -m validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
@@ -36,9 +36,15 @@ on ``--workers`` local processes (default: every core this process may use)
 or on a Dask cluster (``--scheduler``); the timed runs come last, one per
 worker (``--exclusive-timing``: one at a time, the other workers idle; see
 :mod:`validation.engine`). Each record is written to ``.<DIR>.records``
-beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted run,
-``--resume`` reruns only the specs that have no record. The records are
-removed once the report is in place.
+beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted
+or failed run, ``--resume`` reruns only the specs that have no usable record
+(none, one that does not verify, or one made by other code, user code,
+libraries or BLAS kernel: the summary line counts them); ``--fresh`` moves
+the earlier records aside (``.<DIR>.records-aside-<UTC time>``, named on
+stderr) and runs everything; with neither, a run that finds records of an
+earlier run refuses (exit 2) and leaves them. A run that stops (interrupt,
+crash, environment) keeps its records; they are removed once the report is
+in place.
 
 Exit status: 0 every expectation held; 1 at least one failed (``index.md``
 lists them first); 2 bad input (one line on stderr naming the file and the
@@ -140,8 +146,12 @@ def _parser():
                         "runs disturb each other's timings)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="run the plan on the Dask distributed scheduler at ADDRESS (tcp://host:port)")
-    p.add_argument("--resume", action="store_true",
-                   help="keep the records of an interrupted run into the same --out and run only the rest")
+    again = p.add_mutually_exclusive_group()
+    again.add_argument("--resume", action="store_true",
+                       help="use the records of an interrupted run into the same --out and run only the rest "
+                            "(records that do not verify or were made by other code or libraries are rerun)")
+    again.add_argument("--fresh", action="store_true",
+                       help="move the records of an earlier run into the same --out aside and run everything")
     p.add_argument("--allow-code", action="store_true",
                    help="run the programs and import the Python modules that scenes not shipped with the "
                         "project name (command/python methods, module:Class models); read them first "
@@ -608,7 +618,8 @@ def _check_name_length(target: Path) -> None:
     """The temporary names beside ``target`` must fit the filesystem's limit."""
     from validation import atomic
 
-    longest = len(os.fsencode(f".{target.name}.kept-{'0' * 12}"))
+    longest = max(len(os.fsencode(f".{target.name}.kept-{'0' * 12}")),
+                  len(os.fsencode(f".{target.name}.records-aside-{'0' * 16}-999")))
     probe = target.parent
     while not probe.exists() and probe != probe.parent:
         probe = probe.parent
@@ -674,7 +685,8 @@ def _main(argv, sig) -> int:
             where = f" ({e.filename})" if getattr(e, "filename", None) else ""
             text = e.strerror if isinstance(e.strerror, str) and not isinstance(e, atomic.EnvironmentRefused) \
                 else (e.strerror or str(e))
-            return _environment(f"the environment refused: {text}{where}; {args.out} left unchanged")
+            note = f"; {e.records_note}" if getattr(e, "records_note", None) else ""
+            return _environment(f"the environment refused: {text}{where}; {args.out} left unchanged{note}")
         raise
 
 
@@ -687,7 +699,12 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
     from validation.plan import plan_all
 
     figures = not args.no_figures
-    store = records.RecordStore(target, resume=args.resume)
+    store = records.RecordStore(target, resume=args.resume, fresh=args.fresh)
+    if store.moved_aside is not None:
+        aside, n = store.moved_aside
+        sys.stderr.write(f"run_all: --fresh: moved {n} record(s) of an earlier run aside to {aside}\n")
+    elif store.found:
+        print(f"resuming from {store.found} record(s) of an earlier run in {store.path}")
     tmp = atomic.fresh_dir(target)
     workers = args.workers or engine.default_workers()
     stats = engine.PlanStats()
@@ -706,17 +723,17 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
             sig.hold()  # the swap is not interrupted half-way
             atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
             swapped = True
-            store.remove()
+            if not store.remove():
+                sys.stderr.write(f"run_all: {store.path} kept: it holds files this tool did not write\n")
         finally:
             sig.held = True  # cleanup is not interrupted either
             if pools is not None:
                 pools.close(kill=not swapped)
             if not swapped:
                 shutil.rmtree(tmp, ignore_errors=True)
-                # records stay only for --resume after an interrupt; a run that the
-                # environment stopped (disk full, ...) leaves nothing behind
-                if not isinstance(sys.exc_info()[1], KeyboardInterrupt) or not store.keys():
-                    store.remove()
+                # the records of a run that stopped (interrupt, crash, environment) stay
+                # for --resume; an empty store goes
+                _keep_records(store, sys.exc_info()[1])
         sig.release()
     except KeyboardInterrupt as e:
         if progress is not None:
@@ -726,8 +743,9 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
         names = ", ".join(done) or "none"
         state = (f"the report was written to {target}" if swapped
                  else f"{args.out} left unchanged")
-        kept = "" if swapped or not store.keys() else (f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded: "
-                                   f"rerun with --resume to run only the rest")
+        kept = "" if swapped or not store.keys() else (
+            f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded in {store.path}: "
+            f"rerun with --resume to run only the rest")
         sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
                          f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
         return 128 + signum
@@ -739,11 +757,34 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
     phases = ", ".join(f"{k} {v:.1f} s" for k, v in getattr(stats, "phases", {}).items())
     print(f"{stats.planned} runs planned, {stats.resumed} resumed, {stats.executed} executed "
           f"({'Dask at ' + args.scheduler if args.scheduler else f'{workers} worker(s)'}); {phases}")
+    if store.found:
+        a = stats.audit
+        print(f"records: {stats.resumed} resumed, {a['mismatch'] + a['stale']} rerun ({a['mismatch']} digest "
+              f"mismatch, {a['stale']} stale: made by other code or libraries)"
+              + (f", {a['unused']} unused (no planned run)" if a["unused"] else ""))
     print(f"report written to {target} ({len(scenes)} scene(s)); "
           f"{'all expectations held' if not failures else f'{len(failures)} expectation(s) failed'}")
     for f in failures:
         print(f"FAILED: {f}")
     return 1 if failures else 0
+
+
+def _keep_records(store, exc) -> None:
+    """After a run that did not swap its report in: remove the store if it
+    holds no record; else keep it and, for an error other than an interrupt
+    (whose line says so itself), say where (appended to an ``OSError``'s
+    line by :func:`main`, else one line on stderr)."""
+    n = len(store.keys())
+    if not n:
+        store.remove()
+        return
+    if exc is None or isinstance(exc, KeyboardInterrupt):
+        return
+    note = f"{n} record(s) kept in {store.path}: rerun with --resume to use them"
+    if isinstance(exc, OSError):
+        exc.records_note = note
+    else:
+        sys.stderr.write(f"run_all: {note}\n")
 
 
 def _check_scheduler(address):
