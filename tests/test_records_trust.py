@@ -40,9 +40,8 @@ ARGS = ["--workers", "1", "--no-figures", "--repeats", "1"]
 
 
 def _allow_code():
-    # TODO(lead): once --allow-code is merged, scenes with a user's python
-    # stepper need it; passed here only if this CLI already knows the flag.
-    return ["--allow-code"] if "--allow-code" in run_all._parser()._option_string_actions else []
+    # a scene naming a user's python stepper runs only with the flag
+    return ["--allow-code"]
 
 
 def _env(tmp_path):
@@ -79,7 +78,7 @@ def _store_of_earlier_run(tmp_path, paths, monkeypatch, out):
     as a run that stopped before its report would leave it; returns
     ``{scene name: [spec, ...]}``."""
     monkeypatch.syspath_prepend(str(tmp_path))
-    scenes = load_scenes(paths)
+    scenes = load_scenes(paths, allow_code=True)
     jobs = plan.plan_all(scenes, quick=False, figures=False, repeats=1)
     store = records.RecordStore(out, resume=False)
     engine.run_plan(jobs, store=store)
@@ -109,7 +108,7 @@ def _tables(out):
 def test_editing_a_user_stepper_changes_its_scenes_keys_only(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     paths = _scenes(tmp_path)
-    user, plain = load_scenes(paths)
+    user, plain = load_scenes(paths, allow_code=True)
     before = ([s.key for s in plan.plan(user)], [s.key for s in plan.plan(plain)])
     _stepper(tmp_path).write_text(HEUN)
     after = ([s.key for s in plan.plan(user)], [s.key for s in plan.plan(plain)])

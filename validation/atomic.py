@@ -98,6 +98,11 @@ __all__ = ["MARKER", "TargetRefused", "EnvironmentRefused", "Lock", "check_targe
 #: The ownership marker in every report directory this tool writes.
 MARKER = ".rk4h-report"
 _MAGIC = "rk4h-report v1"
+#: The record store's marker file (:mod:`validation.records`) and its magic:
+#: defined here, where every marker the tool writes is, so that clean-up can
+#: recognise a store cut short without importing the store.
+STORE_MARKER = ".rk4h-records"
+STORE_MAGIC = "rk4h-records v1"
 _MARKER_MAX = 1 << 20  # bytes; a larger "marker" is not ours
 _AT_FDCWD = -100
 _RENAME_EXCHANGE = 2
@@ -526,14 +531,12 @@ def _cut_short_store(target: Path) -> Path | None:
     """The record store beside ``target`` if it holds nothing but a marker
     (or its temporary files) cut short: zero bytes, or a proper prefix of the
     JSON the tool writes there (a full disk while the store was created)."""
-    from .records import _MAGIC as store_magic, STORE_MARKER
-
     store = target.parent / f".{target.name}.records"
     try:
         st = os.lstat(store)
         if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
             return None
-        whole = {"magic": store_magic, "target": target.name}
+        whole = {"magic": STORE_MAGIC, "target": target.name}
         renderings = (json.dumps(whole).encode(), _json_bytes(whole))
         entries = list(os.scandir(store))
         for entry in entries:
@@ -545,7 +548,7 @@ def _cut_short_store(target: Path) -> Path | None:
                 data = f.read(_MARKER_MAX)
             if not any(len(data) < len(r) and r.startswith(data) for r in renderings):
                 return None
-    except (OSError, ImportError):
+    except OSError:
         return None
     return store if entries else None
 

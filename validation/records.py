@@ -43,12 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import TargetRefused
+from .atomic import STORE_MAGIC, STORE_MARKER, TargetRefused, write_json_atomic
 
 __all__ = ["RunRecord", "RecordStore", "RecordsLeft", "STORE_MARKER", "failed_record"]
 
-STORE_MARKER = ".rk4h-records"
-_MAGIC = "rk4h-records v1"
+_MAGIC = STORE_MAGIC
 #: 2: one digest over the JSON and the arrays, the spec and the arrays' size in the JSON.
 _FORMAT = 2
 #: Largest record JSON read (bytes); its arrays file must have the size the JSON gives, at most
@@ -274,7 +273,7 @@ class RecordStore:
 
     def _create(self):
         os.mkdir(self.path)
-        (self.path / STORE_MARKER).write_text(json.dumps({"magic": _MAGIC, "target": self.target}))
+        write_json_atomic(self.path / STORE_MARKER, {"magic": _MAGIC, "target": self.target})
 
     def _open(self, resume, fresh):
         owned = self._owned()
