@@ -325,8 +325,16 @@ def _text(adv: Advice) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="advise.py", description=__doc__.splitlines()[0])
+_EXAMPLES = """examples:
+  %(prog)s thesis-2dof-case1 --target 1e-6          which method and setting reach 1e-6 most cheaply
+  %(prog)s planar4-case2 --target 1e-3 --json        the same as one JSON object
+  %(prog)s my.toml --target 1e-8 --allow-code        a scene of yours that names code (read it first)"""
+
+
+def main(argv=None, *, prog="advise.py") -> int:
+    parser = argparse.ArgumentParser(prog=prog, description=" ".join(__doc__.split("\n\n")[0].split()),
+                                     epilog=_EXAMPLES,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", help="a scene file or a shipped scene's name")
     parser.add_argument("--target", required=True, help="target relative error, e.g. 1e-6")
     parser.add_argument("--json", action="store_true", help="print one JSON object")

@@ -1,38 +1,87 @@
-"""The ``rk4h`` console command: ``rk4h run [run_all options]`` and ``rk4h
-advise SCENE --target REL [--json]`` (the same as ``python
-validation/run_all.py`` and ``python validation/advise.py``)."""
+"""The ``rk4h`` console command.
+
+``rk4h run [options]``        every scene (or ``--quick``, ``--scene ...``), the report in ``--out``
+``rk4h advise SCENE --target REL``  the cheapest method and setting for a target, confirmed by runs
+``rk4h compare OLD NEW``       what changed between two reports' tables
+``rk4h schema [--markdown | --json-schema]``  the scene file reference
+
+``rk4h run`` is ``python validation/run_all.py`` and ``rk4h advise`` is
+``python validation/advise.py``; each subcommand's ``--help`` lists its
+options with examples. ``rk4h --version`` prints the harness's version.
+"""
 from __future__ import annotations
 
+import argparse
 import sys
 
-__all__ = ["main"]
+__all__ = ["main", "entry", "version"]
 
-_USAGE = "usage: rk4h {run,advise} ...  (rk4h run --help, rk4h advise --help)"
+_EXAMPLES = """examples:
+  rk4h run --quick --out /tmp/quick            # the quick scenes, report in /tmp/quick
+  rk4h run --scene thesis-2dof-case1 --out /tmp/case1
+  rk4h advise thesis-2dof-case1 --target 1e-6  # which method and step reach 1e-6, measured
+  rk4h compare reports /tmp/quick              # what differs between two reports
+  rk4h schema --markdown > scene-reference.md  # every key a scene may hold
+"""
+
+#: Subcommand -> (module, help line). Each module's ``main(argv, prog=...)``
+#: parses the rest of the command line itself.
+_COMMANDS = {
+    "run": ("validation.run_all", "run the scenes and write the report (default: every shipped scene)"),
+    "advise": ("validation.advise", "the cheapest method and setting for a target error, confirmed by runs"),
+    "compare": ("validation.compare_reports", "compare two reports' tables column by column"),
+    "schema": ("validation.scene_schema", "print the scene file reference (Markdown) or its JSON Schema"),
+}
+
+
+def version() -> str:
+    """The installed distribution's version (one place: ``pyproject.toml``)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("rk4-validation-harness")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="rk4h", description="How far to trust a fixed-step integrator (classical "
+                                "RK4 first) on oscillating systems: accuracy, cost, limits, alternatives.",
+                                epilog=_EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"rk4h {version()}")
+    sub = p.add_subparsers(dest="command", metavar="{" + ",".join(_COMMANDS) + "}")
+    for name, (_, text) in _COMMANDS.items():
+        sub.add_parser(name, help=text, add_help=False)
+    return p
 
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help"):
-        print(_USAGE)
-        return 0 if argv else 2
-    cmd, rest = argv[0], argv[1:]
-    if cmd == "run":
-        from validation.run_all import main as run
+    parser = _parser()
+    if not argv:
+        parser.print_help(sys.stderr)
+        return 2
+    if argv[0] not in _COMMANDS:
+        if argv[0].startswith("-"):
+            try:
+                parser.parse_args(argv[:1])  # --help and --version print and exit here
+            except SystemExit as e:
+                return int(e.code or 0)
+        print(f"rk4h: unknown command {argv[0]!r} (commands: {', '.join(_COMMANDS)}; rk4h --help)",
+              file=sys.stderr)
+        return 2
+    module, _ = _COMMANDS[argv[0]]
+    import importlib
 
-        return run(rest)
-    if cmd == "advise":
-        from validation.advise import main as adv
-
-        return adv(rest)
-    print(f"rk4h: unknown command {cmd!r}; {_USAGE}", file=sys.stderr)
-    return 2
+    return importlib.import_module(module).main(argv[1:], prog=f"rk4h {argv[0]}")
 
 
 def entry() -> None:
     """The console script: an interrupted ``rk4h run`` ends as ``run_all.py`` does."""
+    code = main()
     from validation.run_all import exit_process
 
-    exit_process(main())
+    exit_process(code)
 
 
 if __name__ == "__main__":

@@ -55,8 +55,17 @@ def compare_table(old: pd.DataFrame, new: pd.DataFrame, columns=None) -> list[st
     return out
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+_EXAMPLES = """examples:
+  %(prog)s reports /tmp/quick                       every deterministic column of every common table
+  %(prog)s reports /tmp/quick --columns error_max,nfev --where solver=rk4
+
+exit status: 0 compared (differences are printed, not failures); 1 nothing was compared
+(no common table, or a --columns / --where that matches nothing); 2 bad arguments."""
+
+
+def main(argv=None, *, prog=None) -> int:
+    p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0], epilog=_EXAMPLES,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("old")
     p.add_argument("new")
     p.add_argument("--columns", default="", help="comma-separated columns to compare (default: all but timings)")

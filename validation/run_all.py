@@ -88,7 +88,9 @@ if __name__ == "__main__" and __package__ in (None, ""):
 
 __all__ = ["main", "run", "Interrupted", "exit_process"]
 
-DEFAULT_OUT = REPO / "reports"
+#: The default --out: ``reports`` in the working directory (in a checkout
+#: run from its root, the committed report).
+DEFAULT_OUT = Path("reports")
 REPEATS_FULL, REPEATS_QUICK = 3, 1
 #: Largest --repeats (each timed run is repeated this often at most).
 MAX_REPEATS = 100
@@ -124,12 +126,25 @@ def _positive_float(text):
     return value
 
 
-def _parser():
+_EXAMPLES = """examples:
+  %(prog)s --quick --out /tmp/quick               the quick scenes (a minute), report in /tmp/quick
+  %(prog)s --scene thesis-2dof-case1 --out /tmp/c1  one shipped scene, by name or path
+  %(prog)s --scene my.toml --allow-code --out /tmp/m  a scene of yours that names code (read it first)
+  %(prog)s --out /tmp/r --resume                  finish an interrupted run from its records
+  %(prog)s                                        every shipped scene into ./reports
+
+exit status: 0 every expectation held; 1 one failed (listed first in index.md); 2 bad input;
+3 the environment refused (lock held, disk full, unwritable); 130/143 interrupted (SIGINT/SIGTERM)."""
+
+
+def _parser(prog="run_all.py"):
     from validation.budget import MAX_STEPS, MAX_TRUTH_STEPS
 
-    p = _Parser(prog="run_all", description="Run the RK4 validation scenes and write the report.")
+    p = _Parser(prog=prog, description="Run the validation scenes (every shipped one by default) and write the "
+                "report: tables, figures and index.md.", epilog=_EXAMPLES,
+                formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="run only the scenes marked quick = true")
-    p.add_argument("--out", default=str(DEFAULT_OUT), help="output directory (default: reports/)")
+    p.add_argument("--out", default=str(DEFAULT_OUT), help="output directory (default: ./reports of the working directory)")
     p.add_argument("--scene", action="append", default=[], metavar="PATH",
                    help="scene file to run (repeatable; default: all in validation/scenes/)")
     p.add_argument("--repeats", type=_int_at_least(1, MAX_REPEATS), default=None,
@@ -190,9 +205,23 @@ class Progress:
             line = (f"\r[{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} {el:5.0f}s{eta:>10} "
                     f"{msg[:55]:<55}")
             self.stream.write(line)
-        else:
+        elif self._due(el):
             self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s{eta} {msg}\n")
+        else:
+            return
         self.stream.flush()
+
+    #: Off a terminal (a log file, CI) a line at most every this fraction of
+    #: the plan or this many seconds, and at the end.
+    LOG_FRACTION, LOG_SECONDS = 0.05, 10.0
+
+    def _due(self, elapsed) -> bool:
+        last_done, last_t = getattr(self, "_last", (0, 0.0))
+        if (self.done >= self.total or self.done - last_done >= self.LOG_FRACTION * self.total
+                or elapsed - last_t >= self.LOG_SECONDS):
+            self._last = (self.done, elapsed)
+            return True
+        return False
 
     def extend(self, n: int):
         """``n`` more specs to come (confirmation runs planned from the records)."""
@@ -582,7 +611,7 @@ def _fail(message) -> int:
     return 2
 
 
-def main(argv=None, *, restore_signals=True) -> int:
+def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
     """The command line (see the module docstring); returns the exit status.
 
     SIGINT and SIGTERM handlers are installed for the call and restored after
@@ -592,7 +621,7 @@ def main(argv=None, *, restore_signals=True) -> int:
     interrupt.reset()
     with _Signals(restore_signals) as sig:
         try:
-            return _main(argv, sig)
+            return _main(argv, sig, prog)
         except BaseException as e:  # noqa: BLE001 - before any output directory was made
             # A signal inside a C extension's initialization can surface as another exception.
             signum = getattr(e, "signum", None) or interrupt.pending()
@@ -633,8 +662,8 @@ def _check_name_length(target: Path) -> None:
                                         f"(limit {limit} bytes); choose a shorter name")
 
 
-def _main(argv, sig) -> int:
-    args = _parser().parse_args(argv)
+def _main(argv, sig, prog="run_all.py") -> int:
+    args = _parser(prog).parse_args(argv)
     from validation import atomic, budget
     from validation.scenes import SceneError, load_scenes
 

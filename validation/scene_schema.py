@@ -709,17 +709,27 @@ def reference_markdown() -> str:
     return "\n".join(parts)
 
 
-def main(argv=None) -> int:
-    """``python -m validation.scene_schema --markdown | --json-schema``: print
-    the reference or the JSON Schema; returns the exit status."""
-    argv = sys.argv[1:] if argv is None else argv
-    if argv == ["--markdown"]:
+def main(argv=None, *, prog="python -m validation.scene_schema") -> int:
+    """Print the scene reference (``--markdown``) or the JSON Schema
+    (``--json-schema``); returns the exit status."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog=prog, description="Every key a scene file may hold, generated from the "
+                                "schema the harness validates scenes with.",
+                                epilog="examples:\n  %(prog)s --markdown > scene-reference.md\n"
+                                       "  %(prog)s --json-schema > scene.schema.json   # for editors (Taplo)",
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--markdown", action="store_true", help="the reference as Markdown")
+    what.add_argument("--json-schema", action="store_true", help="the JSON Schema")
+    try:
+        args = p.parse_args(sys.argv[1:] if argv is None else argv)
+    except SystemExit as e:
+        return int(e.code or 0)
+    if args.markdown:
         sys.stdout.write(reference_markdown())
-    elif argv == ["--json-schema"]:
-        sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
     else:
-        sys.stderr.write("usage: python -m validation.scene_schema --markdown | --json-schema\n")
-        return 2
+        sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
     return 0
 
 
