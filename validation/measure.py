@@ -93,8 +93,11 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     res.seconds = float(sum(records[s.key].seconds for s in specs if s.key in records))
     draw = figures and "figures" in scene.outputs
     for s in by.get("truth", []):
+        rec = records[s.key]
         if s.grid == "scene":
-            res.truth_kind = records[s.key].values.get("truth_kind", "")
+            res.truth_kind = rec.values.get("truth_kind", "")
+        if rec.status == "failed":  # no reference: a failed check, never blank errors beside a green line
+            _failed(res, s, rec)
     _runs(scene, by.get("run", []), records, res, draw)
     _state_figure(scene, by.get("figure", []) + [s for s in by.get("truth", []) if s.grid == "figure"],
                   records, res)
@@ -140,6 +143,7 @@ def _with_values(specs, records, res):
 # -- accuracy, energy, work-precision --------------------------------------------------
 def _runs(scene, specs, records, res, draw):
     series = {}
+    no_truth_runs = []
     for spec in specs:
         rec = records[spec.key]
         v, tm = rec.values, rec.timing
@@ -148,7 +152,8 @@ def _runs(scene, specs, records, res, draw):
             _failed(res, spec, rec)
             res.add("accuracy", {**row, "error_max": math.nan, "error_rel": math.nan, "error_final": math.nan,
                                  "energy_drift_max": math.nan, "nfev": 0, "n_steps": 0, "wall_s": math.nan,
-                                 "compile_s": math.nan, "status": "failed", "message": rec.message})
+                                 "compile_s": math.nan, "status": "failed", "message": rec.message,
+                                 "note": ""})
             continue
         status = rec.status
         if status == "failed":
@@ -158,10 +163,14 @@ def _runs(scene, specs, records, res, draw):
         elif status == "unstable":
             res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} became unstable: "
                                 f"{rec.message or 'non-finite state'}")
+        no_truth = v.get("no_truth", "")
+        if no_truth:
+            no_truth_runs.append((spec, no_truth))
         res.add("accuracy", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                              "error_final": v["error_final"], "energy_drift_max": v["energy_drift_max"],
                              "nfev": v["nfev"], "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
-                             "compile_s": tm["compile_s"], "status": status, "message": rec.message})
+                             "compile_s": tm["compile_s"], "status": status, "message": rec.message,
+                             "note": no_truth})
         if "work_precision" in scene.outputs:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                                        "wall_s": tm["wall_s"], "nfev": v["nfev"], "n_steps": v["n_steps"],
@@ -174,6 +183,10 @@ def _runs(scene, specs, records, res, draw):
             if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
                 label = f"{spec.solver} {scene.method(spec.solver).setting_name}={spec.setting:g}"
                 series[spec.solver] = (label, rec.arrays["energy_t"], rec.arrays["energy_rel"])
+    for reason in dict.fromkeys(r for _, r in no_truth_runs):
+        runs = [f"{sp.solver} {sp.setting:g}" for sp, r in no_truth_runs if r == reason]
+        res.check("errors against the truth", False,
+                  f"{scene.name}: {len(runs)} run(s) have no errors ({', '.join(runs)}): {reason}")
     if "work_precision" in scene.outputs and specs:
         _cheapest(scene, res)
         if draw:

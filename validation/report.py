@@ -21,7 +21,7 @@ __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS", "write_tables", "write_index", "
 
 COLUMNS = {
     "accuracy": ["scene", "solver", "setting", "error_max", "error_rel", "error_final",
-                 "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message"],
+                 "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message", "note"],
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
                     "h_min", "h_max", "n_points", "t_end"],
     "modes": ["scene", "mode", "omega_rad_s", "freq_hz", "linearized"],
@@ -68,7 +68,10 @@ _trust_columns()
 DESCRIPTIONS = {
     "accuracy": "one row per (scene, solver, setting): largest error against the reference over all "
                 "output times and state components (absolute, and relative to the largest state "
-                "component), final-time error, largest relative energy error, cost and status.",
+                "component), final-time error, largest relative energy error (energy_drift_max = "
+                "max |E(t) - E0| / E_motion, E_motion = E0 - V(q*), see `energy`), cost and status; `note` says "
+                "why the errors are NaN when the reference could not be computed (`no truth: ...`, a failed "
+                "check).",
     "convergence": "observed order of each fixed-step method (least-squares slope of log error vs "
                    "log h over the range h_min..h_max listed) beside the expected order; for adaptive "
                    "solvers, whether the error falls as the tolerance tightens (h_min/h_max are then "
@@ -77,7 +80,10 @@ DESCRIPTIONS = {
              "(of its linearization where `linearized` is true).",
     "work_precision": "the speed-accuracy trade: error against wall time and RHS evaluations for "
                       "every solver and setting (the data of the work-precision figures).",
-    "energy": "energy drift per unit time (E(T) - E0)/(|E0| T); for RK4 on linear models beside the "
+    "energy": "energy drift per unit time (E(T) - E0)/(E_motion T) and its largest relative error "
+              "energy_drift_max = max |E(t) - E0| / E_motion, where E_motion = E0 - V(q*) is the energy of the "
+              "motion above the equilibrium q* the model is linearized about (invariant when a constant is "
+              "added to V; a pre-tensioned network's static spring energy is not motion); for RK4 on linear models beside the "
               "exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
               "weighted by the modal energy fractions.",
     "cheapest": "the trust table: for each scene and target relative error (1e-3 ... 1e-12), the step the "
