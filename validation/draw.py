@@ -70,7 +70,7 @@ def _draw(job, out_dir, scenes_by_name) -> list:
 SWEEP_QUANTITIES = (
     ("accuracy", "error_rel", ("solver", "setting"),
      "relative error\nmax |y - y_ref| / max |y_ref|", True),
-    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / |E0| (relative)", True),
+    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / E_motion (relative)", True),
     ("accuracy", "nfev", ("solver", "setting"), "RHS evaluations", True),
     ("convergence", "observed_order", ("solver", "quantity"), "observed order", False),
     ("modes", "omega_rad_s", ("mode",), "omega (rad/s)", True),

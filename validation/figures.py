@@ -140,7 +140,7 @@ GENERIC_CAPTIONS = {
                    "under the solver's points): a method parallel to its guide has that order; filled points are "
                    "the range the order was fitted over, hollow ones lie outside it (pre-asymptotic or at the "
                    "round-off floor). Error as in the work-precision figure.",
-    "energy_error": "Relative energy error |E(t) - E0| / |E0| against time, log-log (thick: running maximum, thin: "
+    "energy_error": "Relative energy error |E(t) - E0| / E_motion (E_motion = E0 - V at equilibrium) against time, log-log (thick: running maximum, thin: "
                     "instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set by "
                     "(omega h)^6/72 per step), a flat band a bounded error (symplectic methods).",
     "modal_energy": "Energy in each of the lowest linear modes as a fraction of the initial energy, against time: "
@@ -1344,7 +1344,7 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
 # -- energy error ---------------------------------------------------------------
 def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence=None,
                  kind="energy_error") -> tuple[Path, str]:
-    """Relative energy error ``|E(t) - E0| / |E0|`` of several runs on log-log axes.
+    """Relative energy error ``|E(t) - E0| / E_motion`` of several runs on log-log axes.
 
     Parameters
     ----------
@@ -1408,7 +1408,7 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
         ax.set_ylim(bottom=max(floor / 10.0, 1e-18))
     _log_axes(ax)
     ax.set_xlabel("time t (s)")
-    ax.set_ylabel("|E(t) - E0| / |E0| (relative)")
+    ax.set_ylabel("|E(t) - E0| / E_motion (relative)")
     if series:
         _legend_below(fig, title="thick: running maximum, thin: instantaneous value")
     path = _save(fig, out_dir, stem or f"{slug(scene_name)}_energy_error")

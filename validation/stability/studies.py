@@ -346,7 +346,7 @@ def _long_method(ctx, part):
                             periods=periods, note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
     err = np.asarray(d["rel_energy_error"], float)
     res.rows.append(row(s, "long_horizon", meth, "energy_drift_per_period", err[-1] / periods, periods=periods,
-                        theta=p["long_theta"], wall_s=wall, note=f"|E_end-E0|/E0 = {err[-1]:.3g} after {n} steps"))
+                        theta=p["long_theta"], wall_s=wall, note=f"|E_end-E0|/E_motion = {err[-1]:.3g} after {n} steps"))
     (a_e, p_e), _ = leading_terms(tab)
     lead = f" ({a_e:.4g} theta^{p_e} per step per mode" + (", lost" if a_e > 0 else ", gained") + ")"
     res.findings.append(f"{s}: {meth} at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
@@ -380,7 +380,7 @@ def _long_reference(ctx, solver):
     ok = run.ok
     res.rows.append(row(s, "long_horizon", solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
                         status="ok" if ok else run.status.value, periods=per, wall_s=run.wall_s, note=(
-                            f"rtol {rtol:g}, {per:g} periods ({ctx.method}: {periods:g}), {run.n_steps} steps, |E_end-E0|/E0 "
+                            f"rtol {rtol:g}, {per:g} periods ({ctx.method}: {periods:g}), {run.n_steps} steps, |E_end-E0|/E_motion "
                             f"= {err[-1]:.3g}; {run.message}")))
     if ok:
         res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy",
