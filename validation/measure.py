@@ -368,8 +368,17 @@ def _dispersion(scene, specs, packets, records, res, draw):
                                                                 "packets": drawn}))
 
 
+def recurrence_applies(model, n_modes: int) -> bool:
+    """Whether an FPUT recurrence finding means anything: a nonlinear model
+    (modes of its linearization exchange energy) with at least two modes
+    followed. A linear model's modes keep their energy; one mode has no one
+    to share it with."""
+    return (not bool(model.linear)) and n_modes >= 2
+
+
 def _modal(scene, specs, records, res, draw):
     series, t_all, omega_all = {}, None, None
+    model = problem(scene)[0]
     for s in specs:
         rec = records[s.key]
         if "fraction" not in rec.arrays:
@@ -391,15 +400,18 @@ def _modal(scene, specs, records, res, draw):
             elif i_min < f.size - 1 and np.isfinite(f[i_min:]).any():
                 i_ret = i_min + int(np.nanargmax(f[i_min:]))
                 row.update(fraction_peak=float(f[i_ret]), t_peak=float(t[i_ret]))
-                res.findings.append(
-                    f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
-                    f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
-                    f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
+                if recurrence_applies(model, frac.shape[0]):
+                    res.findings.append(
+                        f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
+                        f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
+                        f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
             else:
                 row.update(fraction_peak=math.nan, t_peak=math.nan)
             res.add("modal_energy", row)
     if draw and series:
-        res.figures.append(FigureJob(scene.name, "modal_energy", {"t": t_all, "series": series, "omega": omega_all}))
+        res.figures.append(FigureJob(scene.name, "modal_energy", {
+            "t": t_all, "series": series, "omega": omega_all,
+            "recurrence": recurrence_applies(model, len(omega_all))}))
 
 
 def _linearization(scene, specs, records, res):
@@ -422,7 +434,8 @@ def _state_figure(scene, specs, records, res):
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
-                                                               "title": title}))
+                                                               "title": title,
+                                                               "thesis": getattr(scene, "thesis_figures", "")}))
         return
 
 

@@ -98,7 +98,7 @@ DESCRIPTIONS = {
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
                   "v_g(kp0) (1 - 5 d^2/(16 sigma^2) + ...) (v_g(kp0) itself is quoted in the findings).",
     "modal_energy": "energy of the lowest linear modes over time (FPUT recurrence): per solver and mode, "
-                    "the fraction of the initial energy at the start, its minimum (and when), and its "
+                    "the fraction of the energy of the motion (E0 - V(q*)) at the start, its minimum (and when), and its "
                     "peak (and when): for mode 1 its largest return after that minimum, for the "
                     "others their largest share.",
     "linearization": "a nonlinear scene's linearized model (its exact modal solution) against the "
