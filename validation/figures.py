@@ -141,8 +141,9 @@ GENERIC_CAPTIONS = {
                    "the range the order was fitted over, hollow ones lie outside it (pre-asymptotic or at the "
                    "round-off floor). Error as in the work-precision figure.",
     "energy_error": "Relative energy error |E(t) - E0| / E_motion (E_motion = E0 - V at equilibrium) against "
-                    "time, log-log (thick: running maximum, thin: instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set by "
-                    "(omega h)^6/72 per step), a flat band a bounded error (symplectic methods).",
+                    "time, log-log (thick: running maximum, thin: instantaneous): a line of slope 1 is a steady "
+                    "drift (RK4 loses energy at a rate set by (omega h)^6/72 per step), a flat band a bounded "
+                    "error (symplectic methods).",
     "modal_energy": "Energy in each of the lowest linear modes as a fraction of the energy of the motion "
                     "(E0 - V at equilibrium), against time: "
                     "started in mode 1, an FPUT chain shares its energy with a few low modes and then returns "

@@ -83,8 +83,8 @@ DESCRIPTIONS = {
     "energy": "energy drift per unit time (E(T) - E0)/(E_motion T) and its largest relative error "
               "energy_drift_max = max |E(t) - E0| / E_motion, where E_motion = E0 - V(q*) is the energy of the "
               "motion above the equilibrium q* the model is linearized about (invariant when a constant is "
-              "added to V; a pre-tensioned network's static spring energy is not motion); for RK4 on linear models beside the "
-              "exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
+              "added to V; a pre-tensioned network's static spring energy is not motion); for RK4 on linear "
+              "models beside the exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
               "weighted by the modal energy fractions.",
     "cheapest": "the trust table: for each scene and target relative error (1e-3 ... 1e-12), the step the "
                 "method under test needs (from its error constant C h^p fitted on its runs, capped at 0.9 of "
@@ -98,7 +98,8 @@ DESCRIPTIONS = {
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
                   "v_g(kp0) (1 - 5 d^2/(16 sigma^2) + ...) (v_g(kp0) itself is quoted in the findings).",
     "modal_energy": "energy of the lowest linear modes over time (FPUT recurrence): per solver and mode, "
-                    "the fraction of the energy of the motion (E0 - V(q*)) at the start, its minimum (and when), and its "
+                    "the fraction of the energy of the motion (E0 - V(q*)) at the start, its minimum (and when), "
+                    "and its "
                     "peak (and when): for mode 1 its largest return after that minimum, for the "
                     "others their largest share.",
     "linearization": "a nonlinear scene's linearized model (its exact modal solution) against the "
@@ -308,6 +309,8 @@ def limits_rows(stability_rows) -> list[dict]:
             out.append({"scene": sc, "limit": f"{m} long-run energy change",
                         "value": f"{r['measured'] * r['periods']:.3g} relative",
                         "detail": f"over {r['periods']:.3g} slow periods at omega_max h = {r['theta']:.3g}"})
+    from validation.stability._common import FREQUENCY_RATIO, SWEEP_NAMES, stiffest_index
+
     for study, col in (("stiffness", "ratio"), ("mass_ratio", "mu")):
         pts = [r for r in rows if r["study"] == study and r["quantity"] == "nfev_at_error"]
         for sc in dict.fromkeys(r["scene"] for r in pts):
@@ -315,16 +318,17 @@ def limits_rows(stability_rows) -> list[dict]:
             ratio = {r[col]: r["stiffness_ratio"] for r in mine if math.isfinite(r.get("stiffness_ratio", math.nan))}
             if not ratio:
                 continue
-            x = max(ratio, key=lambda k: (ratio[k], -abs(math.log(k)) if k > 0 else 0))
+            xs = list(ratio)
+            x = xs[stiffest_index(xs, [ratio[k] for k in xs])]  # the point the study's finding and caption quote
             at = {r["solver"]: r for r in mine if r[col] == x}
             m = method.get(sc, next(iter(at)))
             ok = {k: v for k, v in at.items() if v["status"] == "ok"}
             if m not in ok or len(ok) < 2:
                 continue
             best = min((k for k in ok if k != m), key=lambda k: ok[k]["measured"])
-            out.append({"scene": sc, "limit": f"cost at stiffness ratio {ratio[x]:.3g}",
+            out.append({"scene": sc, "limit": f"cost at {FREQUENCY_RATIO} {ratio[x]:.3g}",
                         "value": f"{m} {ok[m]['measured']:.3g} RHS calls vs {best} {ok[best]['measured']:.3g}",
-                        "detail": f"{study} {col} = {x:g}, target {ok[m]['target_error']:g}"})
+                        "detail": f"{SWEEP_NAMES[col]} = {x:g}, target {ok[m]['target_error']:g}"})
     return out
 
 
