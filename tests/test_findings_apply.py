@@ -18,14 +18,14 @@ n = 3
 walls = "both"
 alpha = {alpha}
 [initial]
-mode = 1
-amplitude = 0.5
+x = [0.5, 0.0, 0.0]            # all three modes excited (mode 1 about 73%)
+v = [0.0, 0.0, 0.0]
 [run]
 t_end = 60.0
 output_dt = 1.0
 h = [0.1]
 tolerances = [1e-10]
-solvers = ["rk4"]
+solvers = ["rk4", "dop853"]    # DOP853's modal shares wander at its error level: a minimum inside the run
 outputs = ["modal_energy"]
 """
 
@@ -50,7 +50,7 @@ def _findings(tmp_path, capsys, name, alpha):
 
 def test_a_linear_chain_has_no_recurrence_finding(tmp_path, tmp_cache, capsys):
     findings, table = _findings(tmp_path, capsys, "linear-chain3", 0.0)
-    assert "linear-chain3,rk4" in table  # the table is there; only the finding is not
+    assert "linear-chain3,rk4" in table and "linear-chain3,dop853" in table  # the table is there, not the finding
     assert "recurrence" not in findings.lower()
     assert "returns to" not in findings
 
