@@ -19,7 +19,7 @@ from references import closed_forms as cf
 from references import dispersion as disp
 from rk4core.models import Chain, Oscillator2D, Planar4
 
-__all__ = ["errata_rows", "errata_markdown", "THESIS_PRINTED"]
+__all__ = ["errata_rows", "errata_markdown", "erratum_4_rows", "THESIS_PRINTED", "ERRATUM_4_READINGS"]
 
 #: Numbers as printed in the thesis (quotations, not results).
 THESIS_PRINTED = {
@@ -105,15 +105,11 @@ def errata_rows(with_wavepacket: bool = False) -> list[dict]:
         "thesis column: eqs. 2.63-2.78 as printed (extension sqrt(...) - l^2), evaluated; "
         f"corrected: extension length - l; small-oscillation -2kx = {-2 * k * _TABLE_4_4_X0[0]:.4f} N"))
 
-    # 4. Code 03's natural length 1 m vs the tables' 0.01 m.
-    code03 = Planar4(m, k, THESIS_PRINTED["code_03_l"])
-    fx_code03 = float(code03.force(np.array(_TABLE_4_4_X0))[0])
-    rows.append(_row(
-        4, "planar4 force F_x (N) at x = 0.005 m, y = 0: Code 03 (l = 1 m) vs Tables 4.4-4.5 (l = 0.01 m)",
-        fx_code03, fx_exact,
-        f"with l = 1 m the amplitude is x/l = {_TABLE_4_4_X0[0] / THESIS_PRINTED['code_03_l']:g} and "
-        f"the motion is linear ({fx_code03 / (-2 * k * _TABLE_4_4_X0[0]):.6f} x -2kx); with l = 0.01 m "
-        f"x/l = {_TABLE_4_4_X0[0] / l_tab:g} and the force is {fx_exact / (-2 * k * _TABLE_4_4_X0[0]):.4f} x -2kx"))
+    # 4. Code 03's natural length: an ASSUMPTION, not a certainty. The printed `1` of
+    # dz3/dz4 is read as the digit one (l = 1 m), but the same OCR renders the letter l
+    # as 1 elsewhere (the project repairs "1 = 0.01" to "l = 0.01" on that ground), so
+    # it may be l = 0.01 m. Both readings are computed (run), never typed.
+    rows += erratum_4_rows()
 
     # 5. Table 4.6: omega = sqrt(2k/m), T = 2 pi / omega.
     t46 = cf.thesis_table_4_6()
@@ -157,6 +153,59 @@ def errata_rows(with_wavepacket: bool = False) -> list[dict]:
         f"thesis column: sqrt(2 omega_y) evaluated (not even a frequency: units rad^1/2 s^-1/2); "
         f"corrected: sqrt(2) omega_y, the oscillator2d with kx = 2 ky (omega_y = {w_y:.4f} rad/s)"))
     return rows
+
+
+#: Erratum 4's two readings of Code 03's printed literal `1` (natural length, m).
+ERRATUM_4_READINGS = {"digit": THESIS_PRINTED["code_03_l"], "letter": THESIS_PRINTED["table_4_4_l"]}
+_ASSUMPTION = ("ASSUMPTION (a reading, not a certainty): Code 03's printed `1` is read as the digit one "
+               "(l = 1 m; thesis column); the same OCR renders the letter l as 1 elsewhere, so it may be "
+               "l = 0.01 m as in Tables 4.4-4.5 (corrected column)")
+
+
+def _y_ratio_3s(fun, y0, h=0.01, t_end=3.0) -> float:
+    """``y(t_end) / y(0)`` of an RK4 run (rk4core.solve) of ``fun`` from ``y0``."""
+    import rk4core
+
+    n = int(round(t_end / h))
+    res = rk4core.solve(fun, (0.0, t_end), np.asarray(y0, float), n_steps=n, method="rk4")
+    return float(res.y[1, -1] / y0[1]) if res.success else float("nan")
+
+
+def erratum_4_rows() -> list[dict]:
+    """Erratum 4 under both readings of Code 03's literal `1` (l = 1 m or l = 0.01 m).
+
+    Three rows, each with the digit reading (l = 1 m) in ``thesis`` and the
+    letter reading (l = 0.01 m) in ``corrected``, computed here: the x-force
+    at Table 4.4's state; ``y(3 s) / y(0)`` on Table 4.5's state (x0 = 5 mm,
+    y0 = 30 mm) of Code 03 as printed (its dz4 bracket kept; RK4, h = 0.01 s,
+    the Python transcription that tests/test_thesis_code.py checks against
+    the Octave run); and the same with the physics' equations (the planar4
+    model, dz4 repaired).
+    """
+    from references.thesis_code import printed_code03_rhs
+
+    m, k = 0.815, 41.5
+    l1, l2 = ERRATUM_4_READINGS["digit"], ERRATUM_4_READINGS["letter"]
+    x = _TABLE_4_4_X0[0]
+    f1, f2 = (float(Planar4(m, k, L).force(np.array(_TABLE_4_4_X0))[0]) for L in (l1, l2))
+    y45 = np.array([0.005, 0.03, 0.0, 0.0])
+    printed = [_y_ratio_3s(printed_code03_rhs(m, k, L), y45) for L in (l1, l2)]
+    physics = [_y_ratio_3s(Planar4(m, k, L).rhs, y45) for L in (l1, l2)]
+    return [
+        _row(4, "planar4 force F_x (N) at x = 0.005 m, y = 0: l = 1 m vs l = 0.01 m", f1, f2,
+             f"{_ASSUMPTION}. With l = 1 m the amplitude is x/l = {x / l1:g} and the motion is linear "
+             f"({f1 / (-2 * k * x):.6f} x -2kx); with l = 0.01 m x/l = {x / l2:g} and the force is "
+             f"{f2 / (-2 * k * x):.4f} x -2kx"),
+        _row(4, "Code 03 as printed: y(3 s) / y(0) on Table 4.5's state (RK4, h = 0.01 s): l = 1 m vs l = 0.01 m",
+             printed[0], printed[1],
+             f"{_ASSUMPTION}. The printed dz4 (w on its first term only) grows from y0 = 0.03 m when l = 1 m "
+             f"({printed[0]:.4g}); read as l = 0.01 m the same program gives {printed[1]:.4g}: the reading "
+             f"decides this number"),
+        _row(4, "planar4 (dz4 repaired): y(3 s) / y(0) on Table 4.5's state (RK4, h = 0.01 s): l = 1 m vs "
+                "l = 0.01 m", physics[0], physics[1],
+             f"{_ASSUMPTION}. The physics' equations under each reading: {physics[0]:.4g} (l = 1 m, y0 = 0.03 l) "
+             f"and {physics[1]:.4g} (l = 0.01 m, y0 = 3 l: beyond the anchor at (0, l))"),
+    ]
 
 
 def _fmt(v, digits):

@@ -30,7 +30,9 @@ Programs and cases (``program``, ``variant``, ``case``)
     The RK4 loop over 3 s with Tables 4.4-4.5's step h = 0.01 s (the
     listing's 0.001 s costs ten times the Octave time for the same
     findings), m = 0.815 kg, k = 41.5 N/m and
-    Code 03's natural length l = 1 m (erratum 4); Tables 4.4 (x0 = 5 mm) and
+    Code 03's natural length l = 1 m (erratum 4: its printed ``1`` read as the
+    digit one, an assumption; :func:`references.errata.erratum_4_rows` gives
+    both readings' numbers); Tables 4.4 (x0 = 5 mm) and
     4.5 (x0 = 5 mm, y0 = 30 mm) and a probe from (0, 1 um) that measures the
     y-equation near the origin. Printed: dz4 = w*T1 + T2 + T3 + T4;
     corrected: w*(T1 + T2 + T3 + T4).
@@ -173,30 +175,36 @@ def printed_code01_K(k1, k2, k3) -> np.ndarray:
     return np.array([[k1 + k3, -k3], [-k3, k2 + k3]])
 
 
-def _dz3(z1, z2, w):
+def _dz3(z1, z2, w, L=1.0):
+    """Code 03's dz3 as printed; ``L`` is its literal ``1`` (the natural length
+    and anchor distance, m: erratum 4 reads it as the digit one)."""
     sq = math.sqrt
-    return w * ((((z1 + 1) * (sq((z1 + 1) ** 2 + z2 ** 2) - 1)) / (sq((z1 + 1) ** 2 + z2 ** 2)))
-                + ((z1 * (sq((z2 + 1) ** 2 + z1 ** 2) - 1)) / (sq((z2 + 1) ** 2 + z1 ** 2)))
-                - (((1 - z1) * (sq((1 - z1) ** 2 + z2 ** 2) - 1)) / (sq((1 - z1) ** 2 + z2 ** 2)))
-                + ((z1 * (sq((1 - z2) ** 2 + z1 ** 2) - 1)) / (sq((1 - z2) ** 2 + z1 ** 2))))
+    return w * ((((z1 + L) * (sq((z1 + L) ** 2 + z2 ** 2) - L)) / (sq((z1 + L) ** 2 + z2 ** 2)))
+                + ((z1 * (sq((z2 + L) ** 2 + z1 ** 2) - L)) / (sq((z2 + L) ** 2 + z1 ** 2)))
+                - (((L - z1) * (sq((L - z1) ** 2 + z2 ** 2) - L)) / (sq((L - z1) ** 2 + z2 ** 2)))
+                + ((z1 * (sq((L - z2) ** 2 + z1 ** 2) - L)) / (sq((L - z2) ** 2 + z1 ** 2))))
 
 
-def _dz4_printed(z1, z2, w):
+def _dz4_printed(z1, z2, w, L=1.0):
+    """Code 03's dz4 as printed (``w`` multiplies the first term only); ``L`` as in :func:`_dz3`."""
     sq = math.sqrt
-    return (w * (((z2 * (sq((z1 + 1) ** 2 + z2 ** 2) - 1))) / (sq((z1 + 1) ** 2 + z2 ** 2)))
-            + ((z2 * (sq((1 - z1) ** 2 + z2 ** 2) - 1)) / (sq((1 - z1) ** 2 + z2 ** 2)))
-            + (((z2 + 1) * (sq(z1 ** 2 + (z2 + 1) ** 2) - 1)) / (sq(z1 ** 2 + (z2 + 1) ** 2)))
-            + (((z2 - 1) * (sq(z1 ** 2 + (1 - z2) ** 2) - 1)) / (sq(z1 ** 2 + (1 - z2) ** 2))))
+    return (w * (((z2 * (sq((z1 + L) ** 2 + z2 ** 2) - L))) / (sq((z1 + L) ** 2 + z2 ** 2)))
+            + ((z2 * (sq((L - z1) ** 2 + z2 ** 2) - L)) / (sq((L - z1) ** 2 + z2 ** 2)))
+            + (((z2 + L) * (sq(z1 ** 2 + (z2 + L) ** 2) - L)) / (sq(z1 ** 2 + (z2 + L) ** 2)))
+            + (((z2 - L) * (sq(z1 ** 2 + (L - z2) ** 2) - L)) / (sq(z1 ** 2 + (L - z2) ** 2))))
 
 
-def printed_code03_rhs(m, k):
-    """``f(t, y)`` of Code 03 as printed: dz3, dz4 with the natural length 1 and
-    dz4 = w*T1 + T2 + T3 + T4 (w = -k/m)."""
+def printed_code03_rhs(m, k, l=1.0):  # noqa: E741 - the thesis' symbol
+    """``f(t, y)`` of Code 03 as printed: dz3, dz4 with the natural length ``l``
+    (default the printed literal 1, m; erratum 4) and dz4 = w*T1 + T2 + T3 + T4
+    (w = -k/m). ``l = 0.01`` is the other reading of that literal: the letter
+    l of Tables 4.4-4.5."""
     w = (-k) / m
+    L = float(l)
 
     def f(t, y):
         z1, z2, z3, z4 = (float(v) for v in y)
-        return np.array([z3, z4, _dz3(z1, z2, w), _dz4_printed(z1, z2, w)])
+        return np.array([z3, z4, _dz3(z1, z2, w, L), _dz4_printed(z1, z2, w, L)])
     return f
 
 

@@ -16,7 +16,8 @@
 ``Truth.y`` is the float64 rounding; for real128 runs ``Truth.y_lo`` holds the
 remainder (``y + y_lo`` is the real128 result to about 1e-32 relative;
 ``Truth.y_ext()`` rebuilds it as a real128 array). ``energy_drift`` is
-``max_t |E(t) - E(0)| / |E(0)|`` of the reference, evaluated in real128 for
+``max_t |E(t) - E(0)| / E_motion`` of the reference (``E_motion = E(0) -
+V(q*)``, :mod:`rk4core.energy`), evaluated in real128 for
 real128 runs (so it measures the integration, not double round-off) and in
 float64 for the modal solution (where it is the evaluation's round-off).
 
@@ -74,6 +75,7 @@ import numpy as np
 
 from rk4core import cachedir
 from rk4core.cachedir import UntrustedCacheError
+from rk4core.energy import rest_energy
 from rk4core.validate import check_model_y0, check_output_times
 
 from .exact import modal_solution
@@ -90,7 +92,8 @@ TOL_REAL128 = 1e-32
 KINDS = ("exact-modal", "heyoka-real128")
 #: Cap on Taylor steps of one real128 run (status FAILED beyond).
 MAX_STEPS = 1_000_000
-_FORMAT = 2  # bump when the cached content or its meaning changes (2: checksums, definition in the key)
+_FORMAT = 3  # bump when the cached content or its meaning changes (2: checksums, definition in the key;
+#             3: energy_drift relative to the energy of the motion)
 _ARRAYS = ("t", "y", "y_lo")
 _MEMORY: dict[str, "Truth"] = {}
 _ENERGY_CFUNC: dict[str, object] = {}
@@ -121,7 +124,8 @@ class Truth:
         ``real128(y) + y_lo`` is the real128 result (None for exact-modal).
     kind : {"exact-modal", "heyoka-real128"}
     energy_drift : float
-        ``max |E(t) - E0| / |E0|`` of the reference (absolute when E0 = 0).
+        ``max |E(t) - E0| / E_motion`` of the reference, ``E_motion = E0 - V(q*)``
+        (absolute when it is 0).
     tol : float or None
         heyoka's tolerance (real128 runs).
     n_steps : int
@@ -356,16 +360,18 @@ def _relabel(truth: Truth, source: str) -> Truth:
     return Truth(**{**truth.__dict__, "source": source})
 
 
-def _drift(E: np.ndarray) -> float:
+def _drift(E: np.ndarray, E_rest) -> float:
+    """``max |E - E0| / E_motion`` with ``E_motion = E0 - E_rest`` (absolute when it is 0)."""
     dE = np.abs(E - E[0])
-    scale = abs(E[0]) if E[0] != 0 else 1
+    motion = abs(E[0] - E_rest)
+    scale = motion if motion != 0 else 1
     return float(np.max(dE) / scale) if dE.size else 0.0
 
 
 def _exact_modal(model, y0, t) -> Truth:
     start = time.perf_counter()
     y = modal_solution(model, y0)(t)
-    drift = _drift(np.asarray(model.energy(y), dtype=float))
+    drift = _drift(np.asarray(model.energy(y), dtype=float), rest_energy(model))
     return Truth(t, y, None, "exact-modal", drift, wall_s=time.perf_counter() - start,
                  message="modal superposition (float64 evaluation)")
 
@@ -404,8 +410,10 @@ def _real128(model, y0, t, tol) -> Truth:
         y_hi[:, t > t_fail] = np.nan
         y_lo[:, t > t_fail] = np.nan
     reached = np.all(np.isfinite(y_hi), axis=0)
-    E = np.asarray(_energy_cfunc(model)(np.ascontiguousarray(y128[:, reached])))[0] if reached.any() else np.array([])
-    drift = _drift(E) if E.size else float("nan")
+    cf = _energy_cfunc(model)
+    E = np.asarray(cf(np.ascontiguousarray(y128[:, reached])))[0] if reached.any() else np.array([])
+    E_rest = np.asarray(cf(np.zeros((y128.shape[0], 1), dtype=R)))[0, 0]  # V(q*) in real128
+    drift = _drift(E, E_rest) if E.size else float("nan")
     return Truth(t, y_hi, y_lo, "heyoka-real128", drift, tol=float(tol), n_steps=n_steps, wall_s=wall,
                  compile_s=compile_s, status=status, message=message,
                  extra={"order": int(ta.order), "rows_returned": int(rows),

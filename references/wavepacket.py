@@ -97,7 +97,8 @@ class WavePacketResult:
         ``rk4_group_velocity_offset(kp0, h)``: RK4's predicted relative
         group-velocity error at the carrier, ``-(omega(kp0) h)^4 / 24``.
     energy_drift : float
-        ``max |E(t) - E(0)| / E(0)`` over the samples.
+        ``max |E(t) - E(0)| / E(0)`` over the samples (``E(0)`` is ``E_motion``
+        of :mod:`rk4core.energy`: the lattice's potential is 0 at rest).
     success : bool
     message : str
     """

@@ -146,6 +146,8 @@ _MAX_FOLD_EXPONENT = 64
 #: floating point), so ``(5e-324^-64 * 2)^64`` never builds a 4-million-bit integer.
 MAX_FOLD_BITS = 8192
 _EXACT_INT = 2 ** 53
+#: Integer powers up to this exponent reach heyoka as products (:func:`to_heyoka`).
+_HEYOKA_PRODUCT_MAX = 64
 
 
 class ExprError(ValueError):
@@ -1265,6 +1267,10 @@ def to_heyoka(exprs, symbols: Mapping):
     in a real128 integration heyoka widens them exactly. The structure
     mirrors the numpy source (:func:`lambdify`): ``a - b`` for a negative
     term, ``n / d`` for negative powers. Shared subtrees are translated once.
+    A power with an integer exponent 1..64 becomes products (binary powering:
+    ``x**3 = x * x * x``, ``x**4 = (x*x) * (x*x)``), never heyoka's ``pow``:
+    the Taylor recurrence of ``pow(x, a)`` divides by ``x`` and is NaN where
+    ``x`` is exactly 0 (an FPUT spring at zero extension).
     """
     import heyoka as hy
 
@@ -1294,6 +1300,18 @@ def to_heyoka(exprs, symbols: Mapping):
             out = out / get(f)
         return -out if negative else out
 
+    def integer_power(b, n):
+        # Binary powering with products: heyoka's Taylor recurrence of pow(x, a)
+        # divides by x, so pow(x, 3.0) is NaN wherever x passes through 0.
+        out, square = None, b
+        while n:
+            if n & 1:
+                out = square if out is None else out * square
+            n >>= 1
+            if n:
+                square = square * square
+        return out
+
     def build(node):
         if isinstance(node, Num):
             return hy.expression(node.value)
@@ -1305,6 +1323,9 @@ def to_heyoka(exprs, symbols: Mapping):
             if isinstance(node.exp, Num):
                 if node.exp.value < 0.0:
                     return product((node,))
+                n = _int_exponent(node.exp)
+                if n is not None and 0 < n <= _HEYOKA_PRODUCT_MAX:
+                    return integer_power(get(node.base), n)
                 return get(node.base) ** hy.expression(node.exp.value)
             return get(node.base) ** get(node.exp)
         if isinstance(node, Mul):

@@ -2,6 +2,8 @@
 number is computed by the code and agrees with the theory written here."""
 import math
 
+import numpy as np
+
 import pytest
 
 from references import closed_forms as cf
@@ -68,9 +70,39 @@ def test_items3_and_4_planar4_force(rows):
     assert r3["thesis"] == pytest.approx(printed, rel=1e-13)
     # Code 03: anchors and natural length 1 m; then (L - 1) x / L ~ x^3 / 2
     L1 = math.hypot(x, 1.0)
-    r4 = _find(rows, 4, "Code 03")
+    r4 = _find(rows, 4, "F_x")
     assert r4["thesis"] == pytest.approx(-2 * K_TAB * x - 2 * K_TAB * (L1 - 1.0) * x / L1, rel=1e-13)
     assert r4["corrected"] == r3["corrected"]
+
+
+def test_item4_is_an_assumption_with_both_readings_computed(rows):
+    import numpy as np
+
+    import rk4core
+    from references.thesis_code import printed_code03_rhs
+
+    item4 = [r for r in rows if r["item"] == 4]
+    assert len(item4) == 3
+    assert all(r["note"].startswith("ASSUMPTION") and "l = 0.01 m" in r["note"] and "l = 1 m" in r["note"]
+               for r in item4)
+    # Code 03 as printed on Table 4.5's state under each reading, run here independently
+    y0 = np.array([0.005, 0.03, 0.0, 0.0])
+    want = []
+    for L in (1.0, 0.01):
+        res = rk4core.solve(printed_code03_rhs(M_TAB, K_TAB, L), (0.0, 3.0), y0, n_steps=300, method="rk4")
+        want.append(res.y[1, -1] / y0[1])
+    row = _find(rows, 4, "Code 03 as printed")
+    assert (row["thesis"], row["corrected"]) == pytest.approx(want, rel=1e-12)
+    # the two readings disagree in sign and size: the reading decides the number
+    assert row["thesis"] > 10 and row["corrected"] < 0
+    assert f"{row['corrected']:.4g}" in row["note"] and f"{row['thesis']:.4g}" in row["note"]
+
+
+def test_printed_code03_default_reading_is_the_digit_one():
+    from references.thesis_code import printed_code03_rhs
+
+    y = [0.004, -0.002, 0.1, 0.2]
+    assert np.array_equal(printed_code03_rhs(M_TAB, K_TAB)(0.0, y), printed_code03_rhs(M_TAB, K_TAB, 1.0)(0.0, y))
 
 
 def test_item5_table_4_6(rows):

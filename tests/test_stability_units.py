@@ -462,6 +462,7 @@ def test_limits_table_reads_the_stiffness_ratio_column(study, col):
             rows.append(C.row("sc", study, solver, "nfev_at_error", n, target_error=1e-6, stiffness_ratio=stiff,
                               note="setting 0.1; error 1e-7", **{col: x}))
     (line,) = [r for r in limits_rows(rows) if r["limit"].startswith("cost at")]
-    assert line["limit"] == "cost at stiffness ratio 4.07e+04"
+    assert line["limit"] == "cost at omega_max/omega_min 4.07e+04"
     assert line["value"] == "rk4 3.65e+05 RHS calls vs cvode-bdf 219"
-    assert f"{col} = 10000" in line["detail"]
+    name = {"ratio": "spring ratio k_mid/k", "mu": "mass ratio mu"}[col]
+    assert line["detail"] == f"{name} = 10000, target 1e-06"

@@ -10,7 +10,7 @@ is smaller. With s = d^2 / (8 sigma^2) the mean is
 (``references.dispersion.gaussian_packet_group_velocity``): -5 d^2 / (16 sigma^2)
 = -0.488% for the report's sigma = 8 d at either carrier. What remains after
 comparing with that mean is RK4's group-velocity error -(omega h)^4 / 24
-(``validation.wavepacket.rk4_group_velocity_offset``).
+(``references.wavepacket.rk4_group_velocity_offset``).
 
 Tolerance used on measured speeds, RK4_TOL * |rk4_offset|: RK4's predicted
 group-velocity error at the carrier (1.2e-5 at kp0 = 0.3 pi/d, 1.2e-4 at

@@ -49,12 +49,15 @@ def _draw(job, out_dir, scenes_by_name) -> list:
     if job.kind == "convergence":
         return [f.convergence(out_dir, name, pd.DataFrame(d["points"]), pd.DataFrame(d["fits"]))]
     if job.kind == "modal_energy":
-        return [f.modal_energy(out_dir, name, d["t"], d["series"], d["omega"])]
+        return [f.modal_energy(out_dir, name, d["t"], d["series"], d["omega"],
+                               recurrence=d.get("recurrence", True))]
     if job.kind == "dispersion":
         return [f.dispersion(out_dir, d["m"], d["k"], d["d"], d["n"], d["finite"], d["packets"], scene_name=name)]
     if job.kind == "state":
         model = scenes_by_name[name].build_model()
-        return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"])
+        thesis = d.get("thesis")
+        return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"],
+                               thesis=f"thesis {thesis}" if thesis else None)
     if job.kind == "stability":
         from . import stability
 
@@ -70,7 +73,7 @@ def _draw(job, out_dir, scenes_by_name) -> list:
 SWEEP_QUANTITIES = (
     ("accuracy", "error_rel", ("solver", "setting"),
      "relative error\nmax |y - y_ref| / max |y_ref|", True),
-    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / |E0| (relative)", True),
+    ("accuracy", "energy_drift_max", ("solver", "setting"), "max |E - E0| / E_motion (relative)", True),
     ("accuracy", "nfev", ("solver", "setting"), "RHS evaluations", True),
     ("convergence", "observed_order", ("solver", "quantity"), "observed order", False),
     ("modes", "omega_rad_s", ("mode",), "omega (rad/s)", True),

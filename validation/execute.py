@@ -31,7 +31,7 @@ from .plan import FIGURE_POINTS, RunSpec
 from .records import RunRecord, failed_record
 
 __all__ = ["execute", "problem", "grid", "REPEAT_BELOW_S", "MODAL_MODES", "modal_energies",
-           "convergence_horizon"]
+           "convergence_horizon", "NoTruth", "truth_problem"]
 
 #: Runs longer than this (s) are timed once (the median of repeats guards the short runs,
 #: where a scheduler tick is a large fraction of the time).
@@ -95,6 +95,46 @@ def _truth(model, y0, t):
     return reference_solution(model, y0, t)
 
 
+class NoTruth(RuntimeError):
+    """The reference of a run could not be computed (its message says why,
+    starting with ``no truth``)."""
+
+
+def truth_problem(truth) -> str | None:
+    """Why ``truth`` is no reference (a failed or truncated run, a non-finite
+    value), or None when every output time holds finite values."""
+    status = getattr(truth.status, "value", str(truth.status))
+    if not truth.ok:
+        return f"no truth: {truth.kind} {status}: {_first_line(truth.message) or 'no message'}"
+    y = np.asarray(truth.y, float)
+    if y.size == 0 or not np.all(np.isfinite(y)):
+        bad = int(np.sum(~np.all(np.isfinite(y), axis=0))) if y.ndim == 2 else y.size
+        return f"no truth: {truth.kind} is not finite at {bad} of {y.shape[-1] if y.ndim else 0} output times"
+    return None
+
+
+def _truth_or_reason(model, y0, t):
+    """``(truth, None)`` with a usable reference, else ``(truth or None, reason)``:
+    a reference that raised, failed or holds NaN is a reason, never a number."""
+    from .atomic import is_environment_error
+
+    try:
+        truth = _truth(model, y0, t)
+    except Exception as e:  # noqa: BLE001 - a reference that raises is no truth, said in the record
+        if is_environment_error(e):
+            raise
+        return None, f"no truth: the reference raised {type(e).__name__}: {_first_line(str(e))}"
+    return truth, truth_problem(truth)
+
+
+def _usable_truth_y(model, y0, t) -> np.ndarray:
+    """The reference states on ``t``, or :class:`NoTruth` (a failed record)."""
+    truth, reason = _truth_or_reason(model, y0, t)
+    if reason:
+        raise NoTruth(reason)
+    return np.asarray(truth.y, float)
+
+
 def _status(run) -> str:
     s = run.status
     return getattr(s, "value", str(s))
@@ -139,7 +179,11 @@ def execute(scene, spec: RunSpec, quick: bool = False) -> RunRecord:
 def _truth_spec(scene, spec, quick):
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    truth = _truth(model, y0, t)
+    truth, reason = _truth_or_reason(model, y0, t)
+    if reason:
+        return RunRecord(spec.key, status="failed", message=reason,
+                         values={"truth_kind": truth.kind if truth is not None else "", "scale": math.nan,
+                                 "no_truth": reason})
     y = np.asarray(truth.y, float)
     arrays = {"t": t, "y": y} if "trajectory" in spec.keep else {}
     return RunRecord(spec.key, values={"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))},
@@ -149,16 +193,19 @@ def _truth_spec(scene, spec, quick):
 def _run_spec(scene, spec, quick):
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    truth = _truth(model, y0, t)
-    y_ref = np.asarray(truth.y, float)
-    scale = float(np.max(np.abs(y_ref)))
+    truth, reason = _truth_or_reason(model, y0, t)
     method = scene.method(spec.solver)
     run, walls = _timed(method, model, y0, t, spec.setting, spec.repeats)
     status = _status(run)
-    e_max = metrics.error_max(run.y, y_ref)
+    if reason:  # the run is measured (energy, cost), its errors are not: NaN and the reason
+        e_max = e_final = scale = math.nan
+    else:
+        y_ref = np.asarray(truth.y, float)
+        scale = float(np.max(np.abs(y_ref)))
+        e_max, e_final = metrics.error_max(run.y, y_ref), metrics.error_final(run.y, y_ref)
     ok = status == "ok"
-    values = {"truth_kind": truth.kind, "error_max": e_max, "error_rel": e_max / scale,
-              "error_final": metrics.error_final(run.y, y_ref),
+    values = {"truth_kind": truth.kind if truth is not None else "", "error_max": e_max,
+              "error_rel": e_max / scale, "error_final": e_final, "no_truth": reason or "",
               "energy_drift_max": metrics.energy_drift_max(model, run.y),
               "drift_per_time": metrics.drift_per_time(model, t, run.y) if ok else math.nan,
               "theory_drift_per_time": math.nan, "nfev": int(run.nfev), "n_steps": int(run.n_steps),
@@ -196,7 +243,7 @@ def _order_spec(scene, spec, quick):
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    y_ref = np.asarray(_truth(model, y0, t).y, float)
+    y_ref = _usable_truth_y(model, y0, t)
     n0 = t.shape[0] - 1
     h = float(t[-1]) / (n0 * max(1, round(spec.param("theta0") / spec.setting)))
     run = integrate(scene.method(spec.solver), model, y0, t, h)
@@ -227,8 +274,11 @@ def _modal_spec(scene, spec, quick):
     omega, phi = omega[order], phi[:, order]
     t = grid(scene, model, spec)
     run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
-    E0 = float(np.asarray(model.energy(y0)))
-    frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E0
+    from rk4core.energy import energy_scale
+
+    # fractions of the energy of the motion (E0 - V(q*)), which the modes share
+    E_motion = energy_scale(model, float(np.asarray(model.energy(y0))))
+    frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E_motion
     return RunRecord(spec.key, status=_status(run), message=_first_line(run.message),
                      arrays={"t": t, "fraction": frac, "omega": omega})
 
@@ -319,7 +369,7 @@ def _linearization_spec(scene, spec, quick):
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    y_ref = np.asarray(_truth(model, y0, t).y, float)
+    y_ref = _usable_truth_y(model, y0, t)
     y_lin = np.asarray(modal_solution(model, y0)(t), float)
     n = model.n_dof
     scale_q = float(np.max(np.abs(y_ref[:n])))

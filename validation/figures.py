@@ -140,10 +140,12 @@ GENERIC_CAPTIONS = {
                    "under the solver's points): a method parallel to its guide has that order; filled points are "
                    "the range the order was fitted over, hollow ones lie outside it (pre-asymptotic or at the "
                    "round-off floor). Error as in the work-precision figure.",
-    "energy_error": "Relative energy error |E(t) - E0| / |E0| against time, log-log (thick: running maximum, thin: "
-                    "instantaneous): a line of slope 1 is a steady drift (RK4 loses energy at a rate set by "
-                    "(omega h)^6/72 per step), a flat band a bounded error (symplectic methods).",
-    "modal_energy": "Energy in each of the lowest linear modes as a fraction of the initial energy, against time: "
+    "energy_error": "Relative energy error |E(t) - E0| / E_motion (E_motion = E0 - V at equilibrium) against "
+                    "time, log-log (thick: running maximum, thin: instantaneous): a line of slope 1 is a steady "
+                    "drift (RK4 loses energy at a rate set by (omega h)^6/72 per step), a flat band a bounded "
+                    "error (symplectic methods).",
+    "modal_energy": "Energy in each of the lowest linear modes as a fraction of the energy of the motion "
+                    "(E0 - V at equilibrium), against time: "
                     "started in mode 1, an FPUT chain shares its energy with a few low modes and then returns "
                     "almost all of it to mode 1 (the recurrence); a solver that reproduces the return time and "
                     "height keeps the physics.",
@@ -912,7 +914,7 @@ def _series_specs(ctx, stem, what, ylabel):
              _sentence(head, *_hint(ctx, modal, single)))]
 
 
-def _scene_specs(scene_name, model, t, y, title):
+def _scene_specs(scene_name, model, t, y, title, thesis=None):
     """``[(stem_suffix, kind, builder, sentence)]`` chosen from
     ``model.drawing()`` (never from the model's name); builders are
     zero-argument callables returning a Figure (built one at a time)."""
@@ -922,7 +924,7 @@ def _scene_specs(scene_name, model, t, y, title):
     modes = _modes_of(model)
     long_line = d.layout == "line" and n > LONG_CHAIN
     zoom = None if long_line else _zoom_end(modes, t)
-    thesis = d.extra.get("thesis")
+    thesis = thesis or d.extra.get("thesis")
     ctx = {"drawing": d, "title": title, "t": t, "q": y[:n], "v": y[n:], "n": n, "zoom": zoom,
            "ref": f" ({thesis})" if thesis else "", "caption": d.caption.strip().rstrip("."),
            "unit": d.unit, "mass": np.asarray(model.mass, dtype=float), "name": model.name,
@@ -1027,7 +1029,7 @@ def _plane_paths(title, d, q, labels, margin=0.06):
     return fig
 
 
-def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path, str]]:
+def scene_figures(out_dir, scene_name, model, t, y, *, title, thesis=None) -> list[tuple[Path, str]]:
     """The thesis' state figures (Figs 4.1-4.20) for one scene trajectory.
 
     Parameters
@@ -1067,6 +1069,12 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
         States ``[q, v]`` at ``t`` (SI units; NaN after a blow-up is drawn as a gap).
     title : str
         Figure title (the scene and what the trajectory is).
+    thesis : str or None
+        The thesis figures the scene reproduces (the scene's ``thesis_figures``,
+        e.g. ``"thesis Figs 4.1-4.2"``), quoted in parentheses in every
+        sentence; None: the drawing's ``extra["thesis"]`` if any, else nothing.
+        The shipped models carry none: a model does not know whether a scene
+        reproduces a thesis figure.
 
     Returns
     -------
@@ -1089,7 +1097,7 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title) -> list[tuple[Path
     t, y = _check_trajectory(model, t, y)
     stem = slug(scene_name)
     out = []
-    for suffix, kind, build, sentence in _scene_specs(scene_name, model, t, y, title):
+    for suffix, kind, build, sentence in _scene_specs(scene_name, model, t, y, title, thesis):
         fig = build()
         out.append((_save(fig, out_dir, f"{stem}_{suffix}"), Caption(sentence, kind)))
     return out
@@ -1346,7 +1354,7 @@ def convergence(out_dir, scene_name, points, fits) -> tuple[Path, str]:
 # -- energy error ---------------------------------------------------------------
 def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence=None,
                  kind="energy_error") -> tuple[Path, str]:
-    """Relative energy error ``|E(t) - E0| / |E0|`` of several runs on log-log axes.
+    """Relative energy error ``|E(t) - E0| / E_motion`` of several runs on log-log axes.
 
     Parameters
     ----------
@@ -1410,7 +1418,7 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
         ax.set_ylim(bottom=max(floor / 10.0, 1e-18))
     _log_axes(ax)
     ax.set_xlabel("time t (s)")
-    ax.set_ylabel("|E(t) - E0| / |E0| (relative)")
+    ax.set_ylabel("|E(t) - E0| / E_motion (relative)")
     if series:
         _legend_below(fig, title="thick: running maximum, thin: instantaneous value")
     path = _save(fig, out_dir, stem or f"{slug(scene_name)}_energy_error")
@@ -1424,8 +1432,8 @@ def energy_error(out_dir, scene_name, series, *, title=None, stem=None, sentence
     return path, Caption(sentence, kind)
 
 
-def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
-    """Fraction of the initial energy in each of the lowest linear modes against time.
+def modal_energy(out_dir, scene_name, t, series, omega, *, recurrence=True) -> tuple[Path, str]:
+    """Fraction of the energy of the motion in each of the lowest linear modes against time.
 
     Parameters
     ----------
@@ -1439,18 +1447,23 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
         solid, the others dashed), modes take colours.
     omega : ndarray, shape (modes,)
         The modes' angular frequencies (rad/s), for the legend.
+    recurrence : bool
+        Whether an FPUT recurrence can happen (a nonlinear model, two or more
+        modes): the title names it and the sentence says how low mode 1's
+        share falls and how high it comes back. False (a linear model, or one
+        mode): no recurrence is named; the sentence gives the range of mode 1's
+        share.
 
     Returns
     -------
     (Path, Caption)
-        ``kind`` ``"modal_energy"``; the sentence gives, per series, how low
-        mode 1's share falls and how high it comes back, and when.
+        ``kind`` ``"modal_energy"``; the sentence as above, per series.
     """
     if not isinstance(series, dict) or not series:
         raise ValueError("`series` must be a non-empty dict label -> (modes, m) array")
     t = np.asarray(t, dtype=float)
     fig = _new_figure()
-    _suptitle(fig, f"{scene_name}: energy in the lowest modes (FPUT recurrence)")
+    _suptitle(fig, f"{scene_name}: energy in the lowest modes" + (" (FPUT recurrence)" if recurrence else ""))
     ax = fig.subplots()
     colors = plt_colors(len(omega))
     facts = []
@@ -1463,7 +1476,10 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
                     ls=_LINESTYLES[s_i % len(_LINESTYLES)],
                     label=f"mode {j + 1} ({omega[j]:.3g} rad/s), {label}")
         f1 = np.where(np.isfinite(frac[0]), frac[0], np.nan) if frac.shape[0] else np.array([np.nan])
-        if np.isfinite(f1).any():
+        if np.isfinite(f1).any() and not recurrence:
+            facts.append(f"{label}: mode 1's share stays between {100 * np.nanmin(f1):.1f}% and "
+                         f"{100 * np.nanmax(f1):.1f}%")
+        elif np.isfinite(f1).any():
             i = int(np.nanargmin(f1))
             back = f1[i:]
             k = i + int(np.nanargmax(back)) if np.isfinite(back).any() else i
@@ -1471,7 +1487,7 @@ def modal_energy(out_dir, scene_name, t, series, omega) -> tuple[Path, str]:
                          + (f" and returns to {100 * f1[k]:.0f}% at t = {_fmt_t(t[k])} s" if k > i else
                             " (no return within the run)"))
     ax.set_xlabel("time t (s)")
-    ax.set_ylabel("E_k(t) / E(0)")
+    ax.set_ylabel("E_k(t) / E_motion")
     ax.set_ylim(bottom=0.0)
     ax.grid(alpha=0.3)
     _legend_below(fig)

@@ -93,8 +93,11 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     res.seconds = float(sum(records[s.key].seconds for s in specs if s.key in records))
     draw = figures and "figures" in scene.outputs
     for s in by.get("truth", []):
+        rec = records[s.key]
         if s.grid == "scene":
-            res.truth_kind = records[s.key].values.get("truth_kind", "")
+            res.truth_kind = rec.values.get("truth_kind", "")
+        if rec.status == "failed" and s.grid != "figure":  # (_state_figure says it for the figure grid)
+            _failed(res, s, rec)  # no reference: a failed check, never blank errors beside a green line
     _runs(scene, by.get("run", []), records, res, draw, by.get("confirm", []))
     _state_figure(scene, by.get("figure", []) + [s for s in by.get("truth", []) if s.grid == "figure"],
                   records, res)
@@ -141,6 +144,7 @@ def _with_values(specs, records, res):
 # -- accuracy, energy, work-precision --------------------------------------------------
 def _runs(scene, specs, records, res, draw, confirm_specs=()):
     series = {}
+    no_truth_runs = []
     for spec in specs:
         rec = records[spec.key]
         v, tm = rec.values, rec.timing
@@ -149,7 +153,8 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
             _failed(res, spec, rec)
             res.add("accuracy", {**row, "error_max": math.nan, "error_rel": math.nan, "error_final": math.nan,
                                  "energy_drift_max": math.nan, "nfev": 0, "n_steps": 0, "wall_s": math.nan,
-                                 "compile_s": math.nan, "status": "failed", "message": rec.message})
+                                 "compile_s": math.nan, "status": "failed", "message": rec.message,
+                                 "note": ""})
             continue
         status = rec.status
         if status == "failed":
@@ -159,12 +164,16 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
         elif status == "unstable":
             res.findings.append(f"{scene.name}: {spec.solver} at {spec.setting:g} became unstable: "
                                 f"{rec.message or 'non-finite state'}")
+        no_truth = v.get("no_truth", "")
+        if no_truth:
+            no_truth_runs.append((spec, no_truth))
         # a program that is not installed evaluated nothing: no count, not a declared cost times steps
         nfev = math.nan if status == "unavailable" else v["nfev"]
         res.add("accuracy", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                              "error_final": v["error_final"], "energy_drift_max": v["energy_drift_max"],
                              "nfev": nfev, "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
-                             "compile_s": tm["compile_s"], "status": status, "message": rec.message})
+                             "compile_s": tm["compile_s"], "status": status, "message": rec.message,
+                             "note": no_truth})
         if "work_precision" in scene.outputs:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                                        "wall_s": tm["wall_s"], "nfev": nfev, "n_steps": v["n_steps"],
@@ -177,6 +186,10 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
             if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
                 label = f"{spec.solver} {scene.method(spec.solver).setting_name}={spec.setting:g}"
                 series[spec.solver] = (label, rec.arrays["energy_t"], rec.arrays["energy_rel"])
+    for reason in dict.fromkeys(r for _, r in no_truth_runs):
+        runs = [f"{sp.solver} {sp.setting:g}" for sp, r in no_truth_runs if r == reason]
+        res.check("errors against the truth", False,
+                  f"{scene.name}: {len(runs)} run(s) have no errors ({', '.join(runs)}): {reason}")
     if "work_precision" in scene.outputs and specs:
         _cheapest(scene, res, confirm_specs, records)
         if draw:
@@ -391,8 +404,17 @@ def _dispersion(scene, specs, packets, records, res, draw):
                                                                 "packets": drawn}))
 
 
+def recurrence_applies(model, n_modes: int) -> bool:
+    """Whether an FPUT recurrence finding means anything: a nonlinear model
+    (modes of its linearization exchange energy) with at least two modes
+    followed. A linear model's modes keep their energy; one mode has no one
+    to share it with."""
+    return (not bool(model.linear)) and n_modes >= 2
+
+
 def _modal(scene, specs, records, res, draw):
     series, t_all, omega_all = {}, None, None
+    model = problem(scene)[0]
     for s in specs:
         rec = records[s.key]
         if "fraction" not in rec.arrays:
@@ -414,15 +436,18 @@ def _modal(scene, specs, records, res, draw):
             elif i_min < f.size - 1 and np.isfinite(f[i_min:]).any():
                 i_ret = i_min + int(np.nanargmax(f[i_min:]))
                 row.update(fraction_peak=float(f[i_ret]), t_peak=float(t[i_ret]))
-                res.findings.append(
-                    f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
-                    f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
-                    f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
+                if recurrence_applies(model, frac.shape[0]):
+                    res.findings.append(
+                        f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
+                        f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
+                        f"t = {t[i_ret]:.4g} s (FPUT recurrence).")
             else:
                 row.update(fraction_peak=math.nan, t_peak=math.nan)
             res.add("modal_energy", row)
     if draw and series:
-        res.figures.append(FigureJob(scene.name, "modal_energy", {"t": t_all, "series": series, "omega": omega_all}))
+        res.figures.append(FigureJob(scene.name, "modal_energy", {
+            "t": t_all, "series": series, "omega": omega_all,
+            "recurrence": recurrence_applies(model, len(omega_all))}))
 
 
 def _linearization(scene, specs, records, res):
@@ -445,7 +470,8 @@ def _state_figure(scene, specs, records, res):
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
-                                                               "title": title}))
+                                                               "title": title,
+                                                               "thesis": getattr(scene, "thesis_figures", "")}))
         return
 
 

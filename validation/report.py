@@ -21,7 +21,7 @@ __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS", "write_tables", "write_index", "
 
 COLUMNS = {
     "accuracy": ["scene", "solver", "setting", "error_max", "error_rel", "error_final",
-                 "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message"],
+                 "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message", "note"],
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
                     "h_min", "h_max", "n_points", "t_end"],
     "modes": ["scene", "mode", "omega_rad_s", "freq_hz", "linearized"],
@@ -70,7 +70,10 @@ _trust_columns()
 DESCRIPTIONS = {
     "accuracy": "one row per (scene, solver, setting): largest error against the reference over all "
                 "output times and state components (absolute, and relative to the largest state "
-                "component), final-time error, largest relative energy error, cost and status.",
+                "component), final-time error, largest relative energy error (energy_drift_max = "
+                "max |E(t) - E0| / E_motion, E_motion = E0 - V(q*), see `energy`), cost and status; `note` says "
+                "why the errors are NaN when the reference could not be computed (`no truth: ...`, a failed "
+                "check).",
     "convergence": "observed order of each fixed-step method (least-squares slope of log error vs "
                    "log h over the range h_min..h_max listed) beside the expected order; for adaptive "
                    "solvers, whether the error falls as the tolerance tightens (h_min/h_max are then "
@@ -79,8 +82,11 @@ DESCRIPTIONS = {
              "(of its linearization where `linearized` is true).",
     "work_precision": "the speed-accuracy trade: error against wall time and RHS evaluations for "
                       "every solver and setting (the data of the work-precision figures).",
-    "energy": "energy drift per unit time (E(T) - E0)/(|E0| T); for RK4 on linear models beside the "
-              "exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
+    "energy": "energy drift per unit time (E(T) - E0)/(E_motion T) and its largest relative error "
+              "energy_drift_max = max |E(t) - E0| / E_motion, where E_motion = E0 - V(q*) is the energy of the "
+              "motion above the equilibrium q* the model is linearized about (invariant when a constant is "
+              "added to V; a pre-tensioned network's static spring energy is not motion); for RK4 on linear "
+              "models beside the exact theory from the per-step factor 1 - theta^6/72 + theta^8/576 of each mode, "
               "weighted by the modal energy fractions.",
     "cheapest": "the trust table: for each scene and target relative error (1e-3 ... 1e-12), the step the "
                 "method under test needs (from its error constant C h^p fitted on its runs, capped at 0.9 of "
@@ -103,7 +109,8 @@ DESCRIPTIONS = {
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
                   "v_g(kp0) (1 - 5 d^2/(16 sigma^2) + ...) (v_g(kp0) itself is quoted in the findings).",
     "modal_energy": "energy of the lowest linear modes over time (FPUT recurrence): per solver and mode, "
-                    "the fraction of the initial energy at the start, its minimum (and when), and its "
+                    "the fraction of the energy of the motion (E0 - V(q*)) at the start, its minimum (and when), "
+                    "and its "
                     "peak (and when): for mode 1 its largest return after that minimum, for the "
                     "others their largest share.",
     "linearization": "a nonlinear scene's linearized model (its exact modal solution) against the "
@@ -345,6 +352,8 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
             out.append({"scene": sc, "limit": f"{m} long-run energy change",
                         "value": f"{r['measured'] * r['periods']:.3g} relative",
                         "detail": f"over {r['periods']:.3g} slow periods at omega_max h = {r['theta']:.3g}"})
+    from validation.stability._common import FREQUENCY_RATIO, SWEEP_NAMES, stiffest_index
+
     for study, col in (("stiffness", "ratio"), ("mass_ratio", "mu")):
         pts = [r for r in rows if r["study"] == study and r["quantity"] == "nfev_at_error"]
         for sc in dict.fromkeys(r["scene"] for r in pts):
@@ -352,16 +361,17 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
             ratio = {r[col]: r["stiffness_ratio"] for r in mine if math.isfinite(r.get("stiffness_ratio", math.nan))}
             if not ratio:
                 continue
-            x = max(ratio, key=lambda k: (ratio[k], -abs(math.log(k)) if k > 0 else 0))
+            xs = list(ratio)
+            x = xs[stiffest_index(xs, [ratio[k] for k in xs])]  # the point the study's finding and caption quote
             at = {r["solver"]: r for r in mine if r[col] == x}
             m = method.get(sc, next(iter(at)))
             ok = {k: v for k, v in at.items() if v["status"] == "ok"}
             if m not in ok or len(ok) < 2:
                 continue
             best = min((k for k in ok if k != m), key=lambda k: ok[k]["measured"])
-            out.append({"scene": sc, "limit": f"cost at stiffness ratio {ratio[x]:.3g}",
+            out.append({"scene": sc, "limit": f"cost at {FREQUENCY_RATIO} {ratio[x]:.3g}",
                         "value": f"{m} {ok[m]['measured']:.3g} RHS calls vs {best} {ok[best]['measured']:.3g}",
-                        "detail": f"{study} {col} = {x:g}, target {ok[m]['target_error']:g}"})
+                        "detail": f"{SWEEP_NAMES[col]} = {x:g}, target {ok[m]['target_error']:g}"})
     return out
 
 

@@ -355,6 +355,9 @@ def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
         model=(model_type, _f(f"the model: {builtin} (its [params] below), or 'package.module:Class', a subclass of "
                               f"rk4core.Model", "-", "chain")),
         quick=(bool, _f("part of the --quick subset", "-", True, default=False)),
+        thesis_figures=(str, _f("the thesis figures this scene reproduces, quoted in its state figures' captions "
+                                "as '(thesis ...)'; empty: the scene reproduces none", "-", "Figs 4.1-4.2",
+                                default="", max_length=80)),
         params=(params_type, _f("the model's parameters (the [params] tables below)", "-",
                                 {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})),
         initial=(Initial, _f("the initial state", "-", {"x": [0.005, 0.005]})),

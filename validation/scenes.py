@@ -241,6 +241,8 @@ class Scene:
     base: str = ""
     #: the scene's own methods: ``[methods.NAME]`` tables as written
     methods: dict = field(default_factory=dict)
+    #: the thesis figures the scene reproduces (``thesis_figures``; "" for none)
+    thesis_figures: str = ""
 
     def __post_init__(self):
         if not self.base:
@@ -577,7 +579,8 @@ def _scene_from_dict(doc: dict, path) -> Scene:
                   stability=stability, path=Path(path), output_dt=output_dt,
                   convergence=s.convergence.model_dump(exclude_unset=True),
                   max_output_points=run.max_output_points,
-                  methods={k: dict(v) for k, v in doc.get("methods", {}).items()})
+                  methods={k: dict(v) for k, v in doc.get("methods", {}).items()},
+                  thesis_figures=s.thesis_figures)
     scene.__dict__["_registry"] = methods
     return scene
 

@@ -135,8 +135,7 @@ class Chain(Model):
         return ChainKernel(self.k, self.alpha, self.beta, self._left, self._right, self.linear)
 
     def drawing(self):
-        return Drawing(layout="line", point_labels=tuple(self.coord_names),
-                       extra={"thesis": "thesis Figs 4.1-4.6"})
+        return Drawing(layout="line", point_labels=tuple(self.coord_names))
 
     def frequency_range(self) -> tuple[float, float]:
         """``(omega_min, omega_max)`` (rad/s) of the linearization from the

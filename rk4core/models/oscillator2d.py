@@ -36,4 +36,4 @@ class Oscillator2D(Defined):
         return Drawing(layout="plane", points=((0, 1),), reference=((0.0, 0.0),), point_labels=("mass",),
                        caption=(f"omega_x/omega_y = {ratio:.4g}: an ellipse or line when isotropic, a closed "
                                 f"Lissajous figure for a rational ratio, space-filling for sqrt(2)"),
-                       extra={"thesis": "thesis Figs 4.15-4.20", "path_title": "x-y trajectory (Lissajous figure)"})
+                       extra={"path_title": "x-y trajectory (Lissajous figure)"})

@@ -53,5 +53,4 @@ class Planar4(Defined):
                        rest=(self.l,) * 4, point_labels=("mass",),
                        caption=("the linear model gives an ellipse, the exact geometry a precessing or "
                                 "rosette-like curve"),
-                       extra={"thesis": "thesis Figs 4.9-4.14",
-                              "rest_note": f"l = {self.l:g} m; erratum 3: not length - l^2"})
+                       extra={"rest_note": f"l = {self.l:g} m; erratum 3: not length - l^2"})

@@ -218,6 +218,18 @@ class PotentialModel(Model):
     def force_kernel(self):
         return ExprKernel(self.force_exprs, self.coordinates)
 
+    def potential_above_rest(self, q) -> np.ndarray | float:
+        """``V(q) - V(0)`` (J), ``q`` of shape (n_dof,) or (n_dof, m): ``V(0)`` is
+        subtracted from the expression before evaluation, so a constant in ``V``
+        cancels exactly (the energy of the motion, :mod:`rk4core.energy`)."""
+        fn = self.__dict__.get("_V_above_fn")
+        if fn is None:
+            V0 = ex.substitute(self.V, {c: ex.Num(0.0) for c in self.coordinates})
+            fn = self._V_above_fn = ex.lambdify(ex.add(self.V, ex.neg(V0)), self.coordinates)
+        q = np.asarray(q, dtype=float)
+        out = fn(*q)
+        return np.float64(out) if q.ndim == 1 else np.asarray(out, dtype=float)
+
     def stiffness_matrix(self) -> np.ndarray:
         """Hessian of V at the reference state ``q = 0`` (N/m, or N m/rad),
         from the symbolic second derivatives (checked finite when built)."""

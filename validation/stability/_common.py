@@ -11,7 +11,8 @@ import rk4core
 
 from ..metrics import error_max
 
-__all__ = ["StudyResult", "row", "COLUMNS", "PARAM_COLUMNS", "TIMING_COLUMNS", "integrate_fixed", "error_rel",
+__all__ = ["stiffest_index", "cost_at_point", "FREQUENCY_RATIO", "SWEEP_NAMES",
+           "StudyResult", "row", "COLUMNS", "PARAM_COLUMNS", "TIMING_COLUMNS", "integrate_fixed", "error_rel",
            "loglog_slope", "mode_amplitudes", "MAX_STEP_WORK", "StudyCapError", "frequency_range", "heyoka_steps"]
 
 #: Cap on one fixed-step run of a study: steps x degrees of freedom (about
@@ -174,3 +175,30 @@ def heyoka_steps(p_fast, p_exc):
     """heyoka's Taylor steps over ``p_fast`` periods of the fastest mode
     (``p_exc`` of the fastest excited one); calibrated on the shipped scenes."""
     return max(1.2 * p_fast, 3.5 * p_exc) + 15
+
+
+#: The name of ``stiffness_ratio`` (omega_max/omega_min of the linearization) in
+#: every caption, finding and table line; the swept parameters have their own.
+FREQUENCY_RATIO = "omega_max/omega_min"
+#: Cost sweeps: swept column -> its name in text (never "stiffness ratio": that
+#: would read as omega_max/omega_min).
+SWEEP_NAMES = {"ratio": "spring ratio k_mid/k", "mu": "mass ratio mu"}
+
+
+def stiffest_index(x, stiffness_ratio, rtol: float = 1e-9) -> int:
+    """Index of a cost sweep's stiffest point, the one its caption, finding and
+    limits line all quote: the largest ``stiffness_ratio`` (omega_max/omega_min;
+    equal to ``rtol``, as mu and 1/mu are), among those the largest ``x``."""
+    x, r = np.asarray(x, float), np.asarray(stiffness_ratio, float)
+    fin = np.isfinite(r)
+    if not fin.any():
+        raise ValueError("no finite stiffness ratio in the sweep")
+    top = fin & (r >= np.nanmax(r) * (1.0 - rtol))
+    cand = np.flatnonzero(top)
+    return int(cand[np.argmax(x[cand])])
+
+
+def cost_at_point(solver: str, nfev: float, status: str) -> str:
+    """``"rk4 2.65e+06"``, or the solver's status where it has no cost there
+    (``"cvode-bdf skipped"``)."""
+    return f"{solver} {nfev:.3g}" if status == "ok" and math.isfinite(nfev) else f"{solver} {status or 'not run'}"

@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 import rk4core
+from rk4core.energy import energy_scale
 
 from ._common import integrate_fixed, loglog_slope
 
@@ -151,12 +152,12 @@ def singular_pass(params: dict, offset: float, h: float, t_end: float, start_on_
     d, j, tm = closest_approach(model, res.t, res.y[:2])
     with np.errstate(all="ignore"):
         E = model.energy(res.y)
-    jump = float(np.max(np.abs(E - E[0])) / abs(E[0]))
+    jump = float(np.max(np.abs(E - E[0])) / energy_scale(model, E[0]))
     ax, ay = anchors[j]
     status = "singular" if d < 1e-6 * l_ else "ok"
     out.update(status=status, d_min=d, anchor=j, t_min=tm, energy_jump=jump, message=(
         f"closest approach {d:.3g} m to anchor {j} at ({ax:g}, {ay:g}) m at t = {tm:.6g} s "
-        f"(h = {res.h:.3g} s); spring direction undefined there; max |E - E0|/E0 = {jump:.3g}"))
+        f"(h = {res.h:.3g} s); spring direction undefined there; max |E - E0|/E_motion = {jump:.3g}"))
     return out
 
 

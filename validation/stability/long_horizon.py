@@ -29,6 +29,7 @@ import numpy as np
 
 from references.exact import modal_solution
 
+from rk4core.energy import energy_scale
 from rk4core.methods import RK4
 
 from ..metrics import phase_lag, rk4_energy_loss
@@ -140,9 +141,10 @@ def measure_drift_and_phase(model, y0, h, n_steps, *, method="rk4", record_every
             s_ph[j] = np.polyfit(k[keep[j]], drift[j, keep[j]], 1)[0]
     k_fit = np.array([k[keep[j]].max() if n_fit[j] else 0.0 for j in range(omega.shape[0])])
     E = model.energy(res.y)
+    E_motion = energy_scale(model, E[0])
     return {"theta": omega * res.h, "energy_loss": -np.expm1(2 * s_abs), "phase_lag": -s_ph,
             "steps_fitted": k_fit,
-            "t": res.t, "rel_energy_error": np.abs(E - E[0]) / abs(E[0]), "result": res, "path": path}
+            "t": res.t, "rel_energy_error": np.abs(E - E[0]) / E_motion, "result": res, "path": path}
 
 
 def roundoff_sweep(model, y0, t_end, hs, method="rk4"):
@@ -174,4 +176,4 @@ def reference_drift(solver, model, y0, t_end, setting, n_out=200, max_steps=None
     with np.errstate(all="ignore"):
         run = integrate(solver, model, y0, t_eval, setting, **kw)
         E = model.energy(run.y)
-    return run, run.t, np.abs(E - E[0]) / abs(E[0])
+    return run, run.t, np.abs(E - E[0]) / energy_scale(model, E[0])

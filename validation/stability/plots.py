@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import figures as F
+from ._common import FREQUENCY_RATIO, SWEEP_NAMES, cost_at_point, stiffest_index
 
 __all__ = ["draw", "KINDS"]
 
@@ -189,23 +190,27 @@ def _cost(plot, out_dir):
                     label=lab if ax is ax_n else None)
             if folded:  # the mirrored points, on the curve when the costs agree
                 ax.plot(xd[mirrored], y[mirrored], marker, mfc="none", color=color, ms=9, ls="none")
-        fin = np.isfinite(n)
-        if fin.any():
-            k = int(np.nanargmax(np.where(fin, xd, np.nan)))
-            facts.append(f"{solver} {n[k]:.3g}")
     for ax, yl in ((ax_n, "right-hand-side evaluations"), (ax_t, "wall time of the run (s)")):
         _log_axes(ax)
         ax.set_xlabel("mass ratio max(mu, 1/mu)" if folded else d["xlabel"])
         ax.set_ylabel(yl)
-    F._legend_below(fig, title=("hollow: mu < 1 drawn at 1/mu (masses swapped: the same stiffness ratio)"
+    F._legend_below(fig, title=("hollow: mu < 1 drawn at 1/mu (masses swapped: the same omega_max/omega_min)"
                                 if folded else None))
     path = F._save(fig, out_dir, _stem(plot))
     r = np.asarray(d["stiffness_ratio"], float)
-    head = (f"{plot['scene']}: target {d['target_error']:g}, {what} ratio {x.min():g} to {x.max():g} "
-            f"(omega_max/omega_min {np.nanmin(r):.3g} to {np.nanmax(r):.3g})")
-    parts = [f"RHS evaluations at the largest ratio: {', '.join(facts)}" if facts else "no solver reached the target"]
+    # the stiffest point, the one the study's finding and the limits table quote
+    k = stiffest_index(x, r)
+    status = d.get("status", {})
+    for solver in F._in_palette_order(list(d["nfev"])):
+        st = status[solver][k] if solver in status else ("ok" if math.isfinite(d["nfev"][solver][k]) else "not reached")
+        facts.append(cost_at_point(solver, float(d["nfev"][solver][k]), st))
+    name = SWEEP_NAMES.get(d["what"], f"{what} ratio")
+    head = (f"{plot['scene']}: target {d['target_error']:g}, {name} {x.min():g} to {x.max():g} "
+            f"({FREQUENCY_RATIO} {np.nanmin(r):.3g} to {np.nanmax(r):.3g})")
+    parts = [f"RHS evaluations at the stiffest point ({FREQUENCY_RATIO} {r[k]:.3g}, {name} = {x[k]:g}): "
+             f"{', '.join(facts)}"]
     if folded:
-        parts.append(f"{int(mirrored.sum())} point(s) mu < 1 folded onto 1/mu, where the same stiffness ratio gives "
+        parts.append(f"{int(mirrored.sum())} point(s) mu < 1 folded onto 1/mu, where the same {FREQUENCY_RATIO} gives "
                      f"the same system")
     return path, _caption(F._sentence(head, *parts), "cost")
 

@@ -50,7 +50,8 @@ from . import long_horizon as LH
 from . import mass_ratio as MR
 from . import stiffness as ST
 from ..metrics import energy_loss, leading_terms, phase_lag
-from ._common import PARAM_COLUMNS, StudyResult, frequency_range, heyoka_steps, integrate_fixed, row
+from ._common import (FREQUENCY_RATIO, PARAM_COLUMNS, SWEEP_NAMES, StudyResult, cost_at_point, frequency_range,
+                      heyoka_steps, integrate_fixed, row, stiffest_index)
 from .params import STUDIES, pick, validate_params
 
 __all__ = ["context_method", "units", "run_unit", "run_unit_in", "assemble", "failed_unit", "parse_unit", "unit_key", "Context",
@@ -346,7 +347,8 @@ def _long_method(ctx, part):
                             periods=periods, note=f"{n} steps; fitted over steps 0..{d['steps_fitted'][j]:.0f}"))
     err = np.asarray(d["rel_energy_error"], float)
     res.rows.append(row(s, "long_horizon", meth, "energy_drift_per_period", err[-1] / periods, periods=periods,
-                        theta=p["long_theta"], wall_s=wall, note=f"|E_end-E0|/E0 = {err[-1]:.3g} after {n} steps"))
+                        theta=p["long_theta"], wall_s=wall,
+                        note=f"|E_end-E0|/E_motion = {err[-1]:.3g} after {n} steps"))
     (a_e, p_e), _ = leading_terms(tab)
     lead = f" ({a_e:.4g} theta^{p_e} per step per mode" + (", lost" if a_e > 0 else ", gained") + ")"
     res.findings.append(f"{s}: {meth} at omega_max h = {p['long_theta']:g} over {periods:g} periods: "
@@ -379,7 +381,8 @@ def _long_reference(ctx, solver):
     ok = run.ok
     res.rows.append(row(s, "long_horizon", solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
                         status="ok" if ok else run.status.value, periods=per, wall_s=run.wall_s, note=(
-                            f"rtol {rtol:g}, {per:g} periods ({ctx.method}: {periods:g}), {run.n_steps} steps, |E_end-E0|/E0 "
+                            f"rtol {rtol:g}, {per:g} periods ({ctx.method}: {periods:g}), {run.n_steps} steps, "
+                            f"|E_end-E0|/E_motion "
                             f"= {err[-1]:.3g}; {run.message}")))
     if ok:
         res.plots.append({"kind": "energy_series", "scene": s, "study": "long_horizon", "name": "long_energy",
@@ -490,25 +493,22 @@ def _assemble_cost(scene, study, res: StudyResult) -> None:
         return np.array([pl["data"][key][pl["data"]["solvers"].index(sv)] if sv in pl["data"]["solvers"]
                          else math.nan for pl in parts], float)
 
+    def status(sv):
+        return [pl["data"]["status"][pl["data"]["solvers"].index(sv)] if sv in pl["data"]["solvers"] else "not run"
+                for pl in parts]
+
     data = {"what": what, "xlabel": xlabel, "x": np.array([pl["data"]["x"] for pl in parts], float),
             "stiffness_ratio": np.array([pl["data"]["stiffness_ratio"] for pl in parts], float),
             "target_error": float(parts[0]["data"]["target_error"]),
-            "nfev": {sv: column("nfev", sv) for sv in solvers}, "wall_s": {sv: column("wall_s", sv) for sv in solvers}}
+            "nfev": {sv: column("nfev", sv) for sv in solvers}, "wall_s": {sv: column("wall_s", sv) for sv in solvers},
+            "status": {sv: status(sv) for sv in solvers}}
     res.plots.append({"kind": "cost", "scene": scene, "study": study, "name": f"cost_{what}", "data": data})
-    k = int(np.argmax(data["stiffness_ratio"][::-1]))
-    k = len(parts) - 1 - k  # the last point of the largest stiffness ratio
+    k = stiffest_index(data["x"], data["stiffness_ratio"])  # the point the caption and limits line quote too
     pl = parts[k]["data"]
-
-    def say(sv):
-        if sv not in pl["solvers"]:
-            return f"{sv} not run"
-        st = pl["status"][pl["solvers"].index(sv)]
-        v = pl["nfev"][pl["solvers"].index(sv)]
-        return f"{sv} {v:.3g}" if st == "ok" else f"{sv} {st}"
-
-    res.findings.append(f"{scene}: RHS evaluations to reach {data['target_error']:g} at stiffness ratio "
-                        f"{pl['stiffness_ratio']:.3g} ({what} = {pl['x']:g}): "
-                        + ", ".join(say(sv) for sv in solvers) + " (heyoka: Taylor steps x order)")
+    res.findings.append(f"{scene}: RHS evaluations to reach {data['target_error']:g} at {FREQUENCY_RATIO} "
+                        f"{pl['stiffness_ratio']:.3g} ({SWEEP_NAMES[what]} = {pl['x']:g}): "
+                        + ", ".join(cost_at_point(sv, data["nfev"][sv][k], data["status"][sv][k]) for sv in solvers)
+                        + " (heyoka: Taylor steps x order)")
 
 
 def _sweep_unit(ctx: Context, study, part, params) -> StudyResult:
