@@ -95,3 +95,42 @@ def test_exit_now_flushes_what_the_worker_wrote(stream):
     p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60, env=env)
     assert p.returncode == 0
     assert getattr(p, stream) == "unterminated"
+
+
+def _job(i, seconds, die, marker):
+    """A job for the worker processes: sleeps ``seconds``; item ``die``
+    kills its own process with SIGKILL (only the first time when ``marker``,
+    a file path, is given: it is created then)."""
+    import signal as _signal
+    import time as _time
+
+    if i == die and not (marker and os.path.exists(marker)):
+        if marker:
+            open(marker, "w").close()
+        os.kill(os.getpid(), _signal.SIGKILL)
+    _time.sleep(seconds)
+    return i, os.getpid()
+
+
+@pytest.mark.parametrize("once", [False, True], ids=["dies-twice", "dies-once"])
+def test_a_worker_that_dies_is_replaced_and_its_job_retried_once(tmp_path, capsys, once):
+    """Item 2 kills its worker while the other general worker holds item 1
+    (0.5 s): the broken pool is replaced, item 1 runs again without charge;
+    item 2 runs once more, then (if it dies again) is a ``WorkerDied``
+    naming the signal. Every other item has its result."""
+    marker = str(tmp_path / "died") if once else None
+    items = [(i, 0.5 if i == 1 else 0.05, 2, marker) for i in range(6)]
+    pools = engine.LocalPools(3)
+    try:
+        out = pools.map(_job, items)
+    finally:
+        pools.close()
+    err = capsys.readouterr().err
+    if once:
+        assert [o[0] for o in out] == list(range(6))
+        assert err.count("died (SIGKILL)") == 1
+    else:
+        assert isinstance(out[2], engine.WorkerDied) and str(out[2]) == "worker died (SIGKILL) twice"
+        assert [o[0] for i, o in enumerate(out) if i != 2] == [0, 1, 3, 4, 5]
+        assert err.count("died (SIGKILL)") == 2
+    assert "Traceback" not in err

@@ -23,6 +23,14 @@ a time in one worker process (the *timing lane*) with the other workers idle,
 for a machine where parallel runs do disturb each other's timings.
 ``--workers 1`` runs everything in this process, in the same order.
 
+Workers that die
+----------------
+A local worker process that dies (the OOM killer's SIGKILL, a segfault in an
+extension) breaks its pool; the pool is replaced, the spec the dead process
+was running is run once more and, if its worker dies again, becomes a failed
+record (``WorkerDied: worker died (SIGKILL) twice``); the other specs in
+flight there are resubmitted. The run goes on (:class:`_Dispatch`).
+
 On a Dask cluster (``--scheduler ADDRESS``) the same three stages run in
 order; timed specs ask for the worker resource ``timing`` when a worker
 offers it (start one worker with ``--resources timing=1 --nthreads 1``,
@@ -39,7 +47,7 @@ import sys
 
 from .records import failed_record
 
-__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools"]
+__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools", "WorkerDied"]
 
 
 def default_workers() -> int:
@@ -64,7 +72,13 @@ class PlanStats:
                 f"timing={self.timing!r})")
 
 
-def _worker_init():
+#: In a worker process: the pipe on which it says which job it starts (see _tracked).
+_TELL = None
+
+
+def _worker_init(tell=None):
+    global _TELL
+    _TELL = tell
     # Ctrl-C reaches the whole process group: the parent decides, workers stay quiet.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     # A worker dies with its parent (kill -9 of run_all): an orphan would go on
@@ -88,6 +102,19 @@ def _worker_init():
     # is closed by then; results travel through a pipe written synchronously
     # (no feeder thread to wait for).
     atexit.register(_exit_now)
+
+
+def _tracked(tag, fn, *args):
+    """Run ``fn(*args)`` in a worker, first telling the parent (``tag``, this
+    process's id) so that the job a dead worker was running is known. The
+    message is one ``write`` of a few bytes on a pipe, atomic below
+    ``PIPE_BUF``: no lock that a killed writer could leave held."""
+    if _TELL is not None:
+        try:
+            _TELL.send_bytes(f"{os.getpid()} {tag}".encode())
+        except (OSError, ValueError):
+            pass
+    return fn(*args)
 
 
 def _exit_now():
@@ -224,11 +251,36 @@ class LocalPools:
             if _TRACKER_QUIET not in sys.warnoptions:
                 sys.warnoptions.append(_TRACKER_QUIET)
 
-            ctx = mp.get_context("spawn")
-            self.general = ProcessPoolExecutor(max_workers=max(1, self.workers - 1), mp_context=ctx,
-                                               initializer=_worker_init)
-            self.lane = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_worker_init)
+            self._ctx = mp.get_context("spawn")
+            if getattr(self, "_heard", None) is None:
+                self._heard, self._tell = self._ctx.Pipe(duplex=False)
+            self.general = self._new("general")
+            self.lane = self._new("lane")
         return self
+
+    def _new(self, name):
+        from concurrent.futures import ProcessPoolExecutor
+
+        return ProcessPoolExecutor(max_workers=1 if name == "lane" else max(1, self.workers - 1),
+                                   mp_context=self._ctx, initializer=_worker_init, initargs=(self._tell,))
+
+    def renew(self, name):
+        """Replace the pool ``name`` (``"lane"`` or ``"general"``), broken by
+        a worker that died, by a fresh one (its processes start on first use)."""
+        setattr(self, name, self._new(name))
+
+    def heard(self):
+        """``[(pid, tag), ...]``: the jobs the workers said they started since
+        the last call (see :func:`_tracked`)."""
+        out = []
+        conn = getattr(self, "_heard", None)
+        try:
+            while conn is not None and conn.poll(0):
+                pid, tag = conn.recv_bytes().split()
+                out.append((int(pid), int(tag)))
+        except (OSError, EOFError, ValueError):
+            pass
+        return out
 
     def warm(self):
         """Start the worker processes now, each importing the execution
@@ -246,31 +298,23 @@ class LocalPools:
         when it is done with its last, the largest ``cost`` (one number per
         item) first, so that a long item does not leave one process idle at
         the end."""
-        from concurrent.futures import FIRST_COMPLETED, wait
-
         self.start()
         out = [None] * len(items)
         free = {"lane": 1, "general": max(1, self.workers - 1)}
         todo = list(range(len(items)))
         if cost is not None:
             todo.sort(key=lambda i: -cost[i])
-        pending = {}
+        jobs = _Dispatch(self)
         try:
-            while todo or pending:
+            while todo or jobs.pending:
                 for name in ("lane", "general"):
                     while todo and free[name]:
                         i = todo.pop(0)
                         free[name] -= 1
-                        pool = self.lane if name == "lane" else self.general
-                        pending[pool.submit(fn, *items[i])] = (i, name)
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    i, name = pending.pop(f)
-                    free[name] += 1
-                    try:
-                        out[i] = f.result()
-                    except Exception as e:  # noqa: BLE001 - the caller reports it
-                        out[i] = e
+                        jobs.submit(name, fn, items[i], i)
+                for job, result in jobs.wait():
+                    free[job.name] += 1
+                    out[job.what] = result  # an exception is returned: the caller reports it
         except BaseException:
             self.close(kill=True)
             raise
@@ -290,23 +334,25 @@ class LocalPools:
                         pass
             pool.shutdown(wait=not kill, cancel_futures=True)
         self.general = self.lane = None
+        for conn in (getattr(self, "_heard", None), getattr(self, "_tell", None)):
+            if conn is not None:
+                conn.close()
+        self._heard = self._tell = None
 
 
 def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
-    from concurrent.futures import FIRST_COMPLETED, wait
-
     pools.start()
     others = pools.workers - 1
     stats.timing = (f"one at a time after the untimed work, in one process with the other {others} worker(s) "
                     f"idle (--exclusive-timing, --workers {pools.workers})" if exclusive_timing or not others else
                     f"after the untimed work, {pools.workers} at a time, one per worker process "
                     f"(--workers {pools.workers}): each timed run shares the machine with other timed runs only")
+    jobs = _Dispatch(pools)
     try:
         for stage in stages:
             queue = list(stage)
             free = {"lane": 1, "general": max(1, others)}
-            pending = {}
-            while queue or pending:
+            while queue or jobs.pending:
                 # keep every process busy with one spec (timed runs only in the lane
                 # when timing is exclusive)
                 while queue:
@@ -317,20 +363,146 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
                         break
                     scene, spec = queue.pop(0)
                     free[name] -= 1
-                    pool = pools.lane if name == "lane" else pools.general
-                    pending[pool.submit(_execute, scene, spec, quick)] = (spec, name)
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    spec, name = pending.pop(fut)
-                    free[name] += 1
-                    try:
-                        rec = fut.result()
-                    except Exception as e:  # noqa: BLE001 - a worker that died is a failed record
-                        rec = failed_record(spec.key, e)
-                    done(spec, rec)
+                    jobs.submit(name, _execute, (scene, spec, quick), spec)
+                for job, rec in jobs.wait():
+                    free[job.name] += 1
+                    if isinstance(rec, BaseException):  # the run raised, or its worker died twice
+                        rec = failed_record(job.what.key, rec)
+                    done(job.what, rec)
     except BaseException:
         pools.close(kill=True)
         raise
+
+
+class WorkerDied(RuntimeError):
+    """A local worker process died (a signal, or an exit) while running the
+    same job twice: the job's outcome, in place of its result."""
+
+
+def _death(code) -> str:
+    """How a process ended, from its exit code (negative: the signal)."""
+    if code is not None and code < 0:
+        try:
+            return signal.Signals(-code).name
+        except ValueError:
+            return f"signal {-code}"
+    return f"exit status {code}"
+
+
+class _Job:
+    __slots__ = ("tag", "name", "fn", "args", "what", "deaths")
+
+    def __init__(self, tag, name, fn, args, what):
+        self.tag, self.name, self.fn, self.args, self.what, self.deaths = tag, name, fn, args, what, []
+
+
+class _Dispatch:
+    """Jobs on the pools of a :class:`LocalPools` (``"lane"``, ``"general"``),
+    surviving the death of a worker process.
+
+    A worker that dies (killed by the OOM killer, a segfault in an extension)
+    breaks its whole ``ProcessPoolExecutor``: every job in flight there fails
+    with ``BrokenProcessPool``. The pool is then replaced by a fresh one; the
+    job the dead process was running (it said so on starting, see
+    :func:`_tracked`) is run once more, and if its worker dies again its
+    outcome is a :class:`WorkerDied` naming the signals; the other jobs of the
+    broken pool are simply resubmitted. When the dead process ran none of the
+    jobs (it died starting up or idle) nobody is charged, except after two
+    such deaths in a row; when no process can be singled out (all ended with
+    SIGTERM, which the executor sends to the survivors) every job in flight is
+    charged.
+    """
+
+    def __init__(self, pools):
+        self.pools = pools
+        self.pending = {}  # future -> _Job
+        self.ready = []  # (job, outcome) not yet returned by wait()
+        self.started = {}  # pid -> tag of the last job it said it started
+        self.tags = 0
+        self.idle_deaths = 0
+
+    def submit(self, name, fn, args, what):
+        """Run ``fn(*args)`` on the pool ``name``; ``what`` comes back with its outcome."""
+        self.tags += 1
+        self._submit(_Job(self.tags, name, fn, tuple(args), what))
+
+    def _submit(self, job):
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            fut = getattr(self.pools, job.name).submit(_tracked, job.tag, job.fn, *job.args)
+        except BrokenProcessPool:  # broke with none of its jobs collected yet
+            self._recover(job.name)
+            fut = getattr(self.pools, job.name).submit(_tracked, job.tag, job.fn, *job.args)
+        self.pending[fut] = job
+
+    def _listen(self):
+        heard = getattr(self.pools, "heard", None)
+        for pid, tag in (heard() if heard is not None else ()):
+            self.started[pid] = tag
+
+    def wait(self):
+        """Block until at least one job has an outcome (none pending: return
+        at once); returns ``[(job, result or exception), ...]``."""
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        while not self.ready and self.pending:
+            finished, _ = wait(list(self.pending), return_when=FIRST_COMPLETED)
+            self._listen()
+            broken = set()
+            for fut in finished:
+                job = self.pending[fut]
+                exc = fut.exception()
+                if isinstance(exc, BrokenProcessPool):
+                    broken.add(job.name)
+                    continue
+                del self.pending[fut]
+                self.idle_deaths = 0
+                self.ready.append((job, exc if exc is not None else fut.result()))
+            for name in sorted(broken):
+                self._recover(name)
+        out, self.ready = self.ready, []
+        return out
+
+    def _recover(self, name):
+        pool = getattr(self.pools, name)
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        # The executor's manager thread has failed every job, terminated the
+        # other workers and joined them all: their exit codes are known after this.
+        pool.shutdown(wait=True, cancel_futures=True)
+        self._listen()
+        codes = {p.pid: p.exitcode for p in procs}
+        jobs = [j for j in self.pending.values() if j.name == name]
+        self.pending = {f: j for f, j in self.pending.items() if j.name != name}
+        died = {pid: c for pid, c in codes.items() if c is not None and c != -signal.SIGTERM}
+        charged = {}
+        for pid, code in died.items():
+            for j in jobs:
+                if self.started.get(pid) == j.tag:
+                    charged[j.tag] = _death(code)
+        if not charged and (not died or self.idle_deaths >= 2):
+            how = _death(next(iter(died.values()), -signal.SIGTERM))
+            charged = {j.tag: how for j in jobs}
+        elif not charged:
+            self.idle_deaths += 1
+        for pid in codes:
+            self.started.pop(pid, None)
+        self.pools.renew(name)
+        again = 0
+        for j in jobs:
+            if j.tag in charged:
+                j.deaths.append(charged[j.tag])
+            if len(j.deaths) >= 2:
+                self.ready.append((j, WorkerDied(
+                    f"worker died ({j.deaths[0]}) twice" if len(set(j.deaths)) == 1
+                    else f"worker died twice ({', then '.join(j.deaths)})")))
+            else:
+                again += 1
+                self._submit(j)
+        what = ", ".join(_death(c) for c in died.values()) or "SIGTERM"
+        sys.stderr.write(f"run_all: a local worker process died ({what}); its pool was replaced, "
+                         f"{again} of the {len(jobs)} job(s) it held run again\n")
 
 
 #: Seconds to wait for a Dask scheduler before the run ends with exit 3;
