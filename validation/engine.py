@@ -40,14 +40,16 @@ and the report says that its timings came from a shared cluster.
 from __future__ import annotations
 
 import atexit
+import errno
 import math
 import os
 import signal
 import sys
 
+from .atomic import EnvironmentRefused
 from .records import failed_record
 
-__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools", "WorkerDied"]
+__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools", "WorkerDied", "SchedulerLost"]
 
 
 def default_workers() -> int:
@@ -524,41 +526,209 @@ def scheduler_timeout() -> float:
     return value
 
 
-def _dask(stages, quick, address, done, stats):
+class SchedulerLost(EnvironmentRefused):
+    """The Dask cluster refused or was lost: no scheduler answered within
+    :func:`scheduler_timeout`, it has no worker running this code, or it
+    stopped answering mid-run (exit 3). The records made so far are kept
+    for ``--resume``."""
+
+    def __init__(self, message):
+        super().__init__(errno.ECONNREFUSED, message)
+
+
+class _NoAnswer(Exception):
+    pass
+
+
+def _bounded(fn, seconds):
+    """``fn()``, or :class:`_NoAnswer` after ``seconds``: a call into
+    ``distributed`` that waits on a peer which accepts and never answers (a
+    frozen scheduler, a socket that is not one) does not return, whatever
+    its own timeout says; it is left behind in a daemon thread."""
+    import threading
+
+    box = {}
+
+    def call():
+        try:
+            box["value"] = fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    t = threading.Thread(target=call, name="rk4h-dask-call", daemon=True)
+    t.start()
+    t.join(seconds)
+    if t.is_alive():
+        raise _NoAnswer
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _worker_digest():
+    """:func:`validation.plan.code_digest` of the code this process imports
+    (run on each Dask worker before it gets work)."""
+    from validation.plan import code_digest
+
+    return code_digest()
+
+
+def _first_line(e) -> str:
+    text = str(e).splitlines()[0] if str(e) else ""
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def _verified_workers(client, address, timeout, deadline):
+    """The addresses of the Dask workers whose code digest is ours, and what
+    the scheduler says of every worker. A worker must have joined by
+    ``deadline`` (``time.monotonic()``); each then has ``timeout`` seconds to
+    run the code check. A worker that fails it is named on stderr (refused);
+    none left: :class:`SchedulerLost`."""
+    import time
+
+    from distributed import wait as dask_wait
+
+    from .plan import code_digest
+
+    def left():
+        return max(0.1, deadline - time.monotonic())
+
     try:
-        from distributed import Client, as_completed
+        _bounded(lambda: client.wait_for_workers(1, timeout=left()), left() + 0.5)
+        workers = _bounded(lambda: client.scheduler_info(n_workers=-1), left()).get("workers", {})
+    except (_NoAnswer, TimeoutError, OSError) as e:
+        why = "none joined" if isinstance(e, TimeoutError) else "the scheduler did not answer"
+        raise SchedulerLost(f"the Dask scheduler at {address} has no workers ({why} within {timeout:g} s)") from None
+    ours = code_digest()
+    probes = {a: client.submit(_worker_digest, workers=[a], allow_other_workers=False, pure=False)
+              for a in workers}
+    try:
+        _bounded(lambda: dask_wait(list(probes.values()), timeout=timeout), timeout + 1)
+    except (_NoAnswer, TimeoutError):
+        pass
+    good, refused = [], []
+    for a, fut in probes.items():
+        if fut.status == "finished":
+            digest = _bounded(lambda: fut.result(timeout=timeout), timeout + 1)
+            if digest == ours:
+                good.append(a)
+                continue
+            why = f"it runs other code: code digest {digest!r}, ours {ours!r}"
+        elif fut.status == "error":
+            why = f"its code check raised {_first_line(_bounded(fut.exception, timeout))}"
+        else:
+            why = f"it did not run the code check within {timeout:g} s"
+            fut.cancel()
+        refused.append(a)
+        sys.stderr.write(f"run_all: Dask worker {a} refused: {why}\n")
+    if not good:
+        raise SchedulerLost(f"no worker of the Dask scheduler at {address} runs this code "
+                            f"(refused: {', '.join(refused)})")
+    return good, workers
+
+
+def _connection_trouble(record) -> bool:
+    """False for a ``distributed`` log record whose exception is a lost or
+    refused connection (the run reports those itself, in one line, instead
+    of their tracebacks); True for any other record."""
+    import asyncio
+
+    exc = record.exc_info[1] if record.exc_info else None
+    return not isinstance(exc, (OSError, TimeoutError, asyncio.CancelledError))
+
+
+def _dask(stages, quick, address, done, stats):
+    import logging
+
+    try:
+        import distributed  # noqa: F401 - configures its loggers
     except ImportError:  # pragma: no cover - a dependency of the project
         raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
-    try:
-        client = Client(address, timeout=f"{scheduler_timeout():g}s")
-    except OSError as e:
-        import errno
+    handlers = list(logging.getLogger("distributed").handlers)
+    for h in handlers:
+        h.addFilter(_connection_trouble)
+    _dask_run(stages, quick, address, done, stats)
+    # (after a failure the filter stays: a client left behind may still log its reconnection)
+    for h in handlers:
+        h.removeFilter(_connection_trouble)
 
-        from .atomic import EnvironmentRefused
 
-        raise EnvironmentRefused(errno.ECONNREFUSED, f"cannot reach the Dask scheduler at {address} "
-                                 f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+def _dask_run(stages, quick, address, done, stats):
     try:
-        info = client.scheduler_info()
-        timing_worker = any("timing" in (w.get("resources") or {}) for w in info.get("workers", {}).values())
+        from distributed import Client
+        from distributed import wait as dask_wait
+    except ImportError:  # pragma: no cover - a dependency of the project
+        raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
+    import time
+
+    timeout = scheduler_timeout()
+    deadline = time.monotonic() + timeout  # a scheduler with a worker, or exit 3
+    try:
+        client = _bounded(lambda: Client(address, timeout=f"{timeout:g}s"), timeout)
+    except (_NoAnswer, OSError) as e:
+        why = f"no answer within {timeout:g} s" if isinstance(e, _NoAnswer) else _first_line(e)
+        raise SchedulerLost(f"cannot reach the Dask scheduler at {address} ({why})") from None
+    lost = None
+    try:
+        good, workers = _verified_workers(client, address, timeout, deadline)
+        timing_worker = any("timing" in (workers[a].get("resources") or {}) for a in good)
         stats.timing = ("Dask: timed runs on the worker with the `timing` resource" if timing_worker
                         else "Dask: timed runs wherever the scheduler put them (no worker offers `timing`)")
+
+        def alive(what):
+            """Raise SchedulerLost unless the scheduler answers and a verified worker is left."""
+            try:
+                now = _bounded(lambda: client.scheduler_info(n_workers=-1), timeout).get("workers", {})
+            except (_NoAnswer, OSError) as e:
+                why = f"no answer within {timeout:g} s" if isinstance(e, _NoAnswer) else _first_line(e)
+                raise SchedulerLost(f"lost the Dask scheduler at {address} {what} ({why})") from None
+            if not set(now) & set(good):
+                raise SchedulerLost(f"no verified worker is left at the Dask scheduler at {address} "
+                                    f"({len(good)} ran this code: {', '.join(good)})")
+
+        def outcome(fut, spec):
+            while True:
+                try:
+                    if fut.status == "finished":
+                        return _bounded(lambda: fut.result(timeout=timeout), timeout + 1)
+                    if fut.status == "error":  # the run raised, or Dask gave up on it (KilledWorker)
+                        return failed_record(spec.key, _bounded(lambda: fut.exception(timeout=timeout),
+                                                                timeout + 1))
+                except (_NoAnswer, TimeoutError):
+                    alive(f"while fetching the record of {spec.label()}")
+                    continue
+                except Exception as e:  # noqa: BLE001 - the connection, or a record that did not unpickle
+                    alive(f"while fetching the record of {spec.label()}")
+                    return failed_record(spec.key, e)
+                # cancelled or lost: the cluster's doing, not the run's
+                raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run (the run {spec.label()} "
+                                    f"was {fut.status})")
+
         for stage in stages:
-            futures = {}
+            pending = {}
             for scene, spec in stage:
                 kw = {"resources": {"timing": 1}} if spec.timed and timing_worker else {}
-                fut = client.submit(_execute, scene, spec, quick, key=f"rk4h-{spec.key}", pure=False, **kw)
-                futures[fut] = spec
-            for fut in as_completed(list(futures)):
-                spec = futures[fut]
+                fut = client.submit(_execute, scene, spec, quick, key=f"rk4h-{spec.key}", pure=False,
+                                    workers=good, allow_other_workers=False, **kw)
+                pending[fut] = spec
+            while pending:
                 try:
-                    rec = fut.result()
-                except Exception as e:  # noqa: BLE001
-                    rec = failed_record(spec.key, e)
-                done(spec, rec)
+                    finished = _bounded(lambda: dask_wait(list(pending), timeout=timeout,
+                                                          return_when="FIRST_COMPLETED").done, timeout + 1)
+                except (_NoAnswer, TimeoutError):  # a long run, or a cluster gone quiet
+                    alive("mid-run")
+                    continue
+                except Exception:  # noqa: BLE001 - FuturesCancelledError: the scheduler is gone
+                    finished = [f for f in pending if f.status != "pending"]
+                for fut in finished:
+                    spec = pending.pop(fut)
+                    done(spec, outcome(fut, spec))
+    except SchedulerLost as e:
+        lost = e
+        raise
     finally:
         try:
-            client.close(timeout=5)
+            _bounded(lambda: client.close(timeout=timeout), timeout + 1)
         except Exception:  # noqa: BLE001 - closing a dead connection
-            print("run_all: the Dask client did not close cleanly", file=sys.stderr)
-
+            if lost is None:
+                print("run_all: the Dask client did not close cleanly", file=sys.stderr)

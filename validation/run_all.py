@@ -635,9 +635,10 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
                 pools.close(kill=not swapped)
             if not swapped:
                 shutil.rmtree(tmp, ignore_errors=True)
-                # records stay only for --resume after an interrupt; a run that the
-                # environment stopped (disk full, ...) leaves nothing behind
-                if not isinstance(sys.exc_info()[1], KeyboardInterrupt) or not store.keys():
+                # records stay only for --resume after an interrupt or a lost Dask
+                # cluster; a run that the environment stopped (disk full, ...) leaves nothing behind
+                if not isinstance(sys.exc_info()[1], (KeyboardInterrupt, engine.SchedulerLost)) \
+                        or not store.keys():
                     store.remove()
         sig.release()
     except KeyboardInterrupt as e:
@@ -653,6 +654,16 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
         sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
                          f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
         return 128 + signum
+    except engine.SchedulerLost as e:
+        if progress is not None:
+            progress.close()
+        try:
+            recorded = len(store.keys())
+        except OSError:  # removed: it held nothing
+            recorded = 0
+        kept = "" if not recorded else (f"; {recorded} of {stats.planned} runs are recorded: rerun with "
+                                        f"--resume to run only the rest")
+        return _environment(f"{e.strerror}; {args.out} left unchanged{kept}")
     finally:
         sig.held, sig.pending = False, None
     if atomic.swap_into_place.kept is not None:
