@@ -134,3 +134,23 @@ def test_a_worker_that_dies_is_replaced_and_its_job_retried_once(tmp_path, capsy
         assert [o[0] for i, o in enumerate(out) if i != 2] == [0, 1, 3, 4, 5]
         assert err.count("died (SIGKILL)") == 2
     assert "Traceback" not in err
+
+
+def _kill_self():
+    os.kill(os.getpid(), __import__("signal").SIGSEGV)
+
+
+def test_a_worker_that_dies_idle_charges_no_job(capsys):
+    """A worker that dies before it takes a job (as one whose start-up
+    imports an extension that segfaults would) leaves a broken pool behind:
+    the next submission replaces it and every job gets its result."""
+    pools = engine.LocalPools(2).start()
+    try:
+        with pytest.raises(Exception):
+            pools.general.submit(_kill_self).result(timeout=120)  # untracked, like the warm-up job
+        out = pools.map(_job, [(i, 0.01, -1, None) for i in range(4)])
+    finally:
+        pools.close()
+    assert [o[0] for o in out] == list(range(4))
+    err = capsys.readouterr().err
+    assert "died (SIGSEGV)" in err and "0 of the 0 job(s)" in err, err

@@ -36,6 +36,15 @@ order; timed specs ask for the worker resource ``timing`` when a worker
 offers it (start one worker with ``--resources timing=1 --nthreads 1``,
 alone on its machine); without such a worker they run wherever Dask puts them
 and the report says that its timings came from a shared cluster.
+
+Before a Dask worker gets a spec it proves its code: it runs
+:func:`_worker_digest` (:func:`validation.plan.code_digest` of the packages
+it imports), and a worker whose digest is not ours is refused, named on
+stderr, and gets no work. Every wait on the cluster is bounded by
+:func:`scheduler_timeout`: no scheduler answering, no worker, no verified
+worker, or a scheduler that goes quiet or away mid-run ends the run with
+:class:`SchedulerLost` (exit 3; the records so far stay for ``--resume``;
+``docs/workers.md``).
 """
 from __future__ import annotations
 
@@ -507,8 +516,10 @@ class _Dispatch:
                          f"{again} of the {len(jobs)} job(s) it held run again\n")
 
 
-#: Seconds to wait for a Dask scheduler before the run ends with exit 3;
-#: the environment variable ``RK4H_SCHEDULER_TIMEOUT`` replaces it.
+#: Seconds to wait for a Dask scheduler (and a worker) before the run ends
+#: with exit 3; also each worker's time for its code check, and the silence
+#: mid-run after which the scheduler is asked whether it is still there; the
+#: environment variable ``RK4H_SCHEDULER_TIMEOUT`` replaces it.
 SCHEDULER_TIMEOUT_S = 20.0
 
 
