@@ -154,3 +154,29 @@ def test_a_worker_that_dies_idle_charges_no_job(capsys):
     assert [o[0] for o in out] == list(range(4))
     err = capsys.readouterr().err
     assert "died (SIGSEGV)" in err and "0 of the 0 job(s)" in err, err
+
+
+def test_a_heyoka_that_segfaults_on_import_makes_failed_rows_not_a_traceback(tmp_path):
+    """Every worker that imports heyoka (its warm-up, a heyoka run) dies
+    with SIGSEGV: the heyoka runs become failed rows naming the signal, the
+    other runs are recorded, the report is written (exit 1)."""
+    fake = tmp_path / "fake" / "heyoka"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGSEGV)\n")
+    scene = tmp_path / "s.toml"
+    scene.write_text(one_mass("segv", solvers='["rk4", "dop853", "heyoka"]'))
+    out = tmp_path / "out"
+    env = {**os.environ, "MPLBACKEND": "Agg",
+           "PYTHONPATH": os.pathsep.join([str(fake.parent), str(REPO), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(scene), "--out", str(out),
+                        "--workers", "2", "--repeats", "1", "--no-figures"], cwd=REPO, capture_output=True,
+                       text=True, timeout=300, env=env)
+    assert p.returncode == 1, p.stderr
+    assert "Traceback" not in p.stderr, p.stderr
+    failed = sorted(line for line in p.stdout.splitlines() if line.startswith("FAILED"))
+    assert failed == [f"FAILED: segv: heyoka at {tol} raised WorkerDied: worker died (SIGSEGV) twice"
+                      for tol in ("1e-06", "1e-09")], p.stdout
+    import pandas as pd
+
+    acc = pd.read_csv(out / "accuracy.csv")
+    assert set(acc["solver"]) == {"rk4", "dop853", "heyoka"}, acc
