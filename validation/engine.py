@@ -23,19 +23,19 @@ a time in one worker process (the *timing lane*) with the other workers idle,
 for a machine where parallel runs do disturb each other's timings.
 ``--workers 1`` runs everything in this process, in the same order.
 
-Workers that die
-----------------
-A local worker process that dies (the OOM killer's SIGKILL, a segfault in an
-extension) breaks its pool; the pool is replaced, the spec the dead process
-was running is run once more and, if its worker dies again, becomes a failed
-record (``WorkerDied: worker died (SIGKILL) twice``); the other specs in
-flight there are resubmitted. The run goes on (:class:`_Dispatch`).
-
 On a Dask cluster (``--scheduler ADDRESS``) the same three stages run in
 order; timed specs ask for the worker resource ``timing`` when a worker
 offers it (start one worker with ``--resources timing=1 --nthreads 1``,
 alone on its machine); without such a worker they run wherever Dask puts them
 and the report says that its timings came from a shared cluster.
+
+Workers that die, clusters that go quiet
+----------------------------------------
+A local worker process that dies (the OOM killer's SIGKILL, a segfault in an
+extension) breaks its pool; the pool is replaced, the spec the dead process
+was running is run once more and, if its worker dies again, becomes a failed
+record (``WorkerDied: worker died (SIGKILL) twice``); the other specs in
+flight there are resubmitted. The run goes on (:class:`_Dispatch`).
 
 Before a Dask worker gets a spec it proves its code: it runs
 :func:`_worker_digest` (:func:`validation.plan.code_digest` of the packages
@@ -665,12 +665,11 @@ def _dask(stages, quick, address, done, stats):
 
 
 def _dask_run(stages, quick, address, done, stats):
-    try:
-        from distributed import Client
-        from distributed import wait as dask_wait
-    except ImportError:  # pragma: no cover - a dependency of the project
-        raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
+    import asyncio
     import time
+
+    from distributed import Client
+    from distributed import wait as dask_wait
 
     timeout = scheduler_timeout()
     deadline = time.monotonic() + timeout  # a scheduler with a worker, or exit 3
@@ -698,22 +697,26 @@ def _dask_run(stages, quick, address, done, stats):
                                     f"({len(good)} ran this code: {', '.join(good)})")
 
         def outcome(fut, spec):
-            while True:
+            """The record of a future Dask calls done; None: not done (any more), wait on."""
+            for _ in range(3):
+                status = fut.status
+                if status == "pending":  # its result was lost with a worker: Dask runs it again
+                    return None
+                if status not in ("finished", "error"):  # cancelled, lost: the cluster's doing
+                    raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run (the run "
+                                        f"{spec.label()} was {status})")
                 try:
-                    if fut.status == "finished":
+                    if status == "finished":
                         return _bounded(lambda: fut.result(timeout=timeout), timeout + 1)
-                    if fut.status == "error":  # the run raised, or Dask gave up on it (KilledWorker)
-                        return failed_record(spec.key, _bounded(lambda: fut.exception(timeout=timeout),
-                                                                timeout + 1))
+                    # the run raised, or Dask gave up on it (KilledWorker)
+                    return failed_record(spec.key, _bounded(lambda: fut.exception(timeout=timeout), timeout + 1))
                 except (_NoAnswer, TimeoutError):
                     alive(f"while fetching the record of {spec.label()}")
-                    continue
-                except Exception as e:  # noqa: BLE001 - the connection, or a record that did not unpickle
+                except (Exception, asyncio.CancelledError) as e:  # noqa: BLE001
                     alive(f"while fetching the record of {spec.label()}")
-                    return failed_record(spec.key, e)
-                # cancelled or lost: the cluster's doing, not the run's
-                raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run (the run {spec.label()} "
-                                    f"was {fut.status})")
+                    if fut.status == status:  # a record that does not unpickle here, say
+                        return failed_record(spec.key, e)
+            return None
 
         for stage in stages:
             pending = {}
@@ -729,11 +732,18 @@ def _dask_run(stages, quick, address, done, stats):
                 except (_NoAnswer, TimeoutError):  # a long run, or a cluster gone quiet
                     alive("mid-run")
                     continue
-                except Exception:  # noqa: BLE001 - FuturesCancelledError: the scheduler is gone
+                except Exception as e:  # noqa: BLE001 - FuturesCancelledError: the scheduler is gone
                     finished = [f for f in pending if f.status != "pending"]
+                    if not finished:
+                        raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run "
+                                            f"({_first_line(e)})") from None
                 for fut in finished:
                     spec = pending.pop(fut)
-                    done(spec, outcome(fut, spec))
+                    rec = outcome(fut, spec)
+                    if rec is None:
+                        pending[fut] = spec
+                    else:
+                        done(spec, rec)
     except SchedulerLost as e:
         lost = e
         raise
