@@ -479,11 +479,18 @@ class _Dispatch:
     def _recover(self, name):
         pool = getattr(self.pools, name)
         procs = list((getattr(pool, "_processes", None) or {}).values())
-        # The executor's manager thread has failed every job, terminated the
-        # other workers and joined them all: their exit codes are known after this.
-        pool.shutdown(wait=True, cancel_futures=True)
+        # The executor's manager thread fails every job and terminates the other
+        # workers (SIGTERM); waiting for the processes, not for that thread, cannot hang.
+        pool.shutdown(wait=False, cancel_futures=True)
+        codes = {}
+        for p in procs:
+            p.join(timeout=30)
+            codes[p.pid] = p.exitcode
+            if p.exitcode is None:  # not terminated: ended here, and not taken for the dead one
+                p.kill()
+                p.join(timeout=5)
+                codes[p.pid] = -signal.SIGTERM
         self._listen()
-        codes = {p.pid: p.exitcode for p in procs}
         jobs = [j for j in self.pending.values() if j.name == name]
         self.pending = {f: j for f, j in self.pending.items() if j.name != name}
         died = {pid: c for pid, c in codes.items() if c is not None and c != -signal.SIGTERM}
