@@ -263,7 +263,12 @@ def test_a_worker_running_other_code_is_refused_and_named(tmp_path):
     assert "all expectations held" in r.stdout
 
 
-def test_a_scheduler_lost_mid_run_is_exit_3_with_the_records_kept_and_the_report_untouched(tmp_path):
+@pytest.mark.parametrize("how", ["killed", "frozen"])
+def test_a_scheduler_lost_mid_run_is_exit_3_with_the_records_kept_and_the_report_untouched(tmp_path, how):
+    """The scheduler is killed (kill -9) or frozen (SIGSTOP: it still
+    accepts connections, and answers nothing) after the first record."""
+    import signal
+
     scene = tmp_path / "s.toml"
     scene.write_text(one_mass("dask-lost", t_end=60.0, h="[0.1, 0.05, 0.02, 0.01, 0.005]",
                               tolerances="[1e-6, 1e-8, 1e-10]", solvers='["rk4", "dop853", "cvode-adams"]',
@@ -281,18 +286,19 @@ def test_a_scheduler_lost_mid_run_is_exit_3_with_the_records_kept_and_the_report
         p = _run_all(scene, out, c.address, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         first = p.stdout.readline()
         assert first.startswith("[1/"), first + p.stderr.read()
-        c.procs[0].kill()  # the scheduler
+        c.procs[0].send_signal(signal.SIGKILL if how == "killed" else signal.SIGSTOP)  # the scheduler
         t0 = time.monotonic()
         stdout, stderr = p.communicate(timeout=120)
         seconds = time.monotonic() - t0
     finally:
         if p.poll() is None:
             p.kill()
+        c.procs[0].send_signal(signal.SIGCONT)
         c.close()
     assert p.returncode == 3, stderr
     # no record for TIMEOUT s: the scheduler is asked, and has TIMEOUT s (+ 1) to answer
     assert seconds < 2 * TIMEOUT + 1 + 10, seconds
-    print(f"scheduler killed: exit 3 after {seconds:.1f} s")
+    print(f"scheduler {how}: exit 3 after {seconds:.1f} s")
     assert "Cancelled" not in stdout + stderr and "Traceback" not in stderr, stderr
     assert "the Dask scheduler" in stderr and "rerun with --resume" in stderr, stderr
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
