@@ -216,3 +216,35 @@ def test_an_interrupted_run_exits_even_when_a_thread_would_hold_the_exit(code):
             f"print('settled', flush=True); exit_process({code})")
     r = subprocess.run([sys.executable, "-c", prog], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert r.returncode == code and r.stdout == "settled\n", (r.returncode, r.stdout, r.stderr)
+
+
+def test_a_worker_killed_mid_run_is_a_retry_or_a_failed_row_not_a_traceback(setup, tmp_path):
+    """kill -9 of one local worker process (what the OOM killer does) while
+    the plan runs: its pool is replaced, the run finishes (exit 0, or 1 when
+    the killed spec became a failed row), no traceback, every spec of the
+    plan has its row, and the report is swapped in."""
+    import psutil
+
+    a, b, _ = setup
+    out = tmp_path / "reports"
+    p = subprocess.Popen(_cli(["--scene", str(a), "--scene", str(b), "--out", str(out), "--repeats", "1",
+                               "--workers", "3", "--no-figures"]),
+                         cwd=REPO, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = p.stdout.readline()  # the first record has arrived: the workers are running the plan
+        assert first.startswith("[1/"), first + p.stderr.read()
+        me = psutil.Process(p.pid)
+        workers = [c for c in me.children() if "spawn_main" in " ".join(c.cmdline())]
+        assert len(workers) == 3, [c.cmdline() for c in me.children()]
+        workers[-1].kill()
+        stdout, stderr = p.communicate(timeout=300)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode in (0, 1), stderr
+    assert "Traceback" not in stderr, stderr
+    assert "worker process died (SIGKILL)" in stderr, stderr
+    assert "report written" in stdout, stdout
+    acc = pd.read_csv(out / "accuracy.csv")
+    assert acc.groupby("scene").size().to_dict() == ROWS
+    assert not (tmp_path / f".{out.name}.records").exists()

@@ -95,3 +95,88 @@ def test_exit_now_flushes_what_the_worker_wrote(stream):
     p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60, env=env)
     assert p.returncode == 0
     assert getattr(p, stream) == "unterminated"
+
+
+def _job(i, seconds, die, marker):
+    """A job for the worker processes: sleeps ``seconds``; item ``die``
+    kills its own process with SIGKILL (only the first time when ``marker``,
+    a file path, is given: it is created then)."""
+    import signal as _signal
+    import time as _time
+
+    if i == die and not (marker and os.path.exists(marker)):
+        if marker:
+            open(marker, "w").close()
+        os.kill(os.getpid(), _signal.SIGKILL)
+    _time.sleep(seconds)
+    return i, os.getpid()
+
+
+@pytest.mark.parametrize("once", [False, True], ids=["dies-twice", "dies-once"])
+def test_a_worker_that_dies_is_replaced_and_its_job_retried_once(tmp_path, capsys, once):
+    """Item 2 kills its worker while the other general worker holds item 1
+    (0.5 s): the broken pool is replaced, item 1 runs again without charge;
+    item 2 runs once more, then (if it dies again) is a ``WorkerDied``
+    naming the signal. Every other item has its result."""
+    marker = str(tmp_path / "died") if once else None
+    items = [(i, 0.5 if i == 1 else 0.05, 2, marker) for i in range(6)]
+    pools = engine.LocalPools(3)
+    try:
+        out = pools.map(_job, items)
+    finally:
+        pools.close()
+    err = capsys.readouterr().err
+    if once:
+        assert [o[0] for o in out] == list(range(6))
+        assert err.count("died (SIGKILL)") == 1
+    else:
+        assert isinstance(out[2], engine.WorkerDied) and str(out[2]) == "worker died (SIGKILL) twice"
+        assert [o[0] for i, o in enumerate(out) if i != 2] == [0, 1, 3, 4, 5]
+        assert err.count("died (SIGKILL)") == 2
+    assert "Traceback" not in err
+
+
+def _kill_self():
+    os.kill(os.getpid(), __import__("signal").SIGSEGV)
+
+
+def test_a_worker_that_dies_idle_charges_no_job(capsys):
+    """A worker that dies before it takes a job (as one whose start-up
+    imports an extension that segfaults would) leaves a broken pool behind:
+    the next submission replaces it and every job gets its result."""
+    pools = engine.LocalPools(2).start()
+    try:
+        with pytest.raises(Exception):
+            pools.general.submit(_kill_self).result(timeout=120)  # untracked, like the warm-up job
+        out = pools.map(_job, [(i, 0.01, -1, None) for i in range(4)])
+    finally:
+        pools.close()
+    assert [o[0] for o in out] == list(range(4))
+    err = capsys.readouterr().err
+    assert "died (SIGSEGV)" in err and "0 of the 0 job(s)" in err, err
+
+
+def test_a_heyoka_that_segfaults_on_import_makes_failed_rows_not_a_traceback(tmp_path):
+    """Every worker that imports heyoka (its warm-up, a heyoka run) dies
+    with SIGSEGV: the heyoka runs become failed rows naming the signal, the
+    other runs are recorded, the report is written (exit 1)."""
+    fake = tmp_path / "fake" / "heyoka"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGSEGV)\n")
+    scene = tmp_path / "s.toml"
+    scene.write_text(one_mass("segv", solvers='["rk4", "dop853", "heyoka"]'))
+    out = tmp_path / "out"
+    env = {**os.environ, "MPLBACKEND": "Agg",
+           "PYTHONPATH": os.pathsep.join([str(fake.parent), str(REPO), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(scene), "--out", str(out),
+                        "--workers", "2", "--repeats", "1", "--no-figures"], cwd=REPO, capture_output=True,
+                       text=True, timeout=300, env=env)
+    assert p.returncode == 1, p.stderr
+    assert "Traceback" not in p.stderr, p.stderr
+    failed = sorted(line for line in p.stdout.splitlines() if line.startswith("FAILED"))
+    assert failed == [f"FAILED: segv: heyoka at {tol} raised WorkerDied: worker died (SIGSEGV) twice"
+                      for tol in ("1e-06", "1e-09")], p.stdout
+    import pandas as pd
+
+    acc = pd.read_csv(out / "accuracy.csv")
+    assert set(acc["solver"]) == {"rk4", "dop853", "heyoka"}, acc

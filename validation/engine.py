@@ -32,18 +32,37 @@ order; timed specs ask for the worker resource ``timing`` when a worker
 offers it (start one worker with ``--resources timing=1 --nthreads 1``,
 alone on its machine); without such a worker they run wherever Dask puts them
 and the report says that its timings came from a shared cluster.
+
+Workers that die, clusters that go quiet
+----------------------------------------
+A local worker process that dies (the OOM killer's SIGKILL, a segfault in an
+extension) breaks its pool; the pool is replaced, the spec the dead process
+was running is run once more and, if its worker dies again, becomes a failed
+record (``WorkerDied: worker died (SIGKILL) twice``); the other specs in
+flight there are resubmitted. The run goes on (:class:`_Dispatch`).
+
+Before a Dask worker gets a spec it proves its code: it runs
+:func:`_worker_digest` (:func:`validation.plan.code_digest` of the packages
+it imports), and a worker whose digest is not ours is refused, named on
+stderr, and gets no work. Every wait on the cluster is bounded by
+:func:`scheduler_timeout`: no scheduler answering, no worker, no verified
+worker, or a scheduler that goes quiet or away mid-run ends the run with
+:class:`SchedulerLost` (exit 3; the records so far stay for ``--resume``;
+``docs/workers.md``).
 """
 from __future__ import annotations
 
 import atexit
+import errno
 import math
 import os
 import signal
 import sys
 
+from .atomic import EnvironmentRefused
 from .records import failed_record
 
-__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools"]
+__all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools", "WorkerDied", "SchedulerLost"]
 
 
 def default_workers() -> int:
@@ -76,7 +95,13 @@ class PlanStats:
                 f"timing={self.timing!r})")
 
 
-def _worker_init():
+#: In a worker process: the pipe on which it says which job it starts (see _tracked).
+_TELL = None
+
+
+def _worker_init(tell=None):
+    global _TELL
+    _TELL = tell
     # Ctrl-C reaches the whole process group: the parent decides, workers stay quiet.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     # A worker dies with its parent (kill -9 of run_all): an orphan would go on
@@ -100,6 +125,19 @@ def _worker_init():
     # is closed by then; results travel through a pipe written synchronously
     # (no feeder thread to wait for).
     atexit.register(_exit_now)
+
+
+def _tracked(tag, fn, *args):
+    """Run ``fn(*args)`` in a worker, first telling the parent (``tag``, this
+    process's id) so that the job a dead worker was running is known. The
+    message is one ``write`` of a few bytes on a pipe, atomic below
+    ``PIPE_BUF``: no lock that a killed writer could leave held."""
+    if _TELL is not None:
+        try:
+            _TELL.send_bytes(f"{os.getpid()} {tag}".encode())
+        except (OSError, ValueError):
+            pass
+    return fn(*args)
 
 
 def _exit_now():
@@ -242,11 +280,36 @@ class LocalPools:
             if _TRACKER_QUIET not in sys.warnoptions:
                 sys.warnoptions.append(_TRACKER_QUIET)
 
-            ctx = mp.get_context("spawn")
-            self.general = ProcessPoolExecutor(max_workers=max(1, self.workers - 1), mp_context=ctx,
-                                               initializer=_worker_init)
-            self.lane = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_worker_init)
+            self._ctx = mp.get_context("spawn")
+            if getattr(self, "_heard", None) is None:
+                self._heard, self._tell = self._ctx.Pipe(duplex=False)
+            self.general = self._new("general")
+            self.lane = self._new("lane")
         return self
+
+    def _new(self, name):
+        from concurrent.futures import ProcessPoolExecutor
+
+        return ProcessPoolExecutor(max_workers=1 if name == "lane" else max(1, self.workers - 1),
+                                   mp_context=self._ctx, initializer=_worker_init, initargs=(self._tell,))
+
+    def renew(self, name):
+        """Replace the pool ``name`` (``"lane"`` or ``"general"``), broken by
+        a worker that died, by a fresh one (its processes start on first use)."""
+        setattr(self, name, self._new(name))
+
+    def heard(self):
+        """``[(pid, tag), ...]``: the jobs the workers said they started since
+        the last call (see :func:`_tracked`)."""
+        out = []
+        conn = getattr(self, "_heard", None)
+        try:
+            while conn is not None and conn.poll(0):
+                pid, tag = conn.recv_bytes().split()
+                out.append((int(pid), int(tag)))
+        except (OSError, EOFError, ValueError):
+            pass
+        return out
 
     def warm(self):
         """Start the worker processes now, each importing the execution
@@ -264,31 +327,23 @@ class LocalPools:
         when it is done with its last, the largest ``cost`` (one number per
         item) first, so that a long item does not leave one process idle at
         the end."""
-        from concurrent.futures import FIRST_COMPLETED, wait
-
         self.start()
         out = [None] * len(items)
         free = {"lane": 1, "general": max(1, self.workers - 1)}
         todo = list(range(len(items)))
         if cost is not None:
             todo.sort(key=lambda i: -cost[i])
-        pending = {}
+        jobs = _Dispatch(self)
         try:
-            while todo or pending:
+            while todo or jobs.pending:
                 for name in ("lane", "general"):
                     while todo and free[name]:
                         i = todo.pop(0)
                         free[name] -= 1
-                        pool = self.lane if name == "lane" else self.general
-                        pending[pool.submit(fn, *items[i])] = (i, name)
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in finished:
-                    i, name = pending.pop(f)
-                    free[name] += 1
-                    try:
-                        out[i] = f.result()
-                    except Exception as e:  # noqa: BLE001 - the caller reports it
-                        out[i] = e
+                        jobs.submit(name, fn, items[i], i)
+                for job, result in jobs.wait():
+                    free[job.name] += 1
+                    out[job.what] = result  # an exception is returned: the caller reports it
         except BaseException:
             self.close(kill=True)
             raise
@@ -308,11 +363,13 @@ class LocalPools:
                         pass
             pool.shutdown(wait=not kill, cancel_futures=True)
         self.general = self.lane = None
+        for conn in (getattr(self, "_heard", None), getattr(self, "_tell", None)):
+            if conn is not None:
+                conn.close()
+        self._heard = self._tell = None
 
 
 def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
-    from concurrent.futures import FIRST_COMPLETED, wait
-
     pools.start()
     others = pools.workers - 1
     stats.timing = (f"one at a time after the untimed work, in one process with the other {others} worker(s) "
@@ -320,13 +377,13 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
                     f"after the untimed work, {pools.workers} at a time, one per worker process "
                     f"(--workers {pools.workers}): no untimed run of this report overlaps them (other processes "
                     f"on the machine: see the load average)")
+    jobs = _Dispatch(pools)
     try:
         for i, stage in enumerate(stages):
             _load_mark(stats, stages, i)
             queue = list(stage)
             free = {"lane": 1, "general": max(1, others)}
-            pending = {}
-            while queue or pending:
+            while queue or jobs.pending:
                 # keep every process busy with one spec (timed runs only in the lane
                 # when timing is exclusive)
                 while queue:
@@ -337,17 +394,12 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
                         break
                     scene, spec = queue.pop(0)
                     free[name] -= 1
-                    pool = pools.lane if name == "lane" else pools.general
-                    pending[pool.submit(_execute, scene, spec, quick)] = (spec, name)
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    spec, name = pending.pop(fut)
-                    free[name] += 1
-                    try:
-                        rec = fut.result()
-                    except Exception as e:  # noqa: BLE001 - a worker that died is a failed record
-                        rec = failed_record(spec.key, e)
-                    done(spec, rec)
+                    jobs.submit(name, _execute, (scene, spec, quick), spec)
+                for job, rec in jobs.wait():
+                    free[job.name] += 1
+                    if isinstance(rec, BaseException):  # the run raised, or its worker died twice
+                        rec = failed_record(job.what.key, rec)
+                    done(job.what, rec)
         _load_mark(stats, stages, len(stages))
     except BaseException:
         pools.close(kill=True)
@@ -368,8 +420,148 @@ def _load_mark(stats, stages, i):
         stats.load_after = snapshot()
 
 
-#: Seconds to wait for a Dask scheduler before the run ends with exit 3;
-#: the environment variable ``RK4H_SCHEDULER_TIMEOUT`` replaces it.
+class WorkerDied(RuntimeError):
+    """A local worker process died (a signal, or an exit) while running the
+    same job twice: the job's outcome, in place of its result."""
+
+
+def _death(code) -> str:
+    """How a process ended, from its exit code (negative: the signal)."""
+    if code is not None and code < 0:
+        try:
+            return signal.Signals(-code).name
+        except ValueError:
+            return f"signal {-code}"
+    return f"exit status {code}"
+
+
+class _Job:
+    __slots__ = ("tag", "name", "fn", "args", "what", "deaths")
+
+    def __init__(self, tag, name, fn, args, what):
+        self.tag, self.name, self.fn, self.args, self.what, self.deaths = tag, name, fn, args, what, []
+
+
+class _Dispatch:
+    """Jobs on the pools of a :class:`LocalPools` (``"lane"``, ``"general"``),
+    surviving the death of a worker process.
+
+    A worker that dies (killed by the OOM killer, a segfault in an extension)
+    breaks its whole ``ProcessPoolExecutor``: every job in flight there fails
+    with ``BrokenProcessPool``. The pool is then replaced by a fresh one; the
+    job the dead process was running (it said so on starting, see
+    :func:`_tracked`) is run once more, and if its worker dies again its
+    outcome is a :class:`WorkerDied` naming the signals; the other jobs of the
+    broken pool are simply resubmitted. When the dead process ran none of the
+    jobs (it died starting up or idle) nobody is charged, except after two
+    such deaths in a row; when no process can be singled out (all ended with
+    SIGTERM, which the executor sends to the survivors) every job in flight is
+    charged.
+    """
+
+    def __init__(self, pools):
+        self.pools = pools
+        self.pending = {}  # future -> _Job
+        self.ready = []  # (job, outcome) not yet returned by wait()
+        self.started = {}  # pid -> tag of the last job it said it started
+        self.tags = 0
+        self.idle_deaths = 0
+
+    def submit(self, name, fn, args, what):
+        """Run ``fn(*args)`` on the pool ``name``; ``what`` comes back with its outcome."""
+        self.tags += 1
+        self._submit(_Job(self.tags, name, fn, tuple(args), what))
+
+    def _submit(self, job):
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            fut = getattr(self.pools, job.name).submit(_tracked, job.tag, job.fn, *job.args)
+        except BrokenProcessPool:  # broke with none of its jobs collected yet
+            self._recover(job.name)
+            fut = getattr(self.pools, job.name).submit(_tracked, job.tag, job.fn, *job.args)
+        self.pending[fut] = job
+
+    def _listen(self):
+        heard = getattr(self.pools, "heard", None)
+        for pid, tag in (heard() if heard is not None else ()):
+            self.started[pid] = tag
+
+    def wait(self):
+        """Block until at least one job has an outcome (none pending: return
+        at once); returns ``[(job, result or exception), ...]``."""
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        while not self.ready and self.pending:
+            finished, _ = wait(list(self.pending), return_when=FIRST_COMPLETED)
+            self._listen()
+            broken = set()
+            for fut in finished:
+                job = self.pending[fut]
+                exc = fut.exception()
+                if isinstance(exc, BrokenProcessPool):
+                    broken.add(job.name)
+                    continue
+                del self.pending[fut]
+                self.idle_deaths = 0
+                self.ready.append((job, exc if exc is not None else fut.result()))
+            for name in sorted(broken):
+                self._recover(name)
+        out, self.ready = self.ready, []
+        return out
+
+    def _recover(self, name):
+        pool = getattr(self.pools, name)
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        # The executor's manager thread fails every job and terminates the other
+        # workers (SIGTERM); waiting for the processes, not for that thread, cannot hang.
+        pool.shutdown(wait=False, cancel_futures=True)
+        codes = {}
+        for p in procs:
+            p.join(timeout=30)
+            codes[p.pid] = p.exitcode
+            if p.exitcode is None:  # not terminated: ended here, and not taken for the dead one
+                p.kill()
+                p.join(timeout=5)
+                codes[p.pid] = -signal.SIGTERM
+        self._listen()
+        jobs = [j for j in self.pending.values() if j.name == name]
+        self.pending = {f: j for f, j in self.pending.items() if j.name != name}
+        died = {pid: c for pid, c in codes.items() if c is not None and c != -signal.SIGTERM}
+        charged = {}
+        for pid, code in died.items():
+            for j in jobs:
+                if self.started.get(pid) == j.tag:
+                    charged[j.tag] = _death(code)
+        if not charged and (not died or self.idle_deaths >= 2):
+            how = _death(next(iter(died.values()), -signal.SIGTERM))
+            charged = {j.tag: how for j in jobs}
+        elif not charged:
+            self.idle_deaths += 1
+        for pid in codes:
+            self.started.pop(pid, None)
+        self.pools.renew(name)
+        again = 0
+        for j in jobs:
+            if j.tag in charged:
+                j.deaths.append(charged[j.tag])
+            if len(j.deaths) >= 2:
+                self.ready.append((j, WorkerDied(
+                    f"worker died ({j.deaths[0]}) twice" if len(set(j.deaths)) == 1
+                    else f"worker died twice ({', then '.join(j.deaths)})")))
+            else:
+                again += 1
+                self._submit(j)
+        what = ", ".join(_death(c) for c in died.values()) or "SIGTERM"
+        sys.stderr.write(f"run_all: a local worker process died ({what}); its pool was replaced, "
+                         f"{again} of the {len(jobs)} job(s) it held run again\n")
+
+
+#: Seconds to wait for a Dask scheduler (and a worker) before the run ends
+#: with exit 3; also each worker's time for its code check, and the silence
+#: mid-run after which the scheduler is asked whether it is still there; the
+#: environment variable ``RK4H_SCHEDULER_TIMEOUT`` replaces it.
 SCHEDULER_TIMEOUT_S = 20.0
 
 
@@ -387,43 +579,221 @@ def scheduler_timeout() -> float:
     return value
 
 
-def _dask(stages, quick, address, done, stats):
+class SchedulerLost(EnvironmentRefused):
+    """The Dask cluster refused or was lost: no scheduler answered within
+    :func:`scheduler_timeout`, it has no worker running this code, or it
+    stopped answering mid-run (exit 3). The records made so far are kept
+    for ``--resume``."""
+
+    def __init__(self, message):
+        super().__init__(errno.ECONNREFUSED, message)
+
+
+class _NoAnswer(Exception):
+    pass
+
+
+def _bounded(fn, seconds):
+    """``fn()``, or :class:`_NoAnswer` after ``seconds``: a call into
+    ``distributed`` that waits on a peer which accepts and never answers (a
+    frozen scheduler, a socket that is not one) does not return, whatever
+    its own timeout says; it is left behind in a daemon thread."""
+    import threading
+
+    box = {}
+
+    def call():
+        try:
+            box["value"] = fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    t = threading.Thread(target=call, name="rk4h-dask-call", daemon=True)
+    t.start()
+    t.join(seconds)
+    if t.is_alive():
+        raise _NoAnswer
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _worker_digest():
+    """:func:`validation.plan.code_digest` of the code this process imports
+    (run on each Dask worker before it gets work)."""
+    from validation.plan import code_digest
+
+    return code_digest()
+
+
+def _first_line(e) -> str:
+    text = str(e).splitlines()[0] if str(e) else ""
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def _verified_workers(client, address, timeout, deadline):
+    """The addresses of the Dask workers whose code digest is ours, and what
+    the scheduler says of every worker. A worker must have joined by
+    ``deadline`` (``time.monotonic()``); each then has ``timeout`` seconds to
+    run the code check. A worker that fails it is named on stderr (refused);
+    none left: :class:`SchedulerLost`."""
+    import time
+
+    from distributed import wait as dask_wait
+
+    from .plan import code_digest
+
+    def left():
+        return max(0.1, deadline - time.monotonic())
+
     try:
-        from distributed import Client, as_completed
+        _bounded(lambda: client.wait_for_workers(1, timeout=left()), left() + 0.5)
+        workers = _bounded(lambda: client.scheduler_info(n_workers=-1), left()).get("workers", {})
+    except (_NoAnswer, TimeoutError, OSError) as e:
+        why = "none joined" if isinstance(e, TimeoutError) else "the scheduler did not answer"
+        raise SchedulerLost(f"the Dask scheduler at {address} has no workers ({why} within {timeout:g} s)") from None
+    ours = code_digest()
+    probes = {a: client.submit(_worker_digest, workers=[a], allow_other_workers=False, pure=False)
+              for a in workers}
+    try:
+        _bounded(lambda: dask_wait(list(probes.values()), timeout=timeout), timeout + 1)
+    except (_NoAnswer, TimeoutError):
+        pass
+    good, refused = [], []
+    for a, fut in probes.items():
+        if fut.status == "finished":
+            digest = _bounded(lambda: fut.result(timeout=timeout), timeout + 1)
+            if digest == ours:
+                good.append(a)
+                continue
+            why = f"it runs other code: code digest {digest!r}, ours {ours!r}"
+        elif fut.status == "error":
+            why = f"its code check raised {_first_line(_bounded(fut.exception, timeout))}"
+        else:
+            why = f"it did not run the code check within {timeout:g} s"
+            fut.cancel()
+        refused.append(a)
+        sys.stderr.write(f"run_all: Dask worker {a} refused: {why}\n")
+    if not good:
+        raise SchedulerLost(f"no worker of the Dask scheduler at {address} runs this code "
+                            f"(refused: {', '.join(refused)})")
+    return good, workers
+
+
+def _connection_trouble(record) -> bool:
+    """False for a ``distributed`` log record whose exception is a lost or
+    refused connection (the run reports those itself, in one line, instead
+    of their tracebacks); True for any other record."""
+    import asyncio
+
+    exc = record.exc_info[1] if record.exc_info else None
+    return not isinstance(exc, (OSError, TimeoutError, asyncio.CancelledError))
+
+
+def _dask(stages, quick, address, done, stats):
+    import logging
+
+    try:
+        import distributed  # noqa: F401 - configures its loggers
     except ImportError:  # pragma: no cover - a dependency of the project
         raise RuntimeError("--scheduler needs the `distributed` package (pip install distributed)") from None
-    try:
-        client = Client(address, timeout=f"{scheduler_timeout():g}s")
-    except OSError as e:
-        import errno
+    handlers = list(logging.getLogger("distributed").handlers)
+    for h in handlers:
+        h.addFilter(_connection_trouble)
+    _dask_run(stages, quick, address, done, stats)
+    # (after a failure the filter stays: a client left behind may still log its reconnection)
+    for h in handlers:
+        h.removeFilter(_connection_trouble)
 
-        from .atomic import EnvironmentRefused
 
-        raise EnvironmentRefused(errno.ECONNREFUSED, f"cannot reach the Dask scheduler at {address} "
-                                 f"({str(e).splitlines()[0] if str(e) else type(e).__name__})") from None
+def _dask_run(stages, quick, address, done, stats):
+    import asyncio
+    import time
+
+    from distributed import Client
+    from distributed import wait as dask_wait
+
+    timeout = scheduler_timeout()
+    deadline = time.monotonic() + timeout  # a scheduler with a worker, or exit 3
     try:
-        info = client.scheduler_info()
-        timing_worker = any("timing" in (w.get("resources") or {}) for w in info.get("workers", {}).values())
+        client = _bounded(lambda: Client(address, timeout=f"{timeout:g}s"), timeout)
+    except (_NoAnswer, OSError) as e:
+        why = f"no answer within {timeout:g} s" if isinstance(e, _NoAnswer) else _first_line(e)
+        raise SchedulerLost(f"cannot reach the Dask scheduler at {address} ({why})") from None
+    lost = None
+    try:
+        good, workers = _verified_workers(client, address, timeout, deadline)
+        timing_worker = any("timing" in (workers[a].get("resources") or {}) for a in good)
         stats.timing = ("Dask: timed runs on the worker with the `timing` resource" if timing_worker
                         else "Dask: timed runs wherever the scheduler put them (no worker offers `timing`)")
+
+        def alive(what):
+            """Raise SchedulerLost unless the scheduler answers and a verified worker is left."""
+            try:
+                now = _bounded(lambda: client.scheduler_info(n_workers=-1), timeout).get("workers", {})
+            except (_NoAnswer, OSError) as e:
+                why = f"no answer within {timeout:g} s" if isinstance(e, _NoAnswer) else _first_line(e)
+                raise SchedulerLost(f"lost the Dask scheduler at {address} {what} ({why})") from None
+            if not set(now) & set(good):
+                raise SchedulerLost(f"no verified worker is left at the Dask scheduler at {address} "
+                                    f"({len(good)} ran this code: {', '.join(good)})")
+
+        def outcome(fut, spec):
+            """The record of a future Dask calls done; None: not done (any more), wait on."""
+            for _ in range(3):
+                status = fut.status
+                if status == "pending":  # its result was lost with a worker: Dask runs it again
+                    return None
+                if status not in ("finished", "error"):  # cancelled, lost: the cluster's doing
+                    raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run (the run "
+                                        f"{spec.label()} was {status})")
+                try:
+                    if status == "finished":
+                        return _bounded(lambda: fut.result(timeout=timeout), timeout + 1)
+                    # the run raised, or Dask gave up on it (KilledWorker)
+                    return failed_record(spec.key, _bounded(lambda: fut.exception(timeout=timeout), timeout + 1))
+                except (_NoAnswer, TimeoutError):
+                    alive(f"while fetching the record of {spec.label()}")
+                except (Exception, asyncio.CancelledError) as e:  # noqa: BLE001
+                    alive(f"while fetching the record of {spec.label()}")
+                    if fut.status == status:  # a record that does not unpickle here, say
+                        return failed_record(spec.key, e)
+            return None
+
         for i, stage in enumerate(stages):
             _load_mark(stats, stages, i)
-            futures = {}
+            pending = {}
             for scene, spec in stage:
                 kw = {"resources": {"timing": 1}} if spec.timed and timing_worker else {}
-                fut = client.submit(_execute, scene, spec, quick, key=f"rk4h-{spec.key}", pure=False, **kw)
-                futures[fut] = spec
-            for fut in as_completed(list(futures)):
-                spec = futures[fut]
+                fut = client.submit(_execute, scene, spec, quick, key=f"rk4h-{spec.key}", pure=False,
+                                    workers=good, allow_other_workers=False, **kw)
+                pending[fut] = spec
+            while pending:
                 try:
-                    rec = fut.result()
-                except Exception as e:  # noqa: BLE001
-                    rec = failed_record(spec.key, e)
-                done(spec, rec)
+                    finished = _bounded(lambda: dask_wait(list(pending), timeout=timeout,
+                                                          return_when="FIRST_COMPLETED").done, timeout + 1)
+                except (_NoAnswer, TimeoutError):  # a long run, or a cluster gone quiet
+                    alive("mid-run")
+                    continue
+                except Exception as e:  # noqa: BLE001 - FuturesCancelledError: the scheduler is gone
+                    finished = [f for f in pending if f.status != "pending"]
+                    if not finished:
+                        raise SchedulerLost(f"lost the Dask scheduler at {address} mid-run "
+                                            f"({_first_line(e)})") from None
+                for fut in finished:
+                    spec = pending.pop(fut)
+                    rec = outcome(fut, spec)
+                    if rec is None:
+                        pending[fut] = spec
+                    else:
+                        done(spec, rec)
         _load_mark(stats, stages, len(stages))
+    except SchedulerLost as e:
+        lost = e
+        raise
     finally:
         try:
-            client.close(timeout=5)
+            _bounded(lambda: client.close(timeout=timeout), timeout + 1)
         except Exception:  # noqa: BLE001 - closing a dead connection
-            print("run_all: the Dask client did not close cleanly", file=sys.stderr)
-
+            if lost is None:
+                print("run_all: the Dask client did not close cleanly", file=sys.stderr)

@@ -778,6 +778,16 @@ def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
         sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
                          f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
         return 128 + signum
+    except engine.SchedulerLost as e:
+        if progress is not None:
+            progress.close()
+        try:
+            recorded = len(store.keys())
+        except OSError:  # removed: it held nothing
+            recorded = 0
+        kept = "" if not recorded else (f"; {recorded} of {stats.planned} runs are recorded: rerun with "
+                                        f"--resume to run only the rest")
+        return _environment(f"{e.strerror}; {args.out} left unchanged{kept}")
     finally:
         sig.held, sig.pending = False, None
     if atomic.swap_into_place.kept is not None:
