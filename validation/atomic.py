@@ -550,7 +550,7 @@ def _cut_short_store(target: Path) -> Path | None:
                 return None
     except OSError:
         return None
-    return store if entries else None
+    return store  # (an empty one too: removing it loses nothing)
 
 
 def recover(target) -> list[str]:

@@ -43,7 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import STORE_MAGIC, STORE_MARKER, TargetRefused, write_json_atomic
+from . import atomic
+from .atomic import STORE_MAGIC, STORE_MARKER, TargetRefused
 
 __all__ = ["RunRecord", "RecordStore", "RecordsLeft", "STORE_MARKER", "failed_record"]
 
@@ -273,7 +274,7 @@ class RecordStore:
 
     def _create(self):
         os.mkdir(self.path)
-        write_json_atomic(self.path / STORE_MARKER, {"magic": _MAGIC, "target": self.target})
+        atomic.write_json_atomic(self.path / STORE_MARKER, {"magic": _MAGIC, "target": self.target})
 
     def _open(self, resume, fresh):
         owned = self._owned()
