@@ -332,6 +332,12 @@ _EXAMPLES = """examples:
 
 
 def main(argv=None, *, prog="advise.py") -> int:
+    from validation import extras
+
+    lack = extras.message("advise", prog)
+    if lack:
+        print(lack, file=sys.stderr)
+        return 2
     parser = argparse.ArgumentParser(prog=prog, description=" ".join(__doc__.split("\n\n")[0].split()),
                                      epilog=_EXAMPLES,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -71,6 +71,12 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     module, _ = _COMMANDS[argv[0]]
+    from validation import extras
+
+    lack = extras.message(argv[0], f"rk4h {argv[0]}")
+    if lack:  # before the module is imported: it may need what is missing
+        print(lack, file=sys.stderr)
+        return 2
     import importlib
 
     return importlib.import_module(module).main(argv[1:], prog=f"rk4h {argv[0]}")

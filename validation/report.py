@@ -436,7 +436,7 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "Per scene and target relative error (error_max / max |y_ref| over the scene's horizon): the "
                   "step the method needs (from its error constant C h^p, fitted only on runs that show the order p, "
                   "so not limited to the scene's step list; else between the two runs that bracket the target; "
-                  "\"no h (no asymptotic fit)\" when the runs show neither: `python validation/advise.py SCENE "
+                  "\"no h (no asymptotic fit)\" when the runs show neither: `rk4h advise SCENE "
                   "--target T` then halves the step until it brackets the target; capped at 0.9 of its stability limit; "
                   "\"no h (round-off)\" where sqrt(n) eps exceeds the target), run at that step to confirm it "
                   "(\"measured E\": the run's error met the target; \"predicted, unconfirmed\": no run of the "

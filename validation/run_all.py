@@ -616,8 +616,14 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
 
     SIGINT and SIGTERM handlers are installed for the call and restored after
     it (``restore_signals=False``: ignored after it, for the process's exit)."""
-    from validation import interrupt
+    from validation import extras, interrupt
 
+    lack = extras.message("run", prog)
+    if lack is None and argv is not None and "--scheduler" in argv:
+        lack = extras.message("cluster", prog)
+    if lack:
+        print(lack, file=sys.stderr)
+        return 2
     interrupt.reset()
     with _Signals(restore_signals) as sig:
         try:
