@@ -17,7 +17,19 @@ README = REPO / "README.md"
 
 
 def _blocks(lang):
-    return re.findall(rf"^```{lang}\n(.*?)^```", README.read_text(), flags=re.M | re.S)
+    """The README's fenced code blocks whose info string is ``lang`` ("" for plain ones)."""
+    out, current, info = [], None, None
+    for line in README.read_text().splitlines(keepends=True):
+        if line.startswith("```"):
+            if current is None:
+                current, info = [], line[3:].strip()
+            else:
+                if info == lang:
+                    out.append("".join(current))
+                current = None
+        elif current is not None:
+            current.append(line)
+    return out
 
 
 def _env():
@@ -64,6 +76,7 @@ def test_readme_scene_and_fragments_validate():
 
 def test_readme_advisor_command_runs():
     cmds = [c for b in _blocks("") for c in b.splitlines() if c.startswith("python validation/advise.py")]
+    assert _blocks(""), "no plain code block found"
     assert cmds, "the README shows no advisor command"
     proc = subprocess.run(cmds[0].split() + ["--json"], cwd=REPO, env=_env(), capture_output=True, text=True,
                           timeout=600)

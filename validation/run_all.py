@@ -211,13 +211,13 @@ class Progress:
             return
         self.stream.flush()
 
-    #: Off a terminal (a log file, CI) a line at most every this fraction of
-    #: the plan or this many seconds, and at the end.
+    #: Off a terminal (a log file, CI) the first line, then a line at most
+    #: every this fraction of the plan or this many seconds, and the last.
     LOG_FRACTION, LOG_SECONDS = 0.05, 10.0
 
     def _due(self, elapsed) -> bool:
         last_done, last_t = getattr(self, "_last", (0, 0.0))
-        if (self.done >= self.total or self.done - last_done >= self.LOG_FRACTION * self.total
+        if (self.done == 1 or self.done >= self.total or self.done - last_done >= self.LOG_FRACTION * self.total
                 or elapsed - last_t >= self.LOG_SECONDS):
             self._last = (self.done, elapsed)
             return True
