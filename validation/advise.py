@@ -8,7 +8,7 @@ running the report.
 ``REL`` the target relative error (``error_max / max |y_ref|`` over the
 scene's output grid and horizon, the report's ``error_rel``).
 
-How (all plain data, one run per line below):
+How (all plain data):
 
 1. *Calibration.* Each fixed-step method of the scene (a tableau) runs at its
    scene's largest step, halved (on the output grid) until its error is below
@@ -35,12 +35,38 @@ How (all plain data, one run per line below):
    straight line through ``log error`` against ``log rtol`` gives the rtol
    for the target (rounded down to a power of ten) and the cost by the same
    interpolation.
-2. *Choice.* The candidate with the fewest predicted right-hand-side calls
-   (heyoka: Taylor steps x order), a deterministic cost; wall time is
-   reported, not used to choose.
-3. *Confirmation.* One run at the predicted setting against the truth; if
-   it misses the target, the step shrinks by the error ratio (fixed-step) or
-   the rtol by 10 (adaptive), at most :data:`CONFIRM_TRIES` times.
+2. *Confirmation of every candidate.* A candidate predicted to miss the
+   target (an adaptive one whose rtol reached :data:`_RTOL_MIN`) or without
+   a prediction is not run and not listed (``not_listed``, with the
+   reason). Every other one is run at its predicted setting against the
+   truth and listed only once runs confirm it (:func:`_confirm_fixed`,
+   :func:`_confirm_adaptive`): an adaptive one at rtol, then rtol / 10
+   after a miss (:data:`CONFIRM_TRIES` runs); a fixed-step one whose
+   calibration showed its order by one run, else (no order seen, an error
+   that rose when the step was halved, or a run that missed: the error is
+   not known to be monotone in ``h``) only when all of at least
+   :data:`SAMPLE_STEPS` steps in ``[h/2, h]`` on the output grid
+   (:func:`sample_steps`) meet the target; a run that misses shrinks the
+   step below it by the error ratio (at least 10 %), at most
+   :data:`CONFIRM_ROUNDS` rounds. On planar4-case2 RK4's error is erratic in
+   ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
+   6.0e-4): the advisor says so and the sampled runs are the evidence.
+   ``confirmed_error`` is the largest error of the runs that confirm the
+   setting; ``cost_rhs`` the RHS calls of the run at it (heyoka: Taylor steps
+   x order); ``cost_s`` the median wall time of up to
+   :data:`TIMING_REPEATS` runs at it, measured on this machine (one run when
+   it takes over :data:`validation.execute.REPEAT_BELOW_S`, as in the
+   report), with the compile time (``compile_s``) apart. A candidate other
+   than the method under test whose predicted calls and time are both over
+   :data:`SKIP_FACTOR` times the best confirmed is not run
+   (:data:`SKIP_MIN_S`).
+3. *Choice.* The answer (``method``, ``setting``, ...) is the listed
+   candidate with the fewest RHS calls, a deterministic cost; ``fastest``
+   names the listed one with the smallest median wall time, with
+   :func:`validation.trust.time_verdict` against the runner-up (a ``tie``
+   unless the medians are :data:`validation.trust.TIME_MARGIN` apart and the
+   repeats disjoint), and ``fastest_one_run`` the fastest with its compile
+   time added.
 4. *Model.* A linear model has a closed form (its modal solution: no
    integration needed for the answer); a nonlinear one with a linearization
    is compared with its linearized closed form at this amplitude.
@@ -556,9 +582,12 @@ def _text(adv: Advice) -> str:
                      f"{adv.cost_rhs:.3g} RHS calls, {adv.cost_s * 1e3:.3g} ms; error predicted "
                      f"{adv.predicted_error:.2g}, confirmed {adv.confirmed_error:.2g}")
         f = adv.fastest
-        margin = (f"{trust.TIME_MARGIN:g}x the runner-up {f['runner_up']}'s, repeats apart" if f["verdict"] == f["method"]
-                  and f["runner_up"] else (f"a tie with {f['runner_up']} (not {trust.TIME_MARGIN:g}x apart with "
-                                           f"disjoint repeats)" if f["runner_up"] else "the only candidate"))
+        if not f["runner_up"]:
+            margin = "the only candidate"
+        elif f["verdict"] == f["method"]:
+            margin = f"over {trust.TIME_MARGIN:g}x faster than the runner-up {f['runner_up']}, repeats disjoint"
+        else:
+            margin = (f"a tie with {f['runner_up']}: not {trust.TIME_MARGIN:g}x apart with disjoint repeats")
         lines.append(f"  fastest here: {f['method']} with {f['setting_name']} = {f['setting']:.4g}: "
                      f"{f['cost_s'] * 1e3:.3g} ms ({margin}); error confirmed {f['confirmed_error']:.2g}, "
                      f"{f['cost_rhs']:.3g} RHS calls")
@@ -566,7 +595,7 @@ def _text(adv: Advice) -> str:
             lines.append(f"  fastest for one run, compile included: {adv.fastest_one_run}")
     else:
         lines.append(f"  {adv.status}")
-    lines.append(f"  candidates, each confirmed by runs at the setting listed (time: {adv.timing}):")
+    lines.append("  candidates, each run at the setting listed and meeting the target there:")
     lines.append(f"    {'method':<18} {'setting':>9} {'predicted':>9} {'confirmed':>9} {'RHS calls':>9} "
                  f"{'time ms':>8} {'compile ms':>10}  how")
     for c in sorted(adv.candidates, key=lambda c: (c["cost_rhs"], c["method"])):
@@ -577,6 +606,7 @@ def _text(adv: Advice) -> str:
         lines.append(f"    {c['method']:<18} {c['setting']:>9.3g} {c['predicted_error']:>9.2g} "
                      f"{c['confirmed_error']:>9.2g} {c['cost_rhs']:>9.3g} {c['cost_s'] * 1e3:>8.3g} "
                      f"{c['compile_s'] * 1e3:>10.3g}  {how}")
+    lines.append(f"  time: {adv.timing}")
     if adv.not_listed:
         lines.append("  not listed:")
         for c in adv.not_listed:
