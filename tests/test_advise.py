@@ -75,8 +75,9 @@ _RK4 = SimpleNamespace(name="rk4", order=4, nfev_per_step=4, tableau=None)
 def test_an_asymptotic_candidate_is_confirmed_by_one_run():
     p = _Erratic(1.0, [], 1e-8)
     h = p.on_grid((1e-8 / 1.0) ** 0.25)
+    # a rise above the pre-asymptotic level (0.2 -> 0.5) is no sign of an erratic error near the answer
     conf = _confirm_fixed(p, _RK4, {"setting": h, "source": "error constant",
-                                    "calibration": [[0.02, 1.6e-7], [0.01, 1e-8]]}, 1e-8)
+                                    "calibration": [[0.08, 0.2], [0.04, 0.5], [0.02, 1.6e-7], [0.01, 1e-8]]}, 1e-8)
     assert conf["status"] == "ok" and p.steps == [h] and conf["sample"] == [] and conf["why"] == ""
 
 

@@ -320,10 +320,12 @@ def sample_steps(p, h: float, n: int = SAMPLE_STEPS) -> list:
 
 def _rise(points):
     """The strongest sign that the error is not monotone in the step: among
-    ``points = [(h, err), ...]`` with errors in ``(ROUNDOFF_REL, 1)``, the pair
-    where a smaller step has the larger error, by the largest ratio:
-    ``(h_large, e_large, h_small, e_small)``, or None."""
-    pts = [(float(a), float(b)) for a, b in points if math.isfinite(b) and metrics.ROUNDOFF_REL < b < 1.0]
+    ``points = [(h, err), ...]`` with errors where a constant is fitted
+    (:func:`validation.trust.in_fit_range`: above round-off, below the
+    pre-asymptotic level), the pair where a smaller step has the larger
+    error, by the largest ratio: ``(h_large, e_large, h_small, e_small)``, or
+    None."""
+    pts = [(float(a), float(b)) for a, b in points if trust.in_fit_range(float(b))]
     best, ratio = None, 1.0
     for h1, e1 in pts:
         for h2, e2 in pts:
@@ -601,6 +603,8 @@ def _text(adv: Advice) -> str:
     for c in sorted(adv.candidates, key=lambda c: (c["cost_rhs"], c["method"])):
         how = c["source"] + (f", observed order {c['observed_order']:.2f}" if math.isfinite(c["observed_order"])
                              else "")
+        if c["predicted_setting"] != c["setting"]:
+            how += f"; predicted error for {c['predicted_setting']:.3g}"
         if c["sample"]:
             how += f"; {len(c['sample'])} steps in [h/2, h] run"
         lines.append(f"    {c['method']:<18} {c['setting']:>9.3g} {c['predicted_error']:>9.2g} "
