@@ -8,7 +8,7 @@ running the report.
 ``REL`` the target relative error (``error_max / max |y_ref|`` over the
 scene's output grid and horizon, the report's ``error_rel``).
 
-How (all plain data, one run per line below):
+How (all plain data):
 
 1. *Calibration.* Each fixed-step method of the scene (a tableau) runs at its
    scene's largest step, halved (on the output grid) until its error is below
@@ -35,12 +35,38 @@ How (all plain data, one run per line below):
    straight line through ``log error`` against ``log rtol`` gives the rtol
    for the target (rounded down to a power of ten) and the cost by the same
    interpolation.
-2. *Choice.* The candidate with the fewest predicted right-hand-side calls
-   (heyoka: Taylor steps x order), a deterministic cost; wall time is
-   reported, not used to choose.
-3. *Confirmation.* One run at the predicted setting against the truth; if
-   it misses the target, the step shrinks by the error ratio (fixed-step) or
-   the rtol by 10 (adaptive), at most :data:`CONFIRM_TRIES` times.
+2. *Confirmation of every candidate.* A candidate predicted to miss the
+   target (an adaptive one whose rtol reached :data:`_RTOL_MIN`) or without
+   a prediction is not run and not listed (``not_listed``, with the
+   reason). Every other one is run at its predicted setting against the
+   truth and listed only once runs confirm it (:func:`_confirm_fixed`,
+   :func:`_confirm_adaptive`): an adaptive one at rtol, then rtol / 10
+   after a miss (:data:`CONFIRM_TRIES` runs); a fixed-step one whose
+   calibration showed its order by one run, else (no order seen, an error
+   that rose when the step was halved, or a run that missed: the error is
+   not known to be monotone in ``h``) only when all of at least
+   :data:`SAMPLE_STEPS` steps in ``[h/2, h]`` on the output grid
+   (:func:`sample_steps`) meet the target; a run that misses shrinks the
+   step below it by the error ratio (at least 10 %), at most
+   :data:`CONFIRM_ROUNDS` rounds. On planar4-case2 RK4's error is erratic in
+   ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
+   6.0e-4): the advisor says so and the sampled runs are the evidence.
+   ``confirmed_error`` is the largest error of the runs that confirm the
+   setting; ``cost_rhs`` the RHS calls of the run at it (heyoka: Taylor steps
+   x order); ``cost_s`` the median wall time of up to
+   :data:`TIMING_REPEATS` runs at it, measured on this machine (one run when
+   it takes over :data:`validation.execute.REPEAT_BELOW_S`, as in the
+   report), with the compile time (``compile_s``) apart. A candidate other
+   than the method under test whose predicted calls and time are both over
+   :data:`SKIP_FACTOR` times the best confirmed is not run
+   (:data:`SKIP_MIN_S`).
+3. *Choice.* The answer (``method``, ``setting``, ...) is the listed
+   candidate with the fewest RHS calls, a deterministic cost; ``fastest``
+   names the listed one with the smallest median wall time, with
+   :func:`validation.trust.time_verdict` against the runner-up (a ``tie``
+   unless the medians are :data:`validation.trust.TIME_MARGIN` apart and the
+   repeats disjoint), and ``fastest_one_run`` the fastest with its compile
+   time added.
 4. *Model.* A linear model has a closed form (its modal solution: no
    integration needed for the answer); a nonlinear one with a linearization
    is compared with its linearized closed form at this amplitude.
@@ -69,7 +95,8 @@ from validation import metrics, trust  # noqa: E402
 from validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step  # noqa: E402,F401 - re-exported
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
-           "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES"]
+           "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
+           "SKIP_FACTOR", "SKIP_MIN_S", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`validation.metrics.PREASYMPTOTIC_REL`.
@@ -79,7 +106,29 @@ CALIBRATION_HALVINGS = 8
 #: one's steps). planar4-case2 needs all 8 at a target of 1e-9 (3.1e-4 s ->
 #: 1.2e-6 s; its error curve shows no fourth order anywhere above round-off).
 FIT_HALVINGS = 8
+#: Confirmation runs of an adaptive candidate (rtol / 10 after a miss).
 CONFIRM_TRIES = 4
+#: Confirmation rounds of a fixed-step candidate: a run (or a sample) that
+#: misses shrinks the step and starts a new round.
+CONFIRM_ROUNDS = 8
+#: Steps run in ``[h/2, h]`` where the error is not known to fall
+#: monotonically with the step (:func:`sample_steps`).
+SAMPLE_STEPS = 8
+#: Wall time of a listed candidate: the median of this many runs at its
+#: setting (one run when it takes longer than
+#: :data:`validation.execute.REPEAT_BELOW_S`, as in the report).
+TIMING_REPEATS = 3
+#: A candidate other than the scene's method under test
+#: (:func:`validation.plan.under_test`, always run) is not run, and not
+#: listed, when its predicted RHS calls and
+#: its predicted time both exceed this many times the fewest calls and the
+#: fastest time already confirmed, and its predicted time exceeds
+#: :data:`SKIP_MIN_S`: it could win neither unless its prediction were off by
+#: this factor.
+SKIP_FACTOR = 10.0
+SKIP_MIN_S = 0.2
+TIMING_NOTE = (f"wall time measured on this machine: median of up to {TIMING_REPEATS} runs at the setting, "
+               f"compile time (heyoka's JIT, numba) apart; a shared machine's load moves it")
 _RTOLS = {"heyoka": (1e-4, 1e-10)}
 _RTOL_PAIR = (1e-4, 1e-8)
 _RTOL_MIN = 1e-14
@@ -102,7 +151,12 @@ class Advice:
     cost_s: float = math.nan
     predicted_rhs: float = math.nan
     status: str = "ok"
+    fewest_calls: str = ""
+    fastest: dict = field(default_factory=dict)
+    fastest_one_run: str = ""
+    timing: str = TIMING_NOTE
     candidates: list = field(default_factory=list)
+    not_listed: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
 
     def to_json(self) -> str:
@@ -123,6 +177,8 @@ class _Problem:
         self.y_ref = np.asarray(reference_solution(self.model, self.y0, self.t).y, float)
         self.scale = float(np.max(np.abs(self.y_ref)))
         self.omega_max = trust.fastest_omega(self.model)  # NaN: no stability cap, no aliasing check
+        self.rate = {}      # method name -> the smallest wall s per RHS call of its runs
+        self.compile = {}   # (method name, setting) and method name -> largest compile s (heyoka's JIT, numba)
 
     def run(self, method, setting):
         """``(error_rel, rhs calls, wall s, status)`` of one run."""
@@ -133,6 +189,10 @@ class _Problem:
         err = metrics.error_max(run.y, self.y_ref) / self.scale
         rhs = trust.rhs_calls({"nfev": run.nfev, "n_steps": run.n_steps, "taylor_order": run.taylor_order or 0})
         status = getattr(run.status, "value", str(run.status))
+        if rhs > 0 and status == "ok":
+            self.rate[method.name] = min(self.rate.get(method.name, math.inf), run.wall_s / rhs)
+        for key in ((method.name, float(setting)), method.name):
+            self.compile[key] = max(self.compile.get(key, 0.0), float(run.compile_s or 0.0))
         return (err if status == "ok" else math.nan), rhs, run.wall_s, status
 
     def h_stab(self, method) -> float:
@@ -220,20 +280,145 @@ def _adaptive_candidate(p: _Problem, method, target):
             "calibration": [(t, e) for t, e, _ in good]}
 
 
-def _confirm(p: _Problem, method, cand, target):
-    setting = cand["setting"]
+def _grid_up(p, x: float) -> float:
+    """The smallest step >= ``x`` (up to 1e-12) on the output grid (a divisor
+    of the output spacing, or a multiple of it above the spacing)."""
+    dt = p.scene.output_dt
+    if x <= dt:
+        return dt / max(1, math.floor(dt / x * (1 + 1e-12)))
+    return dt * math.ceil(x / dt * (1 - 1e-12))
+
+
+def _next_below(p, h: float) -> float:
+    """The largest step on the output grid strictly below the grid step ``h``."""
+    dt = p.scene.output_dt
+    if h > dt * (1 + 1e-12):
+        return dt * (round(h / dt) - 1)
+    return dt / (round(dt / h) + 1)
+
+
+def sample_steps(p, h: float, n: int = SAMPLE_STEPS) -> list:
+    """``n`` distinct steps in ``[h/2, h]`` on ``p``'s output grid (dividing the
+    output spacing, as every step the advisor runs), largest first: ``h`` and
+    ``h 2^(-i/(n-1))`` rounded onto the grid, the last one ``h/2`` rounded up.
+    Where the grid has fewer than ``n`` steps there, all of them."""
+    h = p.on_grid(h)
+    out = []
+    for i in range(n):
+        s = p.on_grid(h * 2.0 ** (-i / (n - 1))) if i < n - 1 else _grid_up(p, h / 2)
+        if s < h / 2 * (1 - 1e-12):
+            s = _grid_up(p, h / 2)
+        if not any(math.isclose(s, o, rel_tol=1e-12) for o in out):
+            out.append(s)
+    if len(out) < n:  # a coarse grid: every grid step in [h/2, h]
+        out, s = [], h
+        while s >= h / 2 * (1 - 1e-12) and len(out) < 4 * n:
+            out.append(s)
+            s = _next_below(p, s)
+    return sorted(out, reverse=True)
+
+
+def _rise(points):
+    """The strongest sign that the error is not monotone in the step: among
+    ``points = [(h, err), ...]`` with errors where a constant is fitted
+    (:func:`validation.trust.in_fit_range`: above round-off, below the
+    pre-asymptotic level), the pair where a smaller step has the larger
+    error, by the largest ratio: ``(h_large, e_large, h_small, e_small)``, or
+    None."""
+    pts = [(float(a), float(b)) for a, b in points if trust.in_fit_range(float(b))]
+    best, ratio = None, 1.0
+    for h1, e1 in pts:
+        for h2, e2 in pts:
+            if h2 < h1 and e2 > e1 * ratio:
+                best, ratio = (h1, e1, h2, e2), e2 / e1
+    return best
+
+
+def _confirm_fixed(p, method, cand, target) -> dict:
+    """Run the fixed-step ``cand`` until a step is confirmed to meet ``target``.
+
+    Where the calibration showed the method's order (source ``"error
+    constant"``) and its errors fall with the step, one run at the predicted
+    step confirms it. Otherwise (a bracket or a pre-asymptotic constant, an
+    error that rose when the step was halved, or a confirmation run that
+    missed) the error is not known to be monotone in ``h``, and the step is
+    confirmed only when all of :func:`sample_steps` ``(h)``, at least
+    :data:`SAMPLE_STEPS` steps in ``[h/2, h]``, meet the target. A run that
+    misses shrinks the step below it by the error ratio (at least 10 %) and
+    starts a new round, at most :data:`CONFIRM_ROUNDS` rounds.
+
+    Returns ``{"status": "ok" | "not-met", "setting", "error" (the largest of
+    the runs that confirm it), "rhs", "wall", "sample" (the sampled steps, []
+    for one run), "evidence" (every confirmation run, ``[h, err]``), "why"
+    (why it was sampled, "" when not)}``.
+    """
+    cache = {}
+
+    def run(h):
+        if h not in cache:
+            cache[h] = p.run(method, h)
+        return cache[h]
+
+    rise = _rise(cand["calibration"])
+    why = ""
+    if cand["source"] != "error constant":
+        why = f"no order-{method.order} range seen in the calibration ({cand['source']})"
+    elif rise is not None:
+        why = (f"the calibration error rose from {rise[1]:.2g} at h = {rise[0]:.3g} s to {rise[3]:.2g} at "
+               f"h = {rise[2]:.3g} s")
+    h = cand["setting"]
+    for _ in range(CONFIRM_ROUNDS):
+        steps = sample_steps(p, h) if why else [h]
+        miss = None
+        for s in steps:
+            err, rhs, wall, status = run(s)
+            if not (status == "ok" and err <= target):
+                miss = (s, err, status)
+                break
+        if miss is None:
+            err, rhs, wall, _ = run(h)
+            return {"status": "ok", "setting": h, "error": max(run(s)[0] for s in steps), "rhs": rhs, "wall": wall,
+                    "sample": steps if why else [], "evidence": sorted(([k, v[0]] for k, v in cache.items()),
+                                                                   reverse=True), "why": why}
+        s, err, status = miss
+        if not why:
+            why = f"the run at the predicted step {s:.3g} s missed the target (error {err:.2g})"
+        ratio = target / err if status == "ok" and err > 0 else 1 / 16
+        h_new = p.on_grid(s * min(0.9, 0.9 * ratio ** (1 / method.order)))
+        h = h_new if h_new < s else _next_below(p, s)
+    err, rhs, wall, _ = run(s)
+    return {"status": "not-met", "setting": s, "error": err, "rhs": rhs, "wall": wall, "sample": [],
+            "evidence": sorted(([k, v[0]] for k, v in cache.items()), reverse=True), "why": why}
+
+
+def _confirm_adaptive(p, method, cand, target) -> dict:
+    """Run the adaptive ``cand`` at its predicted rtol, then at rtol / 10 after
+    each miss (at most :data:`CONFIRM_TRIES` runs); the result as
+    :func:`_confirm_fixed`'s."""
+    setting, evidence = cand["setting"], []
     for _ in range(CONFIRM_TRIES):
         err, rhs, wall, status = p.run(method, setting)
+        evidence.append([setting, err])
         if status == "ok" and err <= target:
-            return setting, err, rhs, wall, "ok"
-        if method.fixed_step:
-            ratio = (target / err) if status == "ok" and err > 0 else 1 / 16
-            setting = p.on_grid(setting * min(0.9, 0.9 * ratio ** (1 / method.order)))
-        else:
-            setting = setting / 10
-            if setting < _RTOL_MIN:
-                break
-    return setting, err, rhs, wall, "not-met"
+            return {"status": "ok", "setting": setting, "error": err, "rhs": rhs, "wall": wall, "sample": [],
+                    "evidence": evidence, "why": ""}
+        if setting / 10 < _RTOL_MIN:
+            break
+        setting = setting / 10
+    return {"status": "not-met", "setting": setting, "error": err, "rhs": rhs, "wall": wall, "sample": [],
+            "evidence": evidence, "why": ""}
+
+
+def _timed(p, method, setting, first_wall):
+    """``(median, min, max, runs)`` wall seconds at ``setting``: the confirming
+    run and repeats, :data:`TIMING_REPEATS` in all (one run when it took more
+    than :data:`validation.execute.REPEAT_BELOW_S`, as in the report)."""
+    from validation.execute import REPEAT_BELOW_S
+
+    walls = [float(first_wall)]
+    while len(walls) < TIMING_REPEATS and max(walls) <= REPEAT_BELOW_S:
+        walls.append(float(p.run(method, setting)[2]))
+    return float(np.median(walls)), min(walls), max(walls), len(walls)
 
 
 def _model_advice(p: _Problem, target):
@@ -278,6 +463,37 @@ def _warnings(p: _Problem, methods, best, target):
     return out
 
 
+def _listed(m, c, conf, timing, compile_s) -> dict:
+    """A listed candidate: its prediction, the confirming runs, the cost."""
+    return {**c, "setting_name": m.setting_name, "predicted_setting": c["setting"],
+            "setting": float(conf["setting"]), "confirmed_error": float(conf["error"]),
+            "cost_rhs": float(conf["rhs"]), "cost_s": timing[0], "cost_s_min": timing[1], "cost_s_max": timing[2],
+            "timing_runs": timing[3], "compile_s": float(compile_s), "sample": [float(s) for s in conf["sample"]],
+            "evidence": [[float(h), float(e)] for h, e in conf["evidence"]], "sampled_because": conf["why"],
+            "non_monotone": ""}
+
+
+def _not_listed(m, c, reason) -> dict:
+    return {"method": m.name, "setting_name": m.setting_name, "predicted_setting": float(c["setting"]),
+            "predicted_error": float(c["predicted_error"]), "predicted_rhs": float(c["predicted_rhs"]),
+            "source": c["source"], "reason": reason}
+
+
+def _skip_reason(p, m, c, listed):
+    """Why ``c`` is not worth running, given the candidates ``listed`` so far
+    (see :data:`SKIP_FACTOR`); "" to run it."""
+    if not listed:
+        return ""
+    fewest = min(x["cost_rhs"] for x in listed)
+    fastest = min(x["cost_s"] for x in listed)
+    t_pred = getattr(p, "rate", {}).get(m.name, 0.0) * c["predicted_rhs"]  # the best rate of its calibration runs
+    if c["predicted_rhs"] > SKIP_FACTOR * fewest and t_pred > SKIP_FACTOR * fastest and t_pred > SKIP_MIN_S:
+        return (f"not run: predicted {c['predicted_rhs']:.3g} RHS calls and {t_pred:.3g} s (at its calibration "
+                f"runs' rate), over {SKIP_FACTOR:g}x both the fewest calls ({fewest:.3g}) and the fastest time "
+                f"({fastest:.3g} s) confirmed; a prediction, not a measurement")
+    return ""
+
+
 def advise(scene, target: float) -> Advice:
     """Advice for ``scene`` (a :class:`validation.scenes.Scene`) at the target
     relative error ``target``; see the module docstring."""
@@ -290,35 +506,115 @@ def advise(scene, target: float) -> Advice:
             cands.append((m, _fixed_candidate(p, m, target)))
         elif not m.fixed_step:
             cands.append((m, _adaptive_candidate(p, m, target)))
-    adv.candidates = [{**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]}  # (setting, error)
-                      for _, c in cands]
-    ok = [(m, c) for m, c in cands if math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])]
+    cands = [(m, {**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]})  # (setting, error)
+             for m, c in cands]
     adv.model, adv.model_note = _model_advice(p, target)
     adv.warnings = _warnings(p, methods, [c for _, c in cands], target)
-    if not ok:
-        adv.status = "no method predicted to reach the target"
+    todo = []
+    for m, c in cands:
+        if not (math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])):
+            adv.not_listed.append(_not_listed(m, c, f"no setting predicted ({c['source']})"))
+        elif not c["predicted_error"] <= target:
+            adv.not_listed.append(_not_listed(m, c, f"predicted to miss: error {c['predicted_error']:.2g} at "
+                                                    f"{m.setting_name} = {c['setting']:.3g} ({c['source']})"))
+        else:
+            todo.append((m, c))
+    from validation.plan import under_test
+
+    under = under_test(scene)  # the method under test is always confirmed
+    listed = []
+    for m, c in sorted(todo, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name)):
+        skip = "" if m.name == under else _skip_reason(p, m, c, listed)
+        if skip:
+            adv.not_listed.append(_not_listed(m, c, skip))
+            continue
+        conf = (_confirm_fixed if m.fixed_step else _confirm_adaptive)(p, m, c, target)
+        if conf["status"] != "ok":
+            adv.not_listed.append(_not_listed(m, c, f"not confirmed: the last run, at {m.setting_name} = "
+                                                    f"{conf['setting']:.3g}, gave error {conf['error']:.2g}"))
+            continue
+        compile_s = getattr(p, "compile", {}).get(m.name if m.fixed_step else (m.name, float(conf["setting"])), 0.0)
+        cand = _listed(m, c, conf, _timed(p, m, conf["setting"], conf["wall"]), compile_s)
+        if m.fixed_step:
+            rise = _rise([(h, e) for h, e in cand["calibration"] + cand["evidence"]
+                          if cand["setting"] / 8 <= h <= 8 * cand["setting"]])
+            if rise is not None:
+                cand["non_monotone"] = (f"h = {rise[0]:.3g} s gave {rise[1]:.2g}, the smaller h = {rise[2]:.3g} s "
+                                        f"{rise[3]:.2g}")
+            if cand["sample"]:
+                lead = (f"the error is not monotone in h near the answer ({cand['non_monotone']})"
+                        if rise is not None else f"the error is not known to be monotone in h ({conf['why']})")
+                missed = [(h, e) for h, e in cand["evidence"] if not e <= target]
+                above = (f"; the larger step {min(missed)[0]:.4g} s missed it ({min(missed)[1]:.2g})" if missed
+                         else "")
+                adv.warnings.append(
+                    f"{m.name}: {lead}. Recommended h = {cand['setting']:.4g} s: all {len(cand['sample'])} steps "
+                    f"sampled in [h/2, h] met the target when run (worst {cand['confirmed_error']:.2g}){above}; "
+                    f"a step that was not run may still miss")
+        listed.append(cand)
+    adv.candidates = listed
+    if not listed:
+        adv.status = "no method confirmed to reach the target"
         return adv
-    m, c = min(ok, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name))
-    setting, err, rhs, wall, status = _confirm(p, m, c, target)
-    adv.method, adv.setting, adv.setting_name = m.name, float(setting), m.setting_name
-    adv.predicted_error, adv.predicted_rhs = float(c["predicted_error"]), float(c["predicted_rhs"])
-    adv.confirmed_error, adv.cost_rhs, adv.cost_s, adv.status = float(err), float(rhs), float(wall), status
+    best = min(listed, key=lambda x: (x["cost_rhs"], x["method"]))
+    adv.method, adv.setting, adv.setting_name = best["method"], best["setting"], best["setting_name"]
+    adv.predicted_error, adv.predicted_rhs = float(best["predicted_error"]), float(best["predicted_rhs"])
+    adv.confirmed_error, adv.cost_rhs, adv.cost_s = best["confirmed_error"], best["cost_rhs"], best["cost_s"]
+    adv.fewest_calls = best["method"]
+    by_time = sorted(listed, key=lambda x: (x["cost_s"], x["method"]))
+    fast = by_time[0]
+    adv.fastest = {k: fast[k] for k in ("method", "setting", "setting_name", "confirmed_error", "cost_rhs", "cost_s",
+                                        "cost_s_min", "cost_s_max", "compile_s")}
+    if len(by_time) > 1:
+        nxt = by_time[1]
+        adv.fastest["runner_up"] = nxt["method"]
+        adv.fastest["verdict"] = trust.time_verdict(
+            fast["method"], (fast["cost_s"], fast["cost_s_min"], fast["cost_s_max"]),
+            nxt["method"], (nxt["cost_s"], nxt["cost_s_min"], nxt["cost_s_max"]))
+    else:
+        adv.fastest["runner_up"], adv.fastest["verdict"] = "", fast["method"]
+    adv.fastest_one_run = min(listed, key=lambda x: (x["cost_s"] + x["compile_s"], x["method"]))["method"]
     return adv
 
 
 def _text(adv: Advice) -> str:
     lines = [f"{adv.scene}: target relative error {adv.target:g}"]
     if adv.method:
-        lines.append(f"  use {adv.method} with {adv.setting_name} = {adv.setting:.4g}: predicted error "
-                     f"{adv.predicted_error:.2g}, confirmed {adv.confirmed_error:.2g} ({adv.status}); "
-                     f"{adv.cost_rhs:.3g} RHS calls, {adv.cost_s * 1e3:.3g} ms")
+        lines.append(f"  fewest RHS calls: {adv.method} with {adv.setting_name} = {adv.setting:.4g}: "
+                     f"{adv.cost_rhs:.3g} RHS calls, {adv.cost_s * 1e3:.3g} ms; error predicted "
+                     f"{adv.predicted_error:.2g}, confirmed {adv.confirmed_error:.2g}")
+        f = adv.fastest
+        if not f["runner_up"]:
+            margin = "the only candidate"
+        elif f["verdict"] == f["method"]:
+            margin = f"over {trust.TIME_MARGIN:g}x faster than the runner-up {f['runner_up']}, repeats disjoint"
+        else:
+            margin = (f"a tie with {f['runner_up']}: not {trust.TIME_MARGIN:g}x apart with disjoint repeats")
+        lines.append(f"  fastest here: {f['method']} with {f['setting_name']} = {f['setting']:.4g}: "
+                     f"{f['cost_s'] * 1e3:.3g} ms ({margin}); error confirmed {f['confirmed_error']:.2g}, "
+                     f"{f['cost_rhs']:.3g} RHS calls")
+        if adv.fastest_one_run != f["method"]:
+            lines.append(f"  fastest for one run, compile included: {adv.fastest_one_run}")
     else:
         lines.append(f"  {adv.status}")
-    lines.append("  candidates (fewest predicted RHS calls wins):")
-    for c in sorted(adv.candidates, key=lambda c: c["predicted_rhs"]):
-        lines.append(f"    {c['method']:<18} setting {c['setting']:.3g}  predicted error {c['predicted_error']:.2g}"
-                     f"  RHS calls {c['predicted_rhs']:.3g}  ({c['source']}"
-                     + (f", observed order {c['observed_order']:.2f})" if math.isfinite(c["observed_order"]) else ")"))
+    lines.append("  candidates, each run at the setting listed and meeting the target there:")
+    lines.append(f"    {'method':<18} {'setting':>9} {'predicted':>9} {'confirmed':>9} {'RHS calls':>9} "
+                 f"{'time ms':>8} {'compile ms':>10}  how")
+    for c in sorted(adv.candidates, key=lambda c: (c["cost_rhs"], c["method"])):
+        how = c["source"] + (f", observed order {c['observed_order']:.2f}" if math.isfinite(c["observed_order"])
+                             else "")
+        if c["predicted_setting"] != c["setting"]:
+            how += f"; predicted error for {c['predicted_setting']:.3g}"
+        if c["sample"]:
+            how += f"; {len(c['sample'])} steps in [h/2, h] run"
+        lines.append(f"    {c['method']:<18} {c['setting']:>9.3g} {c['predicted_error']:>9.2g} "
+                     f"{c['confirmed_error']:>9.2g} {c['cost_rhs']:>9.3g} {c['cost_s'] * 1e3:>8.3g} "
+                     f"{c['compile_s'] * 1e3:>10.3g}  {how}")
+    lines.append(f"  time: {adv.timing}")
+    if adv.not_listed:
+        lines.append("  not listed:")
+        for c in adv.not_listed:
+            lines.append(f"    {c['method']:<18} {c['reason']}")
     lines.append(f"  model: {adv.model}: {adv.model_note}")
     for w in adv.warnings:
         lines.append(f"  warning: {w}")
