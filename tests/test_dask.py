@@ -104,6 +104,7 @@ def _drop_timing(df):
     return df[[c for c in df.columns if c not in TIMING_COLUMNS]]
 
 
+@pytest.mark.slow
 def test_scheduler_run_equals_local_run(cluster, tmp_path):
     scenes = []
     for i, extra in enumerate(('["state", "energy", "work_precision", "convergence", "modes"]',
@@ -227,6 +228,7 @@ def test_a_scheduler_without_workers_is_exit_3_within_the_timeout(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_a_worker_running_other_code_is_refused_and_named(tmp_path):
     """A worker importing a copy of the packages with one file changed (as a
     worker with rk4 swapped for the 3/8 rule would) reports another code
@@ -263,6 +265,7 @@ def test_a_worker_running_other_code_is_refused_and_named(tmp_path):
     assert "all expectations held" in r.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["killed", "frozen"])
 def test_a_scheduler_lost_mid_run_is_exit_3_with_the_records_kept_and_the_report_untouched(tmp_path, how):
     """The scheduler is killed (kill -9) or frozen (SIGSTOP: it still

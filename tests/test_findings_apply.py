@@ -55,6 +55,7 @@ def test_a_linear_chain_has_no_recurrence_finding(tmp_path, tmp_cache, capsys):
     assert "returns to" not in findings
 
 
+@pytest.mark.slow
 def test_a_nonlinear_chain_keeps_its_recurrence_finding(tmp_path, tmp_cache, capsys):
     findings, _ = _findings(tmp_path, capsys, "fput-chain3", 0.5)
     assert "(FPUT recurrence)" in findings

@@ -123,6 +123,7 @@ def _deterministic(out):
     return tables
 
 
+@pytest.mark.slow
 def test_resume_after_kill_runs_only_the_missing_specs(tmp_path):
     scenes = _scenes(tmp_path)
     args = sum((["--scene", s] for s in scenes), []) + ["--workers", "1", "--no-figures", "--repeats", "1"]

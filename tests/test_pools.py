@@ -5,6 +5,7 @@ uses them: started and warmed before planning, handed to ``run_all.run``
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -32,6 +33,7 @@ def _pids(pools):
     return {p.pid for pool in (pools.lane, pools.general) for p in pool._processes.values()}
 
 
+@pytest.mark.slow
 def test_warm_starts_every_worker_and_run_uses_the_callers_pools_and_leaves_them_open(tmp_path, monkeypatch):
     pools = engine.LocalPools(2).warm()
     try:
@@ -156,6 +158,7 @@ def test_a_worker_that_dies_idle_charges_no_job(capsys):
     assert "died (SIGSEGV)" in err and "0 of the 0 job(s)" in err, err
 
 
+@pytest.mark.slow
 def test_a_heyoka_that_segfaults_on_import_makes_failed_rows_not_a_traceback(tmp_path):
     """Every worker that imports heyoka (its warm-up, a heyoka run) dies
     with SIGSEGV: the heyoka runs become failed rows naming the signal, the
@@ -174,8 +177,11 @@ def test_a_heyoka_that_segfaults_on_import_makes_failed_rows_not_a_traceback(tmp
     assert p.returncode == 1, p.stderr
     assert "Traceback" not in p.stderr, p.stderr
     failed = sorted(line for line in p.stdout.splitlines() if line.startswith("FAILED"))
-    assert failed == [f"FAILED: segv: heyoka at {tol} raised WorkerDied: worker died (SIGSEGV) twice"
-                      for tol in ("1e-06", "1e-09")], p.stdout
+    # each heyoka run is a failed row naming the worker's death; a run whose
+    # worker the executor ended beside the crashed one may say SIGTERM second
+    assert [f[:f.index(" raised")] for f in failed] == [f"FAILED: segv: heyoka at {tol}" for tol in ("1e-06", "1e-09")]
+    assert all(re.search(r"raised WorkerDied: worker died (\(SIGSEGV\) twice|twice \(SIGSEGV, then SIGTERM\))$", f)
+               for f in failed), p.stdout
     import pandas as pd
 
     acc = pd.read_csv(out / "accuracy.csv")

@@ -137,6 +137,7 @@ def _run(out):
     return pd.read_csv(Path(out) / "cheapest.csv")
 
 
+@pytest.mark.slow
 def test_verdicts_survive_a_rerun(tmp_path):
     a, b = _run(tmp_path / "a"), _run(tmp_path / "b")
     cols = ["scene", "target_error", "method", "h", "rhs", "alternative", "alt_rhs",
