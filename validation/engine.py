@@ -466,6 +466,9 @@ class _Dispatch:
         self.started = {}  # pid -> tag of the last job it said it started
         self.tags = 0
         self.idle_deaths = 0
+        # pool name -> {pid: Process} of every worker seen since the pool was made: the
+        # executor forgets a dead worker as it breaks, and the dead one is the one to name
+        self.seen = {}
 
     def submit(self, name, fn, args, what):
         """Run ``fn(*args)`` on the pool ``name``; ``what`` comes back with its outcome."""
@@ -481,6 +484,11 @@ class _Dispatch:
             self._recover(job.name)
             fut = getattr(self.pools, job.name).submit(_tracked, job.tag, job.fn, *job.args)
         self.pending[fut] = job
+        self._see(job.name)
+
+    def _see(self, name):
+        procs = getattr(getattr(self.pools, name), "_processes", None) or {}
+        self.seen.setdefault(name, {}).update(dict(procs))
 
     def _listen(self):
         heard = getattr(self.pools, "heard", None)
@@ -513,7 +521,8 @@ class _Dispatch:
 
     def _recover(self, name):
         pool = getattr(self.pools, name)
-        procs = list((getattr(pool, "_processes", None) or {}).values())
+        self._see(name)
+        procs = list(self.seen.pop(name, {}).values())
         # The executor's manager thread fails every job and terminates the other
         # workers (SIGTERM); waiting for the processes, not for that thread, cannot hang.
         pool.shutdown(wait=False, cancel_futures=True)
