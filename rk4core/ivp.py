@@ -4,8 +4,8 @@
 runs scipy's own driver (``t_eval``, ``dense_output``, events, ``args``,
 ``vectorized``) on rk4core's stepping function: every step is one call of
 :func:`rk4core.methods.rk_step` with the method's tableau, so the states are
-those of :func:`rk4core.solve` at the same grid points (to round-off: the
-last step's size is computed here as ``t_bound - t_{N-1}``).
+those of :func:`rk4core.solve` at the same grid points (bit for bit when
+``h`` divides ``t_span``).
 
 Conventions
 -----------
@@ -13,9 +13,13 @@ Conventions
   the direction of ``t_span`` (``h`` is a magnitude; a negative ``h`` is
   accepted for a backward span only). With a finite ``t_bound`` the number
   of steps is ``N = ceil(|t_bound - t0| / h)`` (relative slack 1e-12, as
-  :func:`rk4core.solver.step_count`) and the last step is shortened -- or,
-  within the slack, lengthened -- to end on ``t_bound`` exactly, as scipy's
-  own solvers end on ``t_bound``. Times are in the units of ``t_span``.
+  :func:`rk4core.solver.step_count`). When ``N h`` equals the span to that
+  slack, the grid is :func:`rk4core.solve`'s (steps of ``(t_bound - t0) /
+  N``: states and ``nfev`` equal bit for bit); otherwise the last step is
+  shortened to ``t_bound - t_{N-1}`` so that it ends on ``t_bound``
+  exactly, as scipy's own solvers end on ``t_bound`` (``rk4core.solve``
+  would take ``N`` equal steps instead). Times are in the units of
+  ``t_span``.
 * An infinite ``t_bound`` (``t_span = (0, inf)``) needs a terminal event to
   end the run; after ``max_steps`` steps (default :data:`MAX_STEPS_INFINITE`)
   the step fails with a message, so ``solve_ivp`` returns ``status = -1``
@@ -211,16 +215,18 @@ def solver_class(method) -> type:
     ``rk4core.METHODS`` or a :class:`~rk4core.methods.Tableau`), to pass as
     ``solve_ivp(..., method=solver_class(tab), h=...)``."""
     tab = get_method(method)
-    cls_name = "".join(part.capitalize() for part in tab.name.replace("_", "-").split("-")) or "Method"
+    cls_name = "".join(ch if ch.isalnum() else "_" for ch in tab.name.upper()) or "METHOD"
+    if not cls_name[0].isalpha():
+        cls_name = "M_" + cls_name
     return type(cls_name, (FixedStepSolver,), {"tableau": tab, "__doc__": (
         f"{tab.name}: fixed-step ``OdeSolver`` for ``scipy.integrate.solve_ivp`` "
-        f"(``method=rk4core.ivp.{cls_name}, h=...``); see :class:`FixedStepSolver`.")})
+        f"(``solve_ivp(..., method=<this class>, h=...)``); see :class:`FixedStepSolver`.")})
 
 
 RK4 = solver_class(METHODS["rk4"])
 RK38 = solver_class(METHODS["rk38"])
-HEUN3 = solver_class(METHODS["heun3"]) if "heun3" in METHODS else None
-RALSTON = solver_class(METHODS["ralston"]) if "ralston" in METHODS else None
+HEUN3 = solver_class(METHODS["heun3"])
+RALSTON = solver_class(METHODS["ralston"])
 EULER = solver_class(METHODS["euler"])
 SYMPLECTIC_EULER = solver_class(METHODS["symplectic-euler"])
 STORMER_VERLET = solver_class(METHODS["stormer-verlet"])

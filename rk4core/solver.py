@@ -47,7 +47,8 @@ from .validate import (MAX_STEPS, boolean, check_max_growth, check_output_size, 
                        check_t_eval, check_t_span, check_y0, check_y_scale, positive)
 
 __all__ = ["solve", "FixedStepResult", "EmptyOutput", "MAX_STEPS_INFINITE", "step_count", "grid_time",
-           "grid_times", "growth_bound", "unstable_message", "check_fun_value", "nfev_count", "ArgsError", "REFUSED_OPTIONS"]
+           "grid_times", "growth_bound", "unstable_message", "check_fun_value", "nfev_count", "ArgsError",
+           "REFUSED_OPTIONS"]
 
 #: Default ``max_steps`` of :func:`solve`: the step cap of a run towards an infinite ``t_span`` end.
 MAX_STEPS_INFINITE = 10**6
@@ -151,8 +152,9 @@ class FixedStepResult(Mapping):
     method : str
     reason : str
         ``"ok"``, ``"event"`` (a terminal event), ``"non-finite"`` (a component
-        became inf or NaN) or ``"growth"`` (a finite component exceeded its
-        bound).
+        became inf or NaN), ``"growth"`` (a finite component exceeded its
+        bound) or ``"max_steps"`` (an infinite ``t_span`` end and no
+        terminal event within ``max_steps`` steps; ``status = -1``).
     """
 
     t: np.ndarray
@@ -531,6 +533,9 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     t_span : (float, float)
         ``(t0, t1)``, finite, ``t1 - t0`` finite. ``t1 < t0`` integrates
         backward; ``t1 == t0`` takes no step (``result.t = [t0]``).
+        ``t1`` may be ``inf`` (or ``-inf``) when a terminal event can end
+        the run: ``h`` is then required (not ``n_steps``), the grid is
+        ``t0 + i h`` and at most ``max_steps`` steps are taken.
     y0 : array_like, shape (n,)
         Real or complex numbers (a complex ``y0`` integrates a complex state,
         imaginary part kept, as in ``solve_ivp``); strings, booleans and an
@@ -601,6 +606,11 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     y_scale : array_like, shape (n,), optional, keyword-only
         Positive finite scale of each component (units of that component),
         replacing the default scale ``max_i |y0_i|``.
+    max_steps : int, optional, keyword-only
+        Step cap of a run towards an infinite ``t1`` (default
+        :data:`MAX_STEPS_INFINITE` = 10**6; unused for a finite span). A run
+        that reaches it without a terminal event ends with ``status = -1``,
+        ``reason = "max_steps"`` and a message naming it.
     **options
         Refused, each with a one-line ``ValueError`` naming it: ``rtol``,
         ``atol``, ``first_step``, ``max_step``, ``min_step`` (a fixed step has
@@ -665,7 +675,11 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     point ``t0`` (``solve_ivp`` returns it twice); a zero of an event
     function exactly on a grid point is recorded once (:mod:`rk4core.events`);
     a run that becomes non-finite or grows past ``max_growth`` ends with
-    ``status = -1`` where ``solve_ivp`` would shrink its step.
+    ``status = -1`` where ``solve_ivp`` would shrink its step; an infinite
+    ``t1`` needs a terminal event and stops after ``max_steps``; an empty
+    output (``t_eval`` wholly past an early terminal event) is an
+    :class:`EmptyOutput`, an empty ndarray that is false as ``solve_ivp``'s
+    ``[]`` is.
 
     Examples
     --------
