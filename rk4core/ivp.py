@@ -146,7 +146,7 @@ class FixedStepSolver(OdeSolver):
         self._k = np.empty((tab.n_stages, self.n), dtype=self.y.dtype)
         self._reuse = False
         self._kept = None  # (t, y, f) of f(t_i, y_i) computed for a dense output
-        self._f_old = None
+        self._y_old = self.y
 
     def _grid(self, i):
         if self.n_grid is None:
@@ -182,10 +182,6 @@ class FixedStepSolver(OdeSolver):
         y_old = self.y
         y_new = rk_step(fun, t, y_old, self._step_size(i, t), tab, self._k, t_max=t_max, reuse=self._reuse)
         self._reuse = tab.fsal
-        f_old = start_slope(tab, y_old, self._k)
-        f_new = end_slope(tab, y_new, self._k)
-        self._f_old = None if f_old is None else f_old.copy()
-        self._f_new = None if f_new is None else f_new.copy()
         self._y_old = y_old
         self.t, self.y = t_new, y_new
         self.step_index = i + 1
@@ -199,14 +195,18 @@ class FixedStepSolver(OdeSolver):
         return f
 
     def _dense_output_impl(self):
-        f_old = self._f_old
-        if f_old is None:
-            f_old = self._f_old = self._slope(self.t_old, self._y_old)
-        f_new = self._f_new
+        # scipy asks for the step's interpolant right after the step, while
+        # the scratch k still holds its stages
+        tab = self.tableau
+        f_old = start_slope(tab, self._y_old, self._k)
+        f_old = self._slope(self.t_old, self._y_old) if f_old is None else f_old.copy()
+        f_new = end_slope(tab, self.y, self._k)
         if f_new is None:
-            f_new = self._f_new = self._slope(self.t, self.y)
-            if not self.tableau.partitioned:  # the next step's first stage reuses it
+            f_new = self._slope(self.t, self.y)
+            if not tab.partitioned:  # the next step's first stage reuses it
                 self._kept = (self.t, self.y, f_new)
+        else:
+            f_new = f_new.copy()
         return FixedStepDenseOutput(self.t_old, self.t, self._y_old, self.y, f_old, f_new)
 
 
