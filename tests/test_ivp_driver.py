@@ -154,6 +154,21 @@ def test_infinite_span_ends_at_the_terminal_event(driver, dense_output):
 
 
 @pytest.mark.parametrize("driver", DRIVERS)
+@pytest.mark.parametrize("method", ["rk4", "stormer-verlet"])
+def test_infinite_span_with_t_eval(driver, method):
+    # output times past the event are not reached; those before it are the interpolant's
+    t_eval = [0.5, 1.005, 2.0, 3.0, 100.0]
+    res = DRIVERS[driver](_ball, (0.0, np.inf), [0.0, 10.0], method, h=0.01, events=_hit_ground, t_eval=t_eval)
+    assert res.status == 1
+    assert_array_equal(res.t, t_eval[:3])
+    exact = np.array([[10 * t - 9.81 * t * t / 2 for t in t_eval[:3]], [10 - 9.81 * t for t in t_eval[:3]]])
+    # RK4 and Stormer-Verlet are exact under a constant acceleration, and so is the cubic Hermite interpolant
+    assert_allclose(res.y, exact, rtol=0, atol=1e-12)
+    other = via_rk4core if driver != "rk4core.solve" else via_scipy
+    close(res.y, other(_ball, (0.0, np.inf), [0.0, 10.0], method, h=0.01, events=_hit_ground, t_eval=t_eval).y)
+
+
+@pytest.mark.parametrize("driver", DRIVERS)
 def test_infinite_span_backward(driver):
     def at_minus_1_5(t, y):
         return t + 1.5
