@@ -13,3 +13,11 @@ __all__ = ["solve", "FixedStepResult", "step_count", "nfev_count", "Tableau", "m
            "HEUN3", "RALSTON", "EULER", "SYMPLECTIC_EULER", "STORMER_VERLET", "METHODS", "get_method", "rk_step",
            "order_conditions", "stability_function", "MODELS", "Model", "Defined", "Drawing", "Network",
            "PotentialModel", "make_model", "register_model"]
+
+
+def __getattr__(name):
+    # rk4core.ivp (scipy's OdeSolver classes) is imported on first use: it loads scipy.integrate
+    if name == "ivp":
+        import importlib
+        return importlib.import_module(".ivp", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

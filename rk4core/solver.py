@@ -43,12 +43,15 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .methods import METHODS, Tableau, end_slope, get_method, rk_step, start_slope
-from .validate import (boolean, check_max_growth, check_output_size, check_step_args, check_step_sign, check_t_eval,
-                       check_t_span, check_y0, check_y_scale)
+from .validate import (MAX_STEPS, boolean, check_max_growth, check_output_size, check_step_args, check_step_sign,
+                       check_t_eval, check_t_span, check_y0, check_y_scale, positive)
 
-__all__ = ["solve", "FixedStepResult", "step_count", "grid_time", "grid_times", "growth_bound",
-           "unstable_message", "check_fun_value", "nfev_count", "ArgsError", "REFUSED_OPTIONS"]
+__all__ = ["solve", "FixedStepResult", "EmptyOutput", "MAX_STEPS_INFINITE", "step_count", "grid_time",
+           "grid_times", "growth_bound", "unstable_message", "check_fun_value", "nfev_count", "ArgsError",
+           "REFUSED_OPTIONS"]
 
+#: Default ``max_steps`` of :func:`solve`: the step cap of a run towards an infinite ``t_span`` end.
+MAX_STEPS_INFINITE = 10**6
 _SLACK = 1e-12  # relative slack when rounding (t1 - t0) / h up to a whole count
 _DBL_MAX = float(np.finfo(np.float64).max)  # bound of the instability test when growth is not tested
 
@@ -71,6 +74,15 @@ REFUSED_OPTIONS = {
 _ADAPTIVE = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
 # OdeResult's keys first, in solve_ivp's order, then the fixed-step ones.
 _SCIPY_KEYS = ("t", "y", "sol", "t_events", "y_events", "nfev", "njev", "nlu", "status", "message", "success")
+
+
+class EmptyOutput(np.ndarray):
+    """An empty ``result.t`` or ``result.y``: an ndarray (shape ``(0,)`` or
+    ``(n, 0)``) that is false as a truth value, as ``solve_ivp``'s ``[]``
+    there, so ``if not res.t`` works as with scipy."""
+
+    def __bool__(self) -> bool:
+        return bool(self.size)
 
 
 class ArgsError(TypeError, ValueError):
@@ -140,8 +152,9 @@ class FixedStepResult(Mapping):
     method : str
     reason : str
         ``"ok"``, ``"event"`` (a terminal event), ``"non-finite"`` (a component
-        became inf or NaN) or ``"growth"`` (a finite component exceeded its
-        bound).
+        became inf or NaN), ``"growth"`` (a finite component exceeded its
+        bound) or ``"max_steps"`` (an infinite ``t_span`` end and no
+        terminal event within ``max_steps`` steps; ``status = -1``).
     """
 
     t: np.ndarray
@@ -161,6 +174,15 @@ class FixedStepResult(Mapping):
     y_events: list | None = None
     njev: int = 0
     nlu: int = 0
+
+    def __post_init__(self):
+        # solve_ivp returns `[]` for t and y when no output time was reached
+        # (a t_eval past an early terminal event), so `if not res.t` is scipy
+        # users' test for it; an empty ndarray refuses to be a truth value.
+        for name in ("t", "y"):
+            value = getattr(self, name)
+            if isinstance(value, np.ndarray) and value.size == 0 and type(value) is np.ndarray:
+                setattr(self, name, value.view(EmptyOutput))
 
     # -- the OdeResult (dict-like) face -----------------------------------------------------------
     def _keys(self):
@@ -446,6 +468,38 @@ def _get_method(method) -> Tableau:
     return get_method(method)
 
 
+def _infinite_end(t_span):
+    """``t_span``'s end if it is +inf or -inf (with a finite start), else None."""
+    try:
+        t0, t1 = t_span
+        t0, t1 = float(t0), float(t1)
+    except (TypeError, ValueError):
+        return None
+    if math.isinf(t1) and math.isfinite(t0):
+        return t1
+    return None
+
+
+def _infinite_grid(t0, t1, h, n_steps, max_steps, ev):
+    """``(n, step)`` of a run towards an infinite ``t1``: steps of ``h`` (signed
+    by the direction), at most ``max_steps`` of them; a terminal event must be
+    able to end it."""
+    span = f"t_span = ({t0!r}, {t1!r})"
+    if ev is None or not np.isfinite(ev.max_events).any():
+        raise ValueError(f"{span} has an infinite end: give a terminal event (`events` with `terminal` set) "
+                         f"to end the run")
+    if n_steps is not None or h is None:
+        raise ValueError(f"{span} has an infinite end: give `h` (the step), not `n_steps`, got h={h!r}, "
+                         f"n_steps={n_steps!r}")
+    h = positive("h", check_step_sign(h, t0, t1))
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or not 1 <= max_steps <= MAX_STEPS:
+        raise ValueError(f"`max_steps` must be an integer from 1 to MAX_STEPS = {MAX_STEPS:.0e}, got {max_steps!r}")
+    step = h if t1 > t0 else -h
+    if not math.isfinite(t0 + int(max_steps) * step):
+        raise ValueError(f"`max_steps` = {max_steps!r} steps of h = {h!r} from t0 = {t0!r} overflow float64")
+    return int(max_steps), step
+
+
 def _output_points(t_eval, t0, step, n):
     """Step index and fraction of every ``t_eval`` point (the arithmetic of
     the compiled path's ``_output_points``): ``idx``, ``theta``, ``on_grid``."""
@@ -458,7 +512,8 @@ def _output_points(t_eval, t0, step, n):
 
 
 def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events=None, vectorized=False,
-          args=None, *, h=None, n_steps=None, max_growth=1e8, y_scale=None, **options) -> FixedStepResult:
+          args=None, *, h=None, n_steps=None, max_growth=1e8, y_scale=None, max_steps=MAX_STEPS_INFINITE,
+          **options) -> FixedStepResult:
     """Integrate ``dy/dt = fun(t, y)`` over ``t_span`` with a fixed step.
 
     A superset of ``scipy.integrate.solve_ivp`` for fixed-step methods: the
@@ -478,6 +533,9 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     t_span : (float, float)
         ``(t0, t1)``, finite, ``t1 - t0`` finite. ``t1 < t0`` integrates
         backward; ``t1 == t0`` takes no step (``result.t = [t0]``).
+        ``t1`` may be ``inf`` (or ``-inf``) when a terminal event can end
+        the run: ``h`` is then required (not ``n_steps``), the grid is
+        ``t0 + i h`` and at most ``max_steps`` steps are taken.
     y0 : array_like, shape (n,)
         Real or complex numbers (a complex ``y0`` integrates a complex state,
         imaginary part kept, as in ``solve_ivp``); strings, booleans and an
@@ -548,6 +606,11 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     y_scale : array_like, shape (n,), optional, keyword-only
         Positive finite scale of each component (units of that component),
         replacing the default scale ``max_i |y0_i|``.
+    max_steps : int, optional, keyword-only
+        Step cap of a run towards an infinite ``t1`` (default
+        :data:`MAX_STEPS_INFINITE` = 10**6; unused for a finite span). A run
+        that reaches it without a terminal event ends with ``status = -1``,
+        ``reason = "max_steps"`` and a message naming it.
     **options
         Refused, each with a one-line ``ValueError`` naming it: ``rtol``,
         ``atol``, ``first_step``, ``max_step``, ``min_step`` (a fixed step has
@@ -612,7 +675,11 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     point ``t0`` (``solve_ivp`` returns it twice); a zero of an event
     function exactly on a grid point is recorded once (:mod:`rk4core.events`);
     a run that becomes non-finite or grows past ``max_growth`` ends with
-    ``status = -1`` where ``solve_ivp`` would shrink its step.
+    ``status = -1`` where ``solve_ivp`` would shrink its step; an infinite
+    ``t1`` needs a terminal event and stops after ``max_steps``; an empty
+    output (``t_eval`` wholly past an early terminal event) is an
+    :class:`EmptyOutput`, an empty ndarray that is false as ``solve_ivp``'s
+    ``[]`` is.
 
     Examples
     --------
@@ -631,7 +698,10 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     """
     _refuse_options(options)
     tab: Tableau = _get_method(method)
-    t0, t1 = check_t_span(t_span, allow_backward=True)
+    t_inf = _infinite_end(t_span)
+    t0, t1 = check_t_span(t_span if t_inf is None else (t_span[0], 0.0), allow_backward=True)
+    if t_inf is not None:
+        t1 = t_inf
     y = check_y0(y0, allow_complex=True)
     n_comp = y.shape[0]
     if tab.partitioned and n_comp % 2:
@@ -645,14 +715,20 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     if events is not None:
         from .events import Events
         ev = Events(events, args)
-    n = check_step_args(t0, t1, check_step_sign(h, t0, t1), n_steps, step_count)
-    if t1 == t0:
-        n = 0
-    step = (t1 - t0) / n if n else 0.0
     t_eval = check_t_eval(t_eval, t0, t1)
+    if t_inf is not None:
+        n, step = _infinite_grid(t0, t1, h, n_steps, max_steps, ev)
+        t1 = t0 + n * step  # the grid's end, reached only when no terminal event fired
+    else:
+        n = check_step_args(t0, t1, check_step_sign(h, t0, t1), n_steps, step_count)
+        if t1 == t0:
+            n = 0
+        step = (t1 - t0) / n if n else 0.0
     dtype = y.dtype
     rich = dense_output or (ev is not None and len(ev) > 0)
     step_name, step_value = ("h", h) if h is not None else ("n_steps", n_steps)
+    if t_inf is not None:
+        step_name, step_value = "max_steps", max_steps
     if t_eval is None:
         check_output_size(step_name, step_value, n + 1, n_comp, dtype.itemsize)
     else:
@@ -666,8 +742,13 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     scale_from = "given" if y_scale is not None else "initial"
     t_max = t1 if t1 > t0 else None  # backward: the clamp is in `fun` (t_floor)
     if rich:
-        return _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max, t_eval,
-                           dense_output, ev)
+        res = _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max, t_eval,
+                          dense_output, ev)
+        if t_inf is not None and res.status == 0:
+            res.status, res.success, res.reason = -1, False, "max_steps"
+            res.message = (f"no terminal event ended the run within max_steps = {n} steps (t = {t1:.6g}, "
+                           f"h = {step:.6g}); t_span's end is infinite")
+        return res
 
     k = np.empty((tab.n_stages, n_comp), dtype=dtype)
     grid_out = t_eval is None
