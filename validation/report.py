@@ -480,6 +480,9 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
     lines += ["", "## Main findings", ""]
     lines += [f"- {f}" for f in findings] or ["- (none)"]
     lines += ["", "## Tables", ""]
+    if table_paths:
+        lines += ["Each table is also written as `NAME.parquet` (typed columns); [columns.json](columns.json) "
+                  "gives every column's unit, dtype and description.", ""]
     for name, path in table_paths.items():
         lines.append(f"- [{path.name}]({path.name}): {DESCRIPTIONS.get(name, '')}")
     lines += ["", "## Figures", ""]
