@@ -143,3 +143,37 @@ def test_compare_table_names_added_columns_and_compares_the_common_ones():
     assert any("new columns: h" in line for line in lines)
     assert any(line.strip().startswith("error_max: 1 rows differ") for line in lines)
     assert compare_reports.compare_table(new, old.assign(error_max=[1.0, 2.5]))[0].strip() == "dropped columns: h"
+
+
+def test_text_in_a_numeric_column_is_refused_not_turned_into_nan():
+    cols = report.COLUMNS["accuracy"]
+    rows = pd.DataFrame([{**{c: "" for c in cols}, "solver": "rk4", "setting": 0.1, "error_max": "1e-3"},
+                         {**{c: "" for c in cols}, "solver": "rk4", "setting": 0.1, "error_max": "n/a"}])[cols]
+    with pytest.raises(ValueError, match="'accuracy' column 'error_max' is declared numeric, got 'n/a'"):
+        C.typed_frame("accuracy", rows)
+
+
+def test_undeclared_columns_are_kept_and_mixed_text_is_written_as_text(tmp_path):
+    rows = [{"scene": "a", "masses[1]": 2.0, "kind": "x", "solver": "rk4", "setting": 0.1},
+            {"scene": "b", "kind": 3, "solver": "dop853", "setting": 1e-6}]
+    report.write_tables(tmp_path, {"accuracy": rows}, front=["masses[1]"])
+    df = pd.read_parquet(tmp_path / "accuracy.parquet")
+    assert list(df.columns[:2]) == ["scene", "masses[1]"] and df["masses[1]"].dtype == np.float64
+    assert df["kind"].tolist() == ["x", "3"]
+    assert df["h"].tolist()[0] == 0.1 and math.isnan(df["h"].tolist()[1]) and df["rtol"].tolist()[1] == 1e-6
+    meta = json.loads((tmp_path / "columns.json").read_text())
+    assert [p["name"] for p in meta["sweep_parameters"]] == ["masses[1]"]
+
+
+def test_committed_tables_pass_through_the_typed_writer(tmp_path):
+    # every table of the full committed report (stability, methods, thesis_code, ... included)
+    tables = {n: pd.read_csv(REPO / "reports" / f"{n}.csv").to_dict("records") for n in report.COLUMNS
+              if (REPO / "reports" / f"{n}.csv").exists()}
+    assert "stability" in tables and "thesis_code" in tables
+    paths = report.write_tables(tmp_path, tables, front=["masses[1]", "x[0]"])
+    st = pd.read_parquet(tmp_path / "stability.parquet")
+    assert st["passed"].dtype == bool and 0 < st["checked"].sum() < len(st)
+    assert not (st["passed"] & ~st["checked"]).any()
+    for name in paths:
+        pq = pd.read_parquet(tmp_path / f"{name}.parquet")
+        assert len(pq) == len(tables[name]), name
