@@ -11,24 +11,8 @@ gives ``docs/columns.md``::
 Column order comes from :data:`validation.report.COLUMNS`, the tables'
 descriptions from :data:`validation.report.DESCRIPTIONS`.
 
-Conventions
------------
-dtype
-    ``float`` (float64, NaN where not applicable), ``int`` (nullable Int64,
-    empty where not applicable), ``bool`` (True/False only, never empty),
-    ``category`` (one of a few fixed labels; free text goes to ``note`` or
-    ``message``), ``str`` (free text, empty where none).
-setting, h, rtol
-    ``setting`` is the run's setting as the scene lists it: the step ``h`` (s)
-    of a fixed-step method, the relative tolerance ``rtol`` of an adaptive
-    reference (``references.registry.REFERENCES``). ``h`` and ``rtol`` hold it
-    apart, each NaN where it does not apply.
-passed, checked
-    In the tables where some rows carry no pass/fail verdict (``energy``,
-    ``stability``, ``thesis_code``), ``checked`` says whether the row was
-    judged and ``passed`` is True only for a judged row that met its
-    expectation: ``df[df.passed]`` are the rows that passed, ``df[~df.checked]``
-    the informative ones.
+The conventions (dtypes, ``setting``/``h``/``rtol``, ``passed``/``checked``)
+are :data:`CONVENTIONS`.
 """
 from __future__ import annotations
 
@@ -38,10 +22,25 @@ import math
 import sys
 from dataclasses import asdict, dataclass
 
-__all__ = ["Column", "DTYPES", "H_SOURCES", "declared", "table_columns", "typed_frame", "columns_json",
+__all__ = ["Column", "CONVENTIONS", "DTYPES", "H_SOURCES", "declared", "table_columns", "typed_frame", "columns_json",
            "markdown", "main"]
 
 DTYPES = ("float", "int", "bool", "category", "str")
+
+#: Term -> what it means in every table (columns.json, docs/columns.md).
+CONVENTIONS = {
+    "dtype": "`float` (float64, NaN where not applicable), `int` (nullable Int64, empty where not applicable), "
+             "`bool` (True/False only, never empty), `category` (one of a few fixed labels; free text goes to "
+             "`note` or `message`), `str` (free text, empty where none).",
+    "setting, h, rtol": "`setting` is the run's setting as the scene lists it: the step `h` (s) of a fixed-step "
+                        "method, the relative tolerance `rtol` of an adaptive reference "
+                        "(`references.registry.REFERENCES`). `h` and `rtol` hold it apart, each NaN where it does "
+                        "not apply.",
+    "passed, checked": "In the tables where some rows carry no pass/fail verdict (`energy`, `stability`, "
+                       "`thesis_code`), `checked` says whether the row was judged and `passed` is True only for a "
+                       "judged row that met its expectation: `df[df.passed]` are the rows that passed, "
+                       "`df[~df.checked]` the informative ones.",
+}
 
 #: The categories of ``cheapest.h_source`` (how the method's step was found;
 #: validation.trust). Anything after them (``(2 runs)``, ``: why``) goes to ``note``.
@@ -51,7 +50,9 @@ H_SOURCES = ("error constant", "measured bracket", "measured run", "confirmation
 
 @dataclass(frozen=True)
 class Column:
-    """One column: ``unit`` is "" for text and "1" for a pure number."""
+    """One column: ``unit`` is "" for text, "1" for a pure number, "per
+    quantity" where the row's ``quantity`` names the unit, "state" for the
+    units of the state components (m, m/s, rad, ...)."""
 
     name: str
     unit: str
@@ -89,12 +90,12 @@ _COMMON = {
     "quantity": _c("", "category", "what the row measures"),
     "mode": _c("1", "int", "mode number (1 = slowest)"),
     "omega_rad_s": _c("rad/s", "float", "natural angular frequency"),
-    "measured": _c("", "float", "measured value of `quantity` (its unit is in the quantity's name)"),
-    "theory": _c("", "float", "the theory's value of `quantity`"),
+    "measured": _c("per quantity", "float", "measured value of `quantity` (its unit is in the quantity's name)"),
+    "theory": _c("per quantity", "float", "the theory's value of `quantity`"),
     "target_error": _c("1", "float", "target relative error"),
     "order": _c("1", "int", "order of accuracy of the method"),
     "method": _c("", "category", "method name (references.registry)"),
-    "tolerance": _c("", "float", "allowed difference"),
+    "tolerance": _c("per quantity", "float", "allowed difference"),
 }
 
 #: Per table: name -> (unit, dtype, description) where it differs from :data:`_COMMON` or is its own.
@@ -175,7 +176,7 @@ _TABLES = {
         "periods": _c("1", "float", "run length in periods of the slowest mode"),
         "target_error": _c("1", "float", "relative error a cost row is measured at"),
         "passed": _c("", "bool", "the measured value met the theory (False where `checked` is False)"),
-        "measured_timed": _c("", "float", "the measured value when it is derived from wall times (timing)"),
+        "measured_timed": _c("per quantity", "float", "the measured value when it is derived from wall times (timing)"),
     },
     "linearization": {
         "amplitude_q": _c("state", "float", "largest coordinate of the nonlinear truth"),
@@ -194,16 +195,16 @@ _TABLES = {
         "variant": _c("", "category", "printed or corrected"),
         "case": _c("", "category", "the thesis table or case the run reproduces"),
         "quantity": _c("", "category", "what the row measures; its unit is in the name"),
-        "value": _c("", "float", "measured value of `quantity`"),
-        "expected": _c("", "float", "expected value"),
-        "tolerance": _c("", "float", "allowed |value - expected|"),
+        "value": _c("per quantity", "float", "measured value of `quantity`"),
+        "expected": _c("per quantity", "float", "expected value"),
+        "tolerance": _c("per quantity", "float", "allowed |value - expected|"),
         "passed": _c("", "bool", "value within tolerance of expected (False where `checked` is False)"),
     },
     "thesis_errata": {
         "item": _c("", "str", "the erratum"),
         "quantity": _c("", "str", "what is compared, with its unit"),
-        "thesis": _c("", "float", "what the printed program gives"),
-        "corrected": _c("", "float", "what the corrected program gives"),
+        "thesis": _c("per quantity", "float", "what the printed program gives"),
+        "corrected": _c("per quantity", "float", "what the corrected program gives"),
     },
     "methods": {
         "method": _c("", "category", "the scene's tableau method"),
@@ -373,7 +374,7 @@ def columns_json(tables=None, front=()) -> dict:
 
     names = list(declared()) if tables is None else list(tables)
     return {
-        "conventions": __doc__.split("Conventions\n-----------\n", 1)[1].strip(),
+        "conventions": dict(CONVENTIONS),
         "tables": {n: {"files": [f"{n}.csv", f"{n}.parquet"], "description": DESCRIPTIONS.get(n, ""),
                        "columns": [asdict(c) for c in table_columns(n, strict=False)]} for n in names},
         "sweep_parameters": [{**asdict(SWEEP), "name": k} for k in front],
@@ -399,9 +400,7 @@ def markdown() -> str:
              "`validation/columns.py`; do not edit by hand. Every report holds the same as `columns.json`, "
              "and each table as `NAME.csv` and `NAME.parquet` (the Parquet file keeps the dtypes).", "",
              "## Conventions", ""]
-    doc = __doc__.split("Conventions\n-----------\n", 1)[1].strip().splitlines()
-    for line in doc:
-        lines.append(f"- `{line}`:" if not line.startswith(" ") else f"  {line.strip()}")
+    lines += [f"- **{term}**: {text}" for term, text in CONVENTIONS.items()]
     lines += ["", f"A sweep's parameter columns (e.g. `masses[1]`) follow `scene`: {SWEEP.description}.", ""]
     for name, cols in declared().items():
         lines += [f"## {name}", "", _cell(DESCRIPTIONS.get(name, "")), "",
