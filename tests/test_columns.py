@@ -177,3 +177,22 @@ def test_committed_tables_pass_through_the_typed_writer(tmp_path):
     for name in paths:
         pq = pd.read_parquet(tmp_path / f"{name}.parquet")
         assert len(pq) == len(tables[name]), name
+
+
+def test_fresh_stability_run_writes_boolean_passed(tmp_path):
+    from validation import run_all
+    from validation.scenes import scene_from_dict
+
+    doc = {"name": "columns-boundary", "model": "chain",
+           "params": {"masses": [1.0, 2.0], "springs": [40.0, 140.0, 160.0], "walls": "both"},
+           "initial": {"x": [0.005, 0.005]},
+           "run": {"t_end": 2.0, "h": [0.02, 0.01], "tolerances": [1e-8], "solvers": ["rk4"],
+                   "outputs": ["stability"]},
+           "stability": {"studies": ["boundary"]}}
+    run_all.run([scene_from_dict(doc)], tmp_path, quick=True, figures=False)
+    st = pd.read_parquet(tmp_path / "stability.parquet")
+    assert st["passed"].dtype == bool and st["checked"].dtype == bool and len(st)
+    (row,) = st[(st.solver == "rk4") & (st.quantity == "largest_stable_h_s")].to_dict("records")
+    assert row["passed"] is True and row["checked"] is True
+    described = json.loads((tmp_path / "columns.json").read_text())["tables"]["stability"]["columns"]
+    assert {c["name"]: c["dtype"] for c in described}["passed"] == "bool"
