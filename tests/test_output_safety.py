@@ -140,7 +140,7 @@ def test_out_that_may_be_replaced(tmp_path, scene, capsys, state):
     assert rc == 0, err
     marker = atomic.read_marker(out)
     assert marker["state"] == "complete" and marker["scope"] == "subset" and marker["scenes"] == ["tiny"]
-    assert set(marker["manifest"]) == {"accuracy.csv", "index.md"}
+    assert set(marker["manifest"]) == {"accuracy.csv", "accuracy.parquet", "columns.json", "index.md"}
     assert sorted(p.name for p in tmp_path.iterdir()) == [".out.lock", "out", "tiny.toml"]
 
 

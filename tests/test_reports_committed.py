@@ -116,7 +116,9 @@ def _compare(regenerated, table):
     # sweep parameter columns (empty for the quick scenes, which sweep nothing)
     old = old[[c for c in old.columns if c in new.columns or old[c].notna().any()]]
     cols = [c for c in new.columns if c not in COMPARED[table]]
-    assert list(old.columns) == list(new.columns), "columns changed: regenerate reports/"
+    assert list(old.columns) == list(new.columns), (
+        f"columns changed (new: {[c for c in new.columns if c not in old.columns]}, dropped: "
+        f"{[c for c in old.columns if c not in new.columns]}): regenerate reports/")
     assert len(old) == len(new), f"{table}: {len(new)} rows now, {len(old)} committed: regenerate reports/"
     for c in cols:
         same = _same(new[c], old[c])

@@ -3,7 +3,8 @@
     python validation/compare_reports.py OLD_DIR NEW_DIR [--columns error_max,nfev] [--where solver=rk4]
 
 For every CSV present in both directories (rows matched by position; tables
-of different shape are reported as such), prints, per numeric column, the
+of different lengths are reported as such; columns only in one are named, the
+common ones compared), prints, per numeric column, the
 largest relative difference ``|new - old| / |old|`` and the row where it
 occurs, and per text column the number of rows that differ. Timing columns
 (``wall_s``, ``compile_s``, the trust table's times and time verdicts) are left out unless named with
@@ -31,10 +32,16 @@ _KEYS = ("scene", "solver", "setting", "quantity", "study")
 
 def compare_table(old: pd.DataFrame, new: pd.DataFrame, columns=None) -> list[str]:
     """Lines describing how ``new`` differs from ``old`` (empty: identical)."""
-    if old.shape != new.shape or list(old.columns) != list(new.columns):
+    if len(old) != len(new):
         return [f"  shape or columns differ: {old.shape} {list(old.columns)[:6]}... vs {new.shape}"]
     out = []
-    for c in old.columns:
+    added = [c for c in new.columns if c not in old.columns]
+    dropped = [c for c in old.columns if c not in new.columns]
+    if dropped:
+        out.append(f"  dropped columns: {', '.join(dropped)}")
+    if added:
+        out.append(f"  new columns: {', '.join(added)}")
+    for c in (c for c in old.columns if c in new.columns):
         if (columns and c not in columns) or (not columns and c in TIMING):
             continue
         a, b = old[c], new[c]
@@ -97,7 +104,7 @@ def main(argv=None, *, prog=None) -> int:
             where_column = True
             keep = (a[where[0]].astype(str) == where[1]).to_numpy()
             where_rows += int(keep.sum())
-            if a.shape == b.shape:
+            if len(a) == len(b):
                 a, b = a[keep].reset_index(drop=True), b[keep].reset_index(drop=True)
         skip = ("no row matches `--where`" if where is not None and where[0] in a.columns and not keep.any() else
                 "none of the `--columns`" if columns and not columns & set(a.columns) else "")

@@ -1,4 +1,5 @@
-"""Writing the report: CSV tables (one row per measurement) and ``index.md``.
+"""Writing the report: tables (one row per measurement; CSV and Parquet, typed
+by :mod:`validation.columns`, described in ``columns.json``) and ``index.md``.
 
 Column order is fixed by :data:`COLUMNS`. Timing columns (:data:`TIMING`) are
 the only ones that change between two runs on one machine; every other column
@@ -20,24 +21,24 @@ __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS", "write_tables", "write_index", "
            "errata_rows"]
 
 COLUMNS = {
-    "accuracy": ["scene", "solver", "setting", "error_max", "error_rel", "error_final",
+    "accuracy": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "error_final",
                  "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message", "note"],
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
                     "h_min", "h_max", "n_points", "t_end"],
     "modes": ["scene", "mode", "omega_rad_s", "freq_hz", "linearized"],
-    "work_precision": ["scene", "solver", "setting", "error_max", "error_rel", "wall_s", "wall_min", "wall_max",
+    "work_precision": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "wall_s", "wall_min", "wall_max",
                        "compile_s", "nfev", "n_steps", "taylor_order", "status"],
-    "energy": ["scene", "solver", "setting", "drift_per_time", "theory_drift_per_time",
-               "energy_drift_max", "passed", "status"],
+    "energy": ["scene", "solver", "setting", "h", "rtol", "drift_per_time", "theory_drift_per_time",
+               "energy_drift_max", "passed", "checked", "status"],
     "cheapest": None,  # validation.trust.COLUMNS (filled below)
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],
     "stability": None,  # validation.stability.COLUMNS (filled below)
     "linearization": ["scene", "amplitude_q", "error_max_q", "error_rel_q"],
-    "modal_energy": ["scene", "solver", "setting", "mode", "omega_rad_s", "fraction_start", "fraction_min",
+    "modal_energy": ["scene", "solver", "setting", "h", "rtol", "mode", "omega_rad_s", "fraction_start", "fraction_min",
                      "t_min", "fraction_peak", "t_peak", "status"],
     "thesis_code": ["scene", "program", "variant", "case", "quantity", "value", "expected", "tolerance",
-                    "passed", "status", "message"],
+                    "passed", "checked", "status", "message"],
     "thesis_errata": ["scene", "item", "quantity", "thesis", "corrected", "note"],
     "methods": ["scene", "method", "order_p", "conditions", "max_residual", "tolerance", "holds", "order",
                 "precision", "coefficient_tol", "stages", "partitioned"],
@@ -134,7 +135,11 @@ DESCRIPTIONS = {
 
 
 def _frame(name, rows):
+    """The table's rows as a frame in :data:`COLUMNS` order, typed by
+    :func:`validation.columns.typed_frame` (tables without a declaration as is)."""
     import pandas as pd
+
+    from validation.columns import typed_frame
 
     cols = COLUMNS.get(name)
     df = pd.DataFrame(rows)
@@ -144,13 +149,17 @@ def _frame(name, rows):
     for c in cols:
         if c not in df.columns:
             df[c] = ""
-    return df[cols + extra]
+    return typed_frame(name, df[cols + extra])
 
 
 def write_tables(out_dir, tables: dict, front=()) -> dict:
-    """Write ``tables`` (name -> rows) as ``name.csv``; returns name -> path.
-    Columns in ``front`` (a sweep's parameters) come right after ``scene``."""
-    out = {}
+    """Write ``tables`` (name -> rows) as ``name.csv`` and ``name.parquet``
+    (dtypes of :mod:`validation.columns`), and ``columns.json`` describing
+    the tables written; returns name -> CSV path. Columns in ``front`` (a
+    sweep's parameters) come right after ``scene``."""
+    from validation import columns
+
+    out, written = {}, set()
     for name, rows in tables.items():
         if not rows:
             continue
@@ -159,7 +168,12 @@ def write_tables(out_dir, tables: dict, front=()) -> dict:
         first = [c for c in ("scene", *front) if c in df.columns]
         df = df[first + [c for c in df.columns if c not in first]]
         df.to_csv(path, index=False, lineterminator="\n")
+        df.to_parquet(path.with_suffix(".parquet"), index=False)
         out[name] = path
+        written.update(df.columns)
+    if out:
+        columns.write_json(Path(out_dir) / "columns.json", [n for n in out if COLUMNS.get(n) is not None],
+                           front=[c for c in front if c in written])
     return out
 
 
@@ -466,6 +480,9 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
     lines += ["", "## Main findings", ""]
     lines += [f"- {f}" for f in findings] or ["- (none)"]
     lines += ["", "## Tables", ""]
+    if table_paths:
+        lines += ["Each table is also written as `NAME.parquet` (typed columns); [columns.json](columns.json) "
+                  "gives every column's unit, dtype and description.", ""]
     for name, path in table_paths.items():
         lines.append(f"- [{path.name}]({path.name}): {DESCRIPTIONS.get(name, '')}")
     lines += ["", "## Figures", ""]

@@ -82,7 +82,7 @@ UNMEASURED = "unmeasured"
 
 COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h_source", "n_steps",
            "rhs", "time_s", "compile_s", "confirmed_error_rel", "confirmed", "alternative", "alt_setting",
-           "alt_error_rel", "alt_rhs", "alt_time_s", "alt_compile_s", "alt_confirmed_error_rel", "alt_confirmed",
+           "alt_h", "alt_rtol", "alt_error_rel", "alt_rhs", "alt_time_s", "alt_compile_s", "alt_confirmed_error_rel", "alt_confirmed",
            "verdict_rhs", "verdict_one_run", "verdict_amortized", "note",
            "time_context"]
 #: Columns that are timings (differ between runs; machine-dependent); the two

@@ -37,7 +37,8 @@ TIMING_COLUMNS = ("wall_s", "measured_timed")
 
 #: Every column of ``stability.csv``, in order. All but :data:`TIMING_COLUMNS`
 #: are deterministic: a rerun gives them bit for bit.
-COLUMNS = ("scene", "study", "solver", "quantity", *PARAM_COLUMNS, "measured", "theory", "passed", "status", "note",
+COLUMNS = ("scene", "study", "solver", "quantity", *PARAM_COLUMNS, "measured", "theory", "passed", "checked", "status",
+           "note",
            *TIMING_COLUMNS)
 
 
@@ -80,7 +81,8 @@ class StudyResult:
 def row(scene, study, solver, quantity, measured, theory=math.nan, passed=None, status="ok", note="", *,
         wall_s=math.nan, measured_timed=math.nan, **params):
     """One ``stability.csv`` row (keys :data:`COLUMNS`). ``passed`` is None
-    (reported as empty) when the quantity is informative only; ``params`` are
+    when the quantity is informative only (``checked`` False; the written
+    table then says ``passed`` False, validation.columns); ``params`` are
     :data:`PARAM_COLUMNS` (others raise ``TypeError``); the quantity is a bare
     name, its parameters go into those columns."""
     bad = set(params) - set(PARAM_COLUMNS)
@@ -93,7 +95,8 @@ def row(scene, study, solver, quantity, measured, theory=math.nan, passed=None, 
         v = params.get(p)
         out[p] = math.nan if v is None else (int(v) if p in ("mode", "n") else float(v))
     out.update({"measured": float(measured), "theory": float(theory),
-                "passed": None if passed is None else bool(passed), "status": status, "note": note,
+                "passed": None if passed is None else bool(passed), "checked": passed is not None,
+                "status": status, "note": note,
                 "wall_s": float(wall_s), "measured_timed": float(measured_timed)})
     return out
 
