@@ -239,6 +239,10 @@ def check_y_scale(value, n: int) -> np.ndarray | None:
         raise ValueError(f"`y_scale` must be a list of {n} positive numbers, got {_short(value)}")
     if len(value) != n:
         raise ValueError(f"`y_scale` must have {n} entries (one per state component), got {len(value)}")
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.ndim == 1:
+        # the common case (a solver's own scale) checked whole; any bad entry: the itemwise message
+        if bool(np.all(np.isfinite(value))) and bool(np.all(value > 0.0)):
+            return value.copy()
     return float_list("y_scale", value, length=n, positive_items=True)
 
 

@@ -1,0 +1,133 @@
+"""Per-model constants computed once (issue 29): cached results are the
+results computed afresh, bit for bit, and each model's own."""
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+
+import rk4core
+import rk4core.fast.solve as fast_solve
+from references import truth
+from references.solvers import integrate
+from references.solvers.cvode import _linear_jacobian_once, interleave, linear_jacobian
+from rk4core.models import base
+
+T = np.array([0.0, 0.05, 0.1])
+
+
+def _chain(masses, springs=None, **extra):
+    springs = [1.0] * (len(masses) + 1) if springs is None else springs
+    return rk4core.make_model("chain", {"masses": list(masses), "springs": list(springs), **extra})
+
+
+@pytest.fixture(autouse=True)
+def _fresh():
+    base.clear_constants()
+    yield
+    base.clear_constants()
+
+
+@pytest.mark.parametrize("solver, setting, extra", [("rk4", 0.01, {"alpha": 0.25}), ("rk4", 0.01, {}),
+                                                    ("cvode-adams", 1e-8, {}), ("cvode-bdf", 1e-8, {}),
+                                                    ("dop853", 1e-8, {})])
+def test_cold_and_warm_runs_identical(solver, setting, extra):
+    model = _chain([1.0, 2.0, 0.5, 1.5], **extra)
+    y0 = model.state([0.01, -0.02, 0.03, 0.0])
+    fast_solve._WARMED.clear()
+    cold = integrate(solver, model, y0, T, setting)
+    warm = integrate(solver, model, y0, T, setting)
+    other = integrate(solver, _chain([1.0, 2.0, 0.5, 1.5], **extra), y0, T, setting)  # shares the constants
+    assert cold.ok and warm.ok
+    for run in (warm, other):
+        np.testing.assert_array_equal(run.y, cold.y)
+        assert (run.nfev, run.n_steps, run.atol) == (cold.nfev, cold.n_steps, cold.atol)
+
+
+def test_models_of_one_class_with_other_parameters_have_their_own_constants():
+    # A cache keyed on the class would give b the modes and bound of a.
+    a, b = _chain([1.0, 2.0]), _chain([1.0, 2.0], [1.0, 3.0, 1.0])
+    wa, wb = a.modes()[0], b.modes()[0]
+    assert not np.array_equal(wa, wb)
+    np.testing.assert_array_equal(wb, b._compute_modes()[0])
+    assert a.omega_bound() != b.omega_bound()
+    assert b._gershgorin_w2() == b._compute_gershgorin_w2()
+
+
+def test_a_new_model_at_a_freed_address_gets_its_own_constants():
+    # A cache keyed on id() would hand a model built where a dead one lived
+    # that one's modes: CPython reuses freed addresses at once.
+    for i in range(40):
+        model = _chain([1.0, 1.0 + 0.1 * i], [1.0 + 0.1 * i, 1.0, 1.0])
+        w, phi = model.modes()
+        fresh_w, fresh_phi = model._compute_modes()
+        np.testing.assert_array_equal(w, fresh_w)
+        np.testing.assert_array_equal(phi, fresh_phi)
+        assert model._gershgorin_w2() == model._compute_gershgorin_w2()
+        del model
+        gc.collect()
+
+
+def test_equal_parameters_share_and_results_are_copies():
+    a, b = _chain([1.0, 2.0]), _chain([1.0, 2.0])
+    assert base.model_constants(a) is base.model_constants(b)
+    w, phi = a.modes()
+    w[:] = -1.0
+    phi[:] = 0.0
+    w2, phi2 = b.modes()
+    np.testing.assert_array_equal(w2, b._compute_modes()[0])
+    np.testing.assert_array_equal(phi2, b._compute_modes()[1])
+
+
+def test_constants_cache_is_bounded():
+    for i in range(base.CONSTANTS_MAXSIZE + 10):
+        _chain([1.0, 1.0 + i]).omega_bound()
+    assert len(base._CONSTANTS) == base.CONSTANTS_MAXSIZE
+
+
+def test_refused_state_is_refused_again_with_the_same_message():
+    model = _chain([1.0, 2.0])
+    y = model.state([1e200, 0.0])  # k x^2 overflows
+    messages = []
+    for _ in range(2):
+        with pytest.raises(ValueError) as err:
+            model.check_state(y)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1] and "`y0`" in messages[0]
+    assert _chain([1.0, 2.0]).state_problem(model.state([0.1, 0.0])) is None
+
+
+def test_cvode_jacobian_kept_read_only_and_equal_to_a_fresh_one():
+    model = _chain([1.0, 2.0, 3.0])
+    perm = interleave(model.n_dof)
+    kept = _linear_jacobian_once(model, perm)
+    assert _linear_jacobian_once(_chain([1.0, 2.0, 3.0]), perm) is kept
+    fresh = linear_jacobian(model, perm)
+    for k, f in zip(kept[:3], fresh[:3]):
+        np.testing.assert_array_equal(k, f)
+        assert not k.flags.writeable
+    assert kept[3:] == fresh[3:]
+    other = _linear_jacobian_once(_chain([1.0, 2.0, 4.0]), perm)
+    assert not np.array_equal(other[2], kept[2])
+
+
+def test_truth_versions_read_once_and_not_shared():
+    v = truth._versions()
+    v["numpy"] = "edited"
+    assert truth._versions()["numpy"] == np.__version__
+    assert truth._versions_once.cache_info().currsize == 1
+
+
+def test_warm_up_runs_a_loop_once_and_gives_the_same_numbers():
+    model = _chain([1.0] * 5, alpha=0.5)
+    y0 = model.state([0.01 * i for i in range(5)])
+    fast_solve._WARMED.clear()
+    rk4core.fast.warm_up(model, "rk4")
+    loop = fast_solve._loop_of(model, "rk4")
+    assert fast_solve._WARMED == {id(loop): loop}
+    rk4core.fast.warm_up(model, "rk4")
+    assert len(fast_solve._WARMED) == 1
+    a = rk4core.fast.solve_model(model, (0.0, 0.1), y0, h=0.01)
+    b = rk4core.solve(model.rhs, (0.0, 0.1), y0, h=0.01)
+    np.testing.assert_allclose(a.y, b.y, rtol=0, atol=1e-14)
