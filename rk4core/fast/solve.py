@@ -140,7 +140,8 @@ def _output_points(t0, step, n, t_eval, record_every):
             idx = np.append(idx, np.int64(n))
         return idx, np.zeros(idx.shape[0]), "grid"
     s = (t_eval - t0) / step
-    idx = np.clip(np.floor(s + 1e-9).astype(np.int64), 0, n)
+    # np.minimum/np.maximum: np.clip's numbers, without its Python wrapper
+    idx = np.minimum(np.maximum(np.floor(s + 1e-9).astype(np.int64), 0), n)
     theta = s - idx
     on_grid = np.abs(theta) <= 1e-9 * np.maximum(1.0, np.abs(s))
     theta[on_grid] = 0.0
