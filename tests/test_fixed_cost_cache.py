@@ -3,6 +3,9 @@ results computed afresh, bit for bit, and each model's own."""
 from __future__ import annotations
 
 import gc
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -131,3 +134,20 @@ def test_warm_up_runs_a_loop_once_and_gives_the_same_numbers():
     a = rk4core.fast.solve_model(model, (0.0, 0.1), y0, h=0.01)
     b = rk4core.solve(model.rhs, (0.0, 0.1), y0, h=0.01)
     np.testing.assert_allclose(a.y, b.y, rtol=0, atol=1e-14)
+
+
+def test_benchmark_checks_bit_identity():
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_fixed_cost.py"), "--calls", "3"],
+                          capture_output=True, text=True, timeout=600, cwd=root)
+    assert proc.returncode == 0, proc.stderr
+    checks = [line for line in proc.stdout.splitlines() if line.startswith("check")]
+    assert len(checks) == 2 and all(line.endswith("True") for line in checks), proc.stdout
+
+
+def test_benchmark_refuses_too_few_calls():
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_fixed_cost.py"), "--calls", "1"],
+                          capture_output=True, text=True, timeout=600, cwd=root)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == ["bench_fixed_cost: `--calls` must be >= 3, got 1"]
