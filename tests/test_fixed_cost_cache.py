@@ -89,6 +89,19 @@ def test_constants_cache_is_bounded():
     assert len(base._CONSTANTS) == base.CONSTANTS_MAXSIZE
 
 
+def test_constants_bytes_are_bounded(monkeypatch):
+    # modes of a 20-mass chain: 20 * 8 + 20 * 20 * 8 = 3360 bytes; room for two
+    monkeypatch.setattr(base, "CONSTANTS_MAX_BYTES", 7000)
+    models = [_chain([1.0 + i] * 20) for i in range(5)]
+    for model in models:
+        model.modes()
+    held = [r.get("_nbytes", 0) for r in base._CONSTANTS.values()]
+    assert sum(held) <= 7000 and held.count(3360) == 2
+    assert base.model_constants(models[-1]).get("_nbytes") == 3360  # the newest is kept
+    for model in models:  # dropped ones are recomputed, the same numbers
+        np.testing.assert_array_equal(model.modes()[1], model._compute_modes()[1])
+
+
 def test_refused_state_is_refused_again_with_the_same_message():
     model = _chain([1.0, 2.0])
     y = model.state([1e200, 0.0])  # k x^2 overflows

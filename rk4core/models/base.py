@@ -135,8 +135,14 @@ HEYOKA = _LazyOps()
 #: Most models whose constants (:func:`model_constants`) are kept at once;
 #: the least recently used is dropped beyond.
 CONSTANTS_MAXSIZE = 64
-#: Validated initial states kept per model (:meth:`Model.check_state`).
+#: Most bytes of arrays the kept constants of all models hold (modes of a
+#: large model are ``8 n_dof^2`` bytes); least recently used models dropped
+#: beyond, the one in use excepted.
+CONSTANTS_MAX_BYTES = 256 * 2**20
+#: Validated initial states kept per model (:meth:`Model.check_state`), and
+#: the largest state (components) kept.
 _STATES_MAXSIZE = 16
+_STATE_MAX_SIZE = 4096
 
 _CONSTANTS: OrderedDict = OrderedDict()
 _CONSTANTS_LOCK = threading.Lock()
@@ -186,7 +192,8 @@ def model_constants(model) -> dict | None:
 
     Keyed on the model's class object and its fingerprint (never on ``id``:
     a new model at a freed address has its own entry); at most
-    :data:`CONSTANTS_MAXSIZE` models are kept, least recently used dropped.
+    :data:`CONSTANTS_MAXSIZE` models and :data:`CONSTANTS_MAX_BYTES` of
+    arrays are kept, least recently used dropped.
     Entries are written by :meth:`Model.constant`; arrays kept there are
     read-only or copied on the way out."""
     text = model_fingerprint(model)
@@ -202,6 +209,30 @@ def model_constants(model) -> dict | None:
         else:
             _CONSTANTS.move_to_end(key)
     return record
+
+
+def _nbytes(value) -> int:
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (tuple, list)):
+        return sum(_nbytes(v) for v in value)
+    return 0
+
+
+def _account(record: dict, value) -> None:
+    """Add ``value``'s array bytes to ``record``'s and drop least recently
+    used models while all of them hold more than :data:`CONSTANTS_MAX_BYTES`."""
+    size = _nbytes(value)
+    if not size:
+        return
+    with _CONSTANTS_LOCK:
+        record["_nbytes"] = record.get("_nbytes", 0) + size
+        total = sum(r.get("_nbytes", 0) for r in _CONSTANTS.values())
+        for key in list(_CONSTANTS):
+            if total <= CONSTANTS_MAX_BYTES:
+                break
+            if _CONSTANTS[key] is not record:
+                total -= _CONSTANTS.pop(key).get("_nbytes", 0)
 
 
 def clear_constants() -> None:
@@ -324,7 +355,8 @@ class Model:
             return record[name]
         except KeyError:
             value = record[name] = compute()
-            return value
+        _account(record, value)
+        return value
 
     # -- validation ---------------------------------------------------------
     def _gershgorin_w2(self) -> float:
@@ -441,7 +473,8 @@ class Model:
         checked on a model with these equations: a sweep integrates one
         ``y0`` many times."""
         a = np.asarray(y)
-        record = model_constants(self) if a.dtype == np.float64 and a.ndim == 1 else None
+        keep = a.dtype == np.float64 and a.ndim == 1 and a.size <= _STATE_MAX_SIZE
+        record = model_constants(self) if keep else None
         if record is None:
             return self.state_problem(y)
         key = a.tobytes()
