@@ -72,6 +72,26 @@ def test_a_new_model_at_a_freed_address_gets_its_own_constants():
         gc.collect()
 
 
+def test_kept_modes_have_eighs_layout_and_give_the_same_truth():
+    # A C-ordered copy of eigh's Fortran-ordered phi changes BLAS's path in
+    # phi.T @ x and so the last bits of the exact-modal truth.
+    from references.exact import modal_solution
+
+    model = _chain([0.5, 1.0, 2.0, 1.5, 0.7], [3.0, 1.0, 2.0, 5.0, 1.0, 4.0])
+    fresh_w, fresh_phi = model._compute_modes()
+    y0 = model.state(fresh_phi[:, 1], 0.3 * fresh_phi[:, 3])
+    t = np.linspace(0.0, 10.0, 101)
+    for _ in range(2):  # cold, then kept
+        w, phi = model.modes()
+        assert phi.strides == fresh_phi.strides and w.strides == fresh_w.strides
+        eta0 = fresh_phi.T @ (model.mass * y0[:5])
+        ms = modal_solution(model, y0)
+        np.testing.assert_array_equal(ms.eta0, eta0)
+        y = ms(t)
+        np.testing.assert_array_equal(y, ms(t))
+        assert np.array_equal(y[:, 50], modal_solution(model, y0)(t)[:, 50])
+
+
 def test_equal_parameters_share_and_results_are_copies():
     a, b = _chain([1.0, 2.0]), _chain([1.0, 2.0])
     assert base.model_constants(a) is base.model_constants(b)

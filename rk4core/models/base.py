@@ -579,7 +579,9 @@ class Model:
         Solved once per model (:meth:`constant`); each call returns new
         arrays."""
         w, phi = self.constant("modes", self._compute_modes)
-        return w.copy(), phi.copy()
+        # order="K": the layout eigh gave (Fortran), so that products with
+        # phi.T take the BLAS path, and the rounding, they took before
+        return w.copy(order="K"), phi.copy(order="K")
 
     def _compute_modes(self):
         """:meth:`modes` from a dense generalized eigensolve (``scipy.linalg.eigh``)."""
