@@ -59,6 +59,7 @@ full grid), never an exception.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import io
@@ -249,6 +250,14 @@ def definition_hash(model) -> str | None:
 
 
 def _versions() -> dict:
+    """The versions of the libraries a truth depends on (part of its key),
+    read once per process (``importlib.metadata`` scans the installed
+    distributions: milliseconds a call)."""
+    return dict(_versions_once())
+
+
+@functools.lru_cache(maxsize=1)
+def _versions_once() -> tuple:
     from importlib import metadata
 
     out = {}
@@ -257,7 +266,7 @@ def _versions() -> dict:
             out[dist] = metadata.version(dist)
         except metadata.PackageNotFoundError:
             out[dist] = None
-    return out
+    return tuple(out.items())
 
 
 def _key(model, y0, t_eval, kind, tol, max_steps=MAX_STEPS) -> str:

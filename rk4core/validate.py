@@ -239,6 +239,10 @@ def check_y_scale(value, n: int) -> np.ndarray | None:
         raise ValueError(f"`y_scale` must be a list of {n} positive numbers, got {_short(value)}")
     if len(value) != n:
         raise ValueError(f"`y_scale` must have {n} entries (one per state component), got {len(value)}")
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.ndim == 1:
+        # the common case (a solver's own scale) checked whole; any bad entry: the itemwise message
+        if np.isfinite(value).all() and (value > 0.0).all():
+            return value.copy()
     return float_list("y_scale", value, length=n, positive_items=True)
 
 
@@ -255,16 +259,16 @@ def check_t_eval(t_eval, t0, t1):
         raise ValueError(f"`t_eval` must be an array of real numbers, got {t_eval!r}") from None
     if t.ndim != 1 or t.size == 0:
         raise ValueError(f"`t_eval` must be a non-empty 1-D array, got shape {t.shape}")
-    if not np.all(np.isfinite(t)):
+    if not np.isfinite(t).all():  # array methods: np.all's numbers without its Python wrapper
         raise ValueError("`t_eval` must be finite")
     lo, hi = (t0, t1) if t1 >= t0 else (t1, t0)
     span = hi - lo
     if t.min() < lo - 1e-12 * span or t.max() > hi + 1e-12 * span:
         raise ValueError(f"`t_eval` must lie within `t_span` = ({t0}, {t1})")
     if t1 >= t0:
-        if np.any(np.diff(t) < 0):
+        if (t[1:] < t[:-1]).any():
             raise ValueError("`t_eval` must be increasing")
-    elif np.any(np.diff(t) > 0):
+    elif (t[1:] > t[:-1]).any():
         raise ValueError(f"`t_eval` must be decreasing, as t_span = ({t0}, {t1}) runs backward (t1 < t0)")
     return np.clip(t, lo, hi)
 
@@ -278,6 +282,6 @@ def check_output_times(t_eval) -> np.ndarray:
         raise ValueError(f"`t_eval` must be an array of real numbers, got {t_eval!r}") from None
     if t.ndim != 1 or t.size < 2:
         raise ValueError(f"`t_eval` must be a 1-D array of at least 2 times, got shape {t.shape}")
-    if not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+    if not np.isfinite(t).all() or not (t[1:] > t[:-1]).all():
         raise ValueError("`t_eval` must be finite and strictly increasing")
     return t

@@ -178,12 +178,28 @@ def linear_jacobian(model, perm: np.ndarray):
     return rows, cols, vals, lband, uband
 
 
+def _linear_jacobian_once(model, perm: np.ndarray):
+    """:func:`linear_jacobian` for the interleaved order (``perm`` =
+    :func:`interleave`), built once per model (``Model.constant``); the
+    arrays are read-only."""
+    if not np.array_equal(perm, interleave(model.n_dof)):
+        return linear_jacobian(model, perm)
+
+    def build():
+        rows, cols, vals, lband, uband = linear_jacobian(model, perm)
+        for a in (rows, cols, vals):
+            a.setflags(write=False)
+        return rows, cols, vals, lband, uband
+
+    return model.constant("cvode_linear_jacobian", build)
+
+
 def _options(model, perm, method, rtol, atol, max_steps):
     n2 = 2 * model.n_dof
     opts = dict(method=method, rtol=rtol, atol=atol[perm], max_num_steps=max_steps)
     y = np.empty(n2)
     if model.linear:
-        rows, cols, vals, lband, uband = linear_jacobian(model, perm)
+        rows, cols, vals, lband, uband = _linear_jacobian_once(model, perm)
 
         def jacfn(t, z, zp, JJ):
             JJ[rows, cols] = vals

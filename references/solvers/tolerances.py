@@ -42,8 +42,8 @@ def group_scales(model, y0) -> tuple[float, float]:
     """``(s_q, s_v)``: the position and velocity scales of the rule above."""
     y0 = np.asarray(y0, dtype=float)
     n = model.n_dof
-    aq = float(np.max(np.abs(y0[:n])))
-    av = float(np.max(np.abs(y0[n:])))
+    aq = float(np.abs(y0[:n]).max())
+    av = float(np.abs(y0[n:]).max())
     w = omega_bound(model)
     if w > 0.0:
         s_q, s_v = max(aq, av / w), max(av, w * aq)
@@ -56,7 +56,10 @@ def state_scale(model, y0) -> np.ndarray:
     """Per-component scale ``s`` (shape (2 n_dof,)): ``s_q`` then ``s_v``."""
     s_q, s_v = group_scales(model, y0)
     n = model.n_dof
-    return np.concatenate([np.full(n, s_q), np.full(n, s_v)])
+    s = np.empty(2 * n)
+    s[:n] = s_q
+    s[n:] = s_v
+    return s
 
 
 def absolute_tolerance(model, y0, rtol: float) -> np.ndarray:

@@ -26,6 +26,9 @@ from .codegen import MAX_UNROLLED_DIM, array_kernel, kernel, model_module
 __all__ = ["solve_model", "warm_up", "compile_time", "supports", "force_kernel", "compiled_rhs", "CompiledRHS"]
 
 _COMPILE_S: float | None = None
+#: The loops :func:`warm_up` has run once in this process, by ``id`` (the
+#: loop object is kept beside it, so the id is never reused).
+_WARMED: dict = {}
 
 #: Methods whose override in a subclass would make the compiled kernels (printed
 #: from the definition) disagree with the numpy right-hand side.
@@ -137,7 +140,8 @@ def _output_points(t0, step, n, t_eval, record_every):
             idx = np.append(idx, np.int64(n))
         return idx, np.zeros(idx.shape[0]), "grid"
     s = (t_eval - t0) / step
-    idx = np.clip(np.floor(s + 1e-9).astype(np.int64), 0, n)
+    # np.minimum/np.maximum: np.clip's numbers, without its Python wrapper
+    idx = np.minimum(np.maximum(np.floor(s + 1e-9).astype(np.int64), 0), n)
     theta = s - idx
     on_grid = np.abs(theta) <= 1e-9 * np.maximum(1.0, np.abs(s))
     theta[on_grid] = 0.0
@@ -266,6 +270,9 @@ def warm_up(model=None, method="rk4") -> float:
     state components, an array loop beyond. Without ``model`` the loops of a
     two-mass chain and of a longer chain are prepared.
 
+    A model's loop that an earlier ``warm_up`` of this process already ran
+    is not run again (the first call costs one step, later ones a look-up).
+
     Returns
     -------
     float
@@ -277,6 +284,10 @@ def warm_up(model=None, method="rk4") -> float:
     from ..models import Chain
 
     start = time.perf_counter()
+    if model is not None:
+        loop = _loop_of(model, method)
+        if loop is not None and id(loop) in _WARMED:
+            return time.perf_counter() - start
     if model is None:  # a two-mass chain and a chain too long to unroll
         models = [Chain([1.0] * N, [1.0] * (N + 1)) for N in (2, MAX_UNROLLED_DIM)]
     else:
@@ -284,10 +295,25 @@ def warm_up(model=None, method="rk4") -> float:
     for m in models:
         # One step with an on-grid and an off-grid output point loads every helper.
         solve_model(m, (0.0, 1.0), np.zeros(2 * m.n_dof), n_steps=1, t_eval=[0.0, 0.5, 1.0], method=method)
+        loop = _loop_of(m, method)
+        if loop is not None:
+            _WARMED[id(loop)] = loop
     elapsed = time.perf_counter() - start
     if _COMPILE_S is None:
         _COMPILE_S = elapsed
     return elapsed
+
+
+def _loop_of(model, method):
+    """The compiled loop :func:`solve_model` runs for ``model`` and
+    ``method`` (the choice it makes), or None without a compiled force."""
+    kern = force_kernel(model)
+    if kern is None:
+        return None
+    tab = get_method(method)
+    if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
+        return kernel(tab, kern)
+    return array_kernel(tab, kern)
 
 
 def compile_time() -> float | None:

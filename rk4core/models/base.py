@@ -20,14 +20,19 @@ is minus the gradient of the potential and that both evaluations agree.
 """
 from __future__ import annotations
 
+import json
 import math
+import threading
+import weakref
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 __all__ = ["Model", "Defined", "Drawing", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses",
-           "check_normal_positive"]
+           "check_normal_positive", "model_constants", "model_fingerprint", "CONSTANTS_MAXSIZE",
+           "clear_constants"]
 
 #: Smallest mass (kg, or kg m^2) a model accepts. Anything smaller is not a
 #: physical mass but an underflow: at 5e-324 (the smallest subnormal) the
@@ -125,6 +130,115 @@ class _LazyOps:
 
 
 HEYOKA = _LazyOps()
+
+
+#: Most models whose constants (:func:`model_constants`) are kept at once;
+#: the least recently used is dropped beyond.
+CONSTANTS_MAXSIZE = 64
+#: Most bytes of arrays the kept constants of all models hold (modes of a
+#: large model are ``8 n_dof^2`` bytes); least recently used models dropped
+#: beyond, the one in use excepted.
+CONSTANTS_MAX_BYTES = 256 * 2**20
+#: Validated initial states kept per model (:meth:`Model.check_state`), and
+#: the largest state (components) kept.
+_STATES_MAXSIZE = 16
+_STATE_MAX_SIZE = 4096
+
+_CONSTANTS: OrderedDict = OrderedDict()
+_CONSTANTS_LOCK = threading.Lock()
+_FINGERPRINTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _plain(value):
+    """JSON form of a parameter value json cannot write: arrays in full (their
+    ``repr`` elides entries), numpy scalars as Python numbers."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return repr(value)
+
+
+def model_fingerprint(model) -> str | None:
+    """The text identifying ``model``'s equations: its class, ``name`` and
+    :meth:`Model.params` as canonical JSON (floats written exactly), or None
+    when ``params()`` fails (such a model's constants are not cached).
+
+    Worked out once per model object (kept while the object lives, in a
+    weak-key map): a model is not changed after construction (its compiled
+    kernel is kept on it too). Two objects built with equal parameters have
+    equal fingerprints and so share their constants."""
+    try:
+        return _FINGERPRINTS[model]
+    except (KeyError, TypeError):  # TypeError: an unhashable or not weakly referable model
+        pass
+    try:
+        cls = type(model)
+        text = json.dumps({"class": f"{cls.__module__}.{cls.__qualname__}", "name": model.name,
+                           "params": model.params()}, sort_keys=True, default=_plain)
+    except Exception:  # noqa: BLE001 - no parameters, no cache: the caller computes
+        return None
+    try:
+        _FINGERPRINTS[model] = text
+    except TypeError:
+        pass
+    return text
+
+
+def model_constants(model) -> dict | None:
+    """The dictionary of constants computed once for models with ``model``'s
+    equations (modes, Gershgorin bound, a solver's Jacobian pattern...), or
+    None when the model has no fingerprint (:func:`model_fingerprint`).
+
+    Keyed on the model's class object and its fingerprint (never on ``id``:
+    a new model at a freed address has its own entry); at most
+    :data:`CONSTANTS_MAXSIZE` models and :data:`CONSTANTS_MAX_BYTES` of
+    arrays are kept, least recently used dropped.
+    Entries are written by :meth:`Model.constant`; arrays kept there are
+    read-only or copied on the way out."""
+    text = model_fingerprint(model)
+    if text is None:
+        return None
+    key = (type(model), text)
+    with _CONSTANTS_LOCK:
+        record = _CONSTANTS.get(key)
+        if record is None:
+            record = _CONSTANTS[key] = {}
+            while len(_CONSTANTS) > CONSTANTS_MAXSIZE:
+                _CONSTANTS.popitem(last=False)
+        else:
+            _CONSTANTS.move_to_end(key)
+    return record
+
+
+def _nbytes(value) -> int:
+    if isinstance(value, np.ndarray):
+        return value.nbytes
+    if isinstance(value, (tuple, list)):
+        return sum(_nbytes(v) for v in value)
+    return 0
+
+
+def _account(record: dict, value) -> None:
+    """Add ``value``'s array bytes to ``record``'s and drop least recently
+    used models while all of them hold more than :data:`CONSTANTS_MAX_BYTES`."""
+    size = _nbytes(value)
+    if not size:
+        return
+    with _CONSTANTS_LOCK:
+        record["_nbytes"] = record.get("_nbytes", 0) + size
+        total = sum(r.get("_nbytes", 0) for r in _CONSTANTS.values())
+        for key in list(_CONSTANTS):
+            if total <= CONSTANTS_MAX_BYTES:
+                break
+            if _CONSTANTS[key] is not record:
+                total -= _CONSTANTS.pop(key).get("_nbytes", 0)
+
+
+def clear_constants() -> None:
+    """Forget every model's cached constants (they are recomputed on use)."""
+    with _CONSTANTS_LOCK:
+        _CONSTANTS.clear()
 
 
 @dataclass(frozen=True)
@@ -227,11 +341,32 @@ class Model:
             raise ValueError(f"`model` {self.name!r}: its linearization has no non-zero frequency")
         return float(nz[0]), float(w[-1])
 
+    # -- constants computed once --------------------------------------------
+    def constant(self, name: str, compute):
+        """``compute()`` the first time ``name`` is asked for a model with
+        these equations (:func:`model_constants`), the kept value after; a
+        model without a fingerprint computes every time. An exception is
+        not kept. Callers never modify the value (arrays are kept read-only
+        or copied by the caller)."""
+        record = model_constants(self)
+        if record is None:
+            return compute()
+        try:
+            return record[name]
+        except KeyError:
+            value = record[name] = compute()
+        _account(record, value)
+        return value
+
     # -- validation ---------------------------------------------------------
     def _gershgorin_w2(self) -> float:
         """``max_i sum_j |K_ij| / m_i`` (rad^2/s^2): the square of
-        :meth:`omega_bound`. Raises ``NotImplementedError`` without a
-        stiffness matrix."""
+        :meth:`omega_bound`, computed once per model (:meth:`constant`).
+        Raises ``NotImplementedError`` without a stiffness matrix."""
+        return self.constant("gershgorin_w2", self._compute_gershgorin_w2)
+
+    def _compute_gershgorin_w2(self) -> float:
+        """:meth:`_gershgorin_w2` computed from the stiffness matrix."""
         try:
             K = self.stiffness_matrix(sparse=True)
         except TypeError:
@@ -253,8 +388,8 @@ class Model:
         stiffness parameter to blame (with the masses). Raises ``ValueError``
         (one line)."""
         with np.errstate(all="ignore"):
-            try:
-                w2 = self._gershgorin_w2()
+            try:  # in the constructor: the parameters may not all be set yet, so not cached
+                w2 = self._compute_gershgorin_w2()
             except NotImplementedError:  # no linearization: nothing to check
                 return
         if not (math.isfinite(w2) and w2 > 0.0 and math.isfinite(math.sqrt(w2))):
@@ -325,13 +460,35 @@ class Model:
             One line, e.g. "`y0` must be a state of planar4 with finite force
             and energy: the force is not finite there (...), got [...]".
         """
-        problem = self.state_problem(y)
+        problem = self._state_problem_once(y)
         if problem is not None:
             shown = np.array2string(np.asarray(y, dtype=float), precision=6, max_line_width=10**6,
                                     threshold=12, separator=", ")
             raise ValueError(f"`{name}` must be a state of {self.name} with finite force and energy: "
                              f"{problem}, got {shown}")
         return np.asarray(y, dtype=float)
+
+    def _state_problem_once(self, y):
+        """:meth:`state_problem`, kept for the last few exact states (bytes)
+        checked on a model with these equations: a sweep integrates one
+        ``y0`` many times."""
+        a = np.asarray(y)
+        keep = a.dtype == np.float64 and a.ndim == 1 and a.size <= _STATE_MAX_SIZE
+        record = model_constants(self) if keep else None
+        if record is None:
+            return self.state_problem(y)
+        key = a.tobytes()
+        with _CONSTANTS_LOCK:
+            states = record.setdefault("_states", OrderedDict())
+            if key in states:
+                states.move_to_end(key)
+                return states[key]
+        problem = self.state_problem(y)
+        with _CONSTANTS_LOCK:
+            states[key] = problem
+            while len(states) > _STATES_MAXSIZE:
+                states.popitem(last=False)
+        return problem
 
     # -- numpy evaluation ---------------------------------------------------
     @property
@@ -417,7 +574,17 @@ class Model:
     # -- linear analysis ----------------------------------------------------
     def modes(self):
         """Natural angular frequencies (rad/s, ascending) and mass-normalised
-        mode shapes (columns) of the linearization: ``K phi = omega^2 M phi``."""
+        mode shapes (columns) of the linearization: ``K phi = omega^2 M phi``.
+
+        Solved once per model (:meth:`constant`); each call returns new
+        arrays."""
+        w, phi = self.constant("modes", self._compute_modes)
+        # order="K": the layout eigh gave (Fortran), so that products with
+        # phi.T take the BLAS path, and the rounding, they took before
+        return w.copy(order="K"), phi.copy(order="K")
+
+    def _compute_modes(self):
+        """:meth:`modes` from a dense generalized eigensolve (``scipy.linalg.eigh``)."""
         from scipy.linalg import eigh
 
         K = np.asarray(self.stiffness_matrix(), dtype=float)
