@@ -344,8 +344,9 @@ def typed_frame(name: str, df):
         _split_setting(df, "alt_setting", "alternative", "alt_h", "alt_rtol")
     if "checked" in names and "passed" in names:
         verdicts = df["passed"].map(_verdict)
-        df["checked"] = verdicts.notna()
-        df["passed"] = verdicts.map(lambda v: v is True)
+        given = df["checked"].map(_verdict)  # a row (or a table read back) may say it already
+        df["checked"] = [bool(g) if g is not None else v is not None for g, v in zip(given, verdicts)]
+        df["passed"] = [v is True and c for v, c in zip(verdicts, df["checked"])]
     if "h_source" in names:
         _h_source(df)
     cols = {c.name: c for c in table_columns(name, strict=False)} if name in _known() else {}
