@@ -58,6 +58,7 @@ import math
 import os
 import signal
 import sys
+import time
 
 from .atomic import EnvironmentRefused
 from .records import failed_record
@@ -529,6 +530,12 @@ class _Dispatch:
         codes = {}
         for p in procs:
             p.join(timeout=30)
+            # the executor's thread may reap the same process at the same moment, and
+            # then this thread's poll reads no status for a while: look again
+            for _ in range(40):
+                if p.exitcode is not None:
+                    break
+                time.sleep(0.025)
             codes[p.pid] = p.exitcode
             if p.exitcode is None:  # not terminated: ended here, and not taken for the dead one
                 p.kill()
