@@ -45,7 +45,7 @@ from scipy.integrate import DenseOutput, OdeSolver
 
 from .dense import hermite
 from .methods import METHODS, Tableau, end_slope, get_method, rk_step, start_slope
-from .solver import _SLACK, REFUSED_OPTIONS, _Once, grid_time, step_count
+from .solver import _SLACK, _Once, grid_time, refuse_options, step_count
 from .validate import check_step_args, check_step_sign, positive
 
 __all__ = ["FixedStepSolver", "FixedStepDenseOutput", "solver_class", "MAX_STEPS_INFINITE", "RK4", "RK38",
@@ -106,13 +106,7 @@ class FixedStepSolver(OdeSolver):
     def __init__(self, fun, t0, y0, t_bound, vectorized=False, *, h=None, max_steps=MAX_STEPS_INFINITE,
                  **options):  # noqa: D107
         name = type(self).__name__
-        for key in options:
-            if key in REFUSED_OPTIONS:
-                raise ValueError(f"`{key}` does not apply to rk4core.ivp.{name}: {REFUSED_OPTIONS[key]} "
-                                 f"(fixed step: give h)")
-        if options:
-            names = ", ".join(f"`{k}`" for k in options)
-            raise ValueError(f"unknown option(s) {names} for rk4core.ivp.{name} (it takes h and max_steps)")
+        refuse_options(options, f"rk4core.ivp.{name}", "h", "it takes h and max_steps")
         if self.tableau is None:
             raise TypeError("FixedStepSolver has no tableau; use rk4core.ivp.solver_class(method)")
         tab = self.tableau

@@ -48,7 +48,7 @@ from .validate import (MAX_STEPS, boolean, check_max_growth, check_output_size, 
 
 __all__ = ["solve", "FixedStepResult", "EmptyOutput", "MAX_STEPS_INFINITE", "step_count", "grid_time",
            "grid_times", "growth_bound", "unstable_message", "check_fun_value", "nfev_count", "ArgsError",
-           "REFUSED_OPTIONS"]
+           "REFUSED_OPTIONS", "refuse_options"]
 
 #: Default ``max_steps`` of :func:`solve`: the step cap of a run towards an infinite ``t_span`` end.
 MAX_STEPS_INFINITE = 10**6
@@ -436,15 +436,19 @@ class _Once:
         return self.fun(t, y)
 
 
-def _refuse_options(options) -> None:
+def refuse_options(options, owner="rk4core.solve", give="h or n_steps",
+                   unknown="solve_ivp warns about unknown options and ignores them; rk4core.solve refuses them"):
+    """Raise ``ValueError`` for any keyword in ``options``: an adaptive
+    solver's option (:data:`REFUSED_OPTIONS`) names why it does not apply to
+    ``owner`` and that the step is ``give``; any other is unknown (``unknown``
+    says what ``owner`` takes instead)."""
     for name in options:
         if name in REFUSED_OPTIONS:
-            raise ValueError(f"`{name}` does not apply to rk4core.solve: {REFUSED_OPTIONS[name]} "
-                             f"(fixed step: give h or n_steps)")
+            raise ValueError(f"`{name}` does not apply to {owner}: {REFUSED_OPTIONS[name]} "
+                             f"(fixed step: give {give})")
     if options:
         names = ", ".join(f"`{k}`" for k in options)
-        raise ValueError(f"unknown option(s) {names} for rk4core.solve (solve_ivp warns about unknown options "
-                         f"and ignores them; rk4core.solve refuses them)")
+        raise ValueError(f"unknown option(s) {names} for {owner} ({unknown})")
 
 
 def _check_args(args) -> tuple:
@@ -696,7 +700,7 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     >>> round(float(res.sol(1.0)[0]), 9)  # y(1) = 10 - 9.81 / 2
     5.095
     """
-    _refuse_options(options)
+    refuse_options(options)
     tab: Tableau = _get_method(method)
     t_inf = _infinite_end(t_span)
     t0, t1 = check_t_span(t_span if t_inf is None else (t_span[0], 0.0), allow_backward=True)

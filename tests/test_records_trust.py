@@ -17,7 +17,7 @@ from validation import engine, plan, provenance, records, run_all
 from validation.scenes import load_scenes
 
 from _scenes import one_mass
-from test_pipeline import TIMING_COLUMNS
+from test_pipeline import _deterministic as _tables
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -94,14 +94,6 @@ def _summary(stdout):
     r = re.search(r"records: (\d+) resumed, (\d+) rerun \((\d+) digest mismatch, (\d+) stale", stdout)
     assert m and r, stdout
     return tuple(int(x) for x in m.groups()), tuple(int(x) for x in r.groups())
-
-
-def _tables(out):
-    tables = {}
-    for p in sorted(Path(out).glob("*.csv")):
-        df = pd.read_csv(p)
-        tables[p.stem] = df.drop(columns=[c for c in df.columns if c in TIMING_COLUMNS])
-    return tables
 
 
 # -- the spec key: user code and libraries ------------------------------------------------------
