@@ -256,17 +256,10 @@ def _versions() -> dict:
     return dict(_versions_once())
 
 
-@functools.lru_cache(maxsize=1)
 def _versions_once() -> tuple:
-    from importlib import metadata
+    from rk4core.distributions import version
 
-    out = {}
-    for dist in ("heyoka", "numpy", "scipy"):
-        try:
-            out[dist] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            out[dist] = None
-    return tuple(out.items())
+    return tuple((dist, version(dist)) for dist in ("heyoka", "numpy", "scipy"))
 
 
 def _key(model, y0, t_eval, kind, tol, max_steps=MAX_STEPS) -> str:

@@ -51,15 +51,9 @@ _FILE_CACHE: dict = {}
 def library_versions() -> tuple:
     """``((distribution, version or "absent"), ...)`` of :data:`LIBRARIES`,
     looked up once per process (``importlib.metadata`` is slow)."""
-    import importlib.metadata as md
+    from rk4core.distributions import version
 
-    out = []
-    for name in LIBRARIES:
-        try:
-            out.append((name, md.version(name)))
-        except md.PackageNotFoundError:
-            out.append((name, "absent"))
-    return tuple(out)
+    return tuple((name, version(name) or "absent") for name in LIBRARIES)
 
 
 @functools.lru_cache(maxsize=1)

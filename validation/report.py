@@ -69,16 +69,11 @@ def write_tables(out_dir, tables: dict, front=()) -> dict:
 
 def versions() -> dict:
     """Versions of the interpreter and the numerical stack, numpy's BLAS, and the machine."""
-    import importlib.metadata as md
+    from rk4core.distributions import version
 
     v = {"python": sys.version.split()[0]}
-    for label, dist in (("numpy", "numpy"), ("scipy", "scipy"), ("scikit-sundae", "scikit-sundae"),
-                        ("heyoka", "heyoka"), ("numba", "numba"), ("pandas", "pandas"),
-                        ("matplotlib", "matplotlib")):
-        try:
-            v[label] = md.version(dist)
-        except md.PackageNotFoundError:
-            v[label] = "not installed"
+    for dist in ("numpy", "scipy", "scikit-sundae", "heyoka", "numba", "pandas", "matplotlib"):
+        v[dist] = version(dist) or "not installed"
     v["BLAS"] = _blas()
     v["machine"] = f"{platform.machine()}, {os.cpu_count()} CPUs, {platform.platform()}"
     v["processor"] = _cpu_name()
