@@ -67,7 +67,7 @@ from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
-__all__ = ["integrate", "check_setting", "check_model", "as_model", "MECHANICAL_ONLY", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+__all__ = ["integrate", "check_setting", "check_model", "as_model", "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
            "SolverRun", "absolute_tolerance"]
 
 
@@ -116,6 +116,14 @@ def as_model(model, y0):
 #: Solvers that need a mechanical model (a potential: heyoka's equations,
 #: an external program's problem file), not a first-order ODE.
 MECHANICAL_ONLY = ("heyoka",)
+
+
+def mechanical_only(method) -> bool:
+    """Whether ``method`` (a :class:`references.registry.Method`) needs a
+    mechanical model: heyoka (equations from the force), a command method
+    (the problem file holds masses and springs), a partitioned tableau (it
+    integrates ``q' = v`` and uses only the acceleration half of ``fun``)."""
+    return method.name in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
 
 
 def _check_inputs(model, y0, t_eval, atol, max_steps):
@@ -180,8 +188,8 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
     method = resolve(solver)
     setting = check_setting(method, setting)
     model = as_model(model, y0)
-    if getattr(model, "first_order", False) and (method.name in MECHANICAL_ONLY or method.kind is Kind.COMMAND):
-        raise ValueError(f"solver {method.name!r} needs a mechanical model (positions, masses, a potential); "
+    if getattr(model, "first_order", False) and mechanical_only(method):
+        raise ValueError(f"solver {method.name!r} needs a mechanical model (y = [q, v], masses, a potential); "
                          f"{model.name!r} is a first-order ODE")
     y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
     if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
