@@ -82,13 +82,13 @@ def _confirming_run(model, y0, t):
     return name, integrate(name, model, y0, t, CONFIRM_RTOL)
 
 
-def ode_reference(model, y0, t):
+def ode_reference(model, y0, t, Truth):
     """The reference trajectory of the first-order ``model`` from ``y0`` (at
-    ``t[0]``) on the output times ``t`` (s); see the module docstring.
-    ``y0`` and ``t`` are checked by the caller
+    ``t[0]``) on the output times ``t`` (s), as a ``Truth`` (the class
+    :class:`references.truth.Truth`, passed in by the caller); see the
+    module docstring. ``y0`` and ``t`` are checked by the caller
     (:func:`references.truth.reference_solution`)."""
     from .solvers import integrate
-    from .truth import Truth
 
     key = _key(model, y0, t)
     hit = _MEMORY.get(key)

@@ -317,7 +317,7 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
 
         if kind not in ("auto", "ode"):
             raise ValueError(f"`kind` must be 'auto' for a first-order model, got {kind!r}")
-        return ode_reference(model, y0, t)
+        return ode_reference(model, y0, t, Truth)
     if kind == "auto":
         kind = "exact-modal" if model.linear else "heyoka-real128"
     if kind not in KINDS:

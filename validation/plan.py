@@ -258,10 +258,8 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
 
 def _first_order(scene) -> bool:
     """Whether ``scene``'s model is a first-order ODE (``model.first_order``)."""
-    from .execute import problem
-
     try:
-        return bool(getattr(problem(scene)[0], "first_order", False))
+        return bool(getattr(scene.build_model(), "first_order", False))
     except Exception:  # noqa: BLE001 - a scene that cannot build fails at execution, with its message
         return False
 
