@@ -199,8 +199,10 @@ def _truth_spec(scene, spec, quick):
                                  "no_truth": reason})
     y = np.asarray(truth.y, float)
     arrays = {"t": t, "y": y} if "trajectory" in spec.keep else {}
-    return RunRecord(spec.key, values={"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))},
-                     arrays=arrays)
+    values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))}
+    if "agreement_rel" in truth.extra:  # any ODE: two references that agree (references.ode_truth)
+        values |= {"agreement_rel": float(truth.extra["agreement_rel"]), "truth_note": _first_line(truth.message)}
+    return RunRecord(spec.key, values=values, arrays=arrays)
 
 
 def _run_spec(scene, spec, quick):
