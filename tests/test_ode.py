@@ -199,3 +199,22 @@ def test_the_shipped_scene_runs_end_to_end_with_every_expectation_held(tmp_path)
     text = (out / "index.md").read_text()
     assert "None: every expectation held" in text  # exit 0 already says it; the report says it too
     assert (out / "lotka_volterra_variables.png").is_file()
+
+
+def test_fun_is_never_called_outside_the_span():
+    calls = []
+
+    def f(t, y):
+        calls.append(t)
+        return [1.0 / t]  # x' = 1/t: not finite at t = 0
+
+    run = integrate("rk4", f, [0.0], np.linspace(1.0, 2.0, 11), 0.01)
+    assert run.ok and min(calls) >= 1.0
+    assert abs(run.y[0, -1] - math.log(2.0)) < 1e-9
+
+
+def test_a_scene_whose_rhs_is_not_finite_at_the_start_is_refused():
+    doc = _doc(params={"variables": ["x"], "equations": ["1/t"]}, initial={"y": [0.0]})
+    with pytest.raises(SceneError, match=r"field `initial.y`: is no state to start from: the right-hand side is "
+                                         r"not finite there \(dx/dt = inf\)"):
+        scene_from_dict(doc, "ode.toml")

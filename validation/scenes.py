@@ -611,7 +611,7 @@ def _first_order_start(path, model_name, model, ini, doc):
     if len(ini.y) != model.n_state:
         raise SceneError(path, "initial.y", f"must have {model.n_state} entries (one per variable)",
                          doc["initial"]["y"])
-    problem = model.state_problem(ini.y)
+    problem = model.state_problem(ini.y, t=0.0)  # a scene starts at t = 0
     if problem is not None:
         raise SceneError(path, "initial.y", f"is no state to start from: {problem}", doc["initial"]["y"])
     check = getattr(model, "check_exact", None)

@@ -126,9 +126,12 @@ class _FirstOrder(Model):
         r = float(np.max(np.abs(lam))) if lam.size else math.nan
         return r if math.isfinite(r) and r > 0 else math.nan
 
-    def state_problem(self, y) -> str | None:
+    def state_problem(self, y, t=None) -> str | None:
         """Why ``y`` is no state to start from (wrong shape, not finite, the
-        right-hand side or the invariant not finite there), or None."""
+        invariant not finite there and, when the time ``t`` (s) is given,
+        the right-hand side not finite or of the wrong shape at ``(t, y)``),
+        or None. Without ``t`` the right-hand side is not called: it is
+        never evaluated at a time outside the caller's span."""
         y = np.asarray(y, dtype=float)
         n = self.n_dof
         if y.shape != (n,):
@@ -137,11 +140,11 @@ class _FirstOrder(Model):
             return "it is not finite"
         with np.errstate(all="ignore"):
             try:
-                f = np.asarray(self.rhs(0.0, y), dtype=float).reshape(-1)
+                f = np.zeros(n) if t is None else np.asarray(self.rhs(float(t), y), dtype=float).reshape(-1)
                 inv = float(self.energy(y))
             except Exception as exc:  # noqa: BLE001 - any failure at y0 is a refusal naming y0
                 text = " ".join(str(exc).split())[:200]
-                return f"evaluating the right-hand side raised {type(exc).__name__}: {text}"
+                return f"evaluating the right-hand side or the invariant raised {type(exc).__name__}: {text}"
         if f.shape != (n,):
             return f"the right-hand side has shape {f.shape} there, not ({n},)"
         bad = np.flatnonzero(~np.isfinite(f))
