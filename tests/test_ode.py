@@ -218,3 +218,15 @@ def test_a_scene_whose_rhs_is_not_finite_at_the_start_is_refused():
     with pytest.raises(SceneError, match=r"field `initial.y`: is no state to start from: the right-hand side is "
                                          r"not finite there \(dx/dt = inf\)"):
         scene_from_dict(doc, "ode.toml")
+
+
+def test_a_typed_exact_solution_is_the_truth_of_a_scene():
+    doc = _doc(params={"variables": ["x", "v"], "equations": ["v", "-w^2*x"], "constants": {"w": 2.0},
+                       "exact": ["cos(w*t)", "-w*sin(w*t)"], "invariant": "w^2*x^2 + v^2"},
+               initial={"y": [1.0, 0.0]})
+    scene = scene_from_dict(doc, "ode.toml")
+    t = scene.t_eval()
+    truth = reference_solution(scene.build_model(), scene.y0(), t)
+    assert truth.kind == ode_truth.KIND_EXACT
+    np.testing.assert_allclose(truth.y, [np.cos(2 * t), -2 * np.sin(2 * t)], rtol=0, atol=1e-15)
+    assert truth.energy_drift < 1e-15
