@@ -5,6 +5,9 @@
 * linear models (``model.linear``): the modal superposition of
   :func:`references.exact.modal_solution` (``kind = "exact-modal"``), exact up
   to the double-precision evaluation of ``phi``, ``cos`` and ``sin``;
+* first-order models (any ODE, ``model.first_order``): the exact solution
+  when the model has one, else DOP853 at its tightest tolerance confirmed by
+  a second reference (:mod:`references.ode_truth`);
 * nonlinear models (planar4 and pendulums with ``linear=False``, triangle):
   heyoka's Taylor integrator in quadruple precision (``heyoka.real128``, 113-bit
   significand, eps = 1.9e-34) at ``tol = 1e-32`` (``kind = "heyoka-real128"``).
@@ -309,6 +312,12 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
     check_model(model)
     y0 = model.check_state(check_model_y0(model, y0), "y0")
     t = check_output_times(t_eval)
+    if getattr(model, "first_order", False):  # any ODE: exact, or two references that agree
+        from .ode_truth import ode_reference
+
+        if kind not in ("auto", "ode"):
+            raise ValueError(f"`kind` must be 'auto' for a first-order model, got {kind!r}")
+        return ode_reference(model, y0, t, Truth)
     if kind == "auto":
         kind = "exact-modal" if model.linear else "heyoka-real128"
     if kind not in KINDS:

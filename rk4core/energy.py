@@ -13,6 +13,10 @@ kinetic energy plus the potential energy above the equilibrium, so it is
 invariant under ``V -> V + c``. When it is 0 (a model at rest in its
 equilibrium) the error is absolute (J): the scale is 1.
 
+A first-order model (``rk4core.models.OdeModel``: ``model.first_order``)
+has an invariant ``I(y)`` in place of an energy, and no rest state: its
+scale is ``|I0|`` (absolute where ``I0 = 0``).
+
 The differences ``E(t) - E0`` are formed from ``T + (V(q) - V(q*))``: a model
 with a method ``potential_above_rest(q)`` (the ``potential`` model: ``V(0)``
 subtracted symbolically, so a constant cancels exactly) is evaluated through
@@ -26,7 +30,11 @@ __all__ = ["rest_energy", "motion_energy", "energy_scale", "motion_energies", "r
 
 
 def rest_energy(model) -> float:
-    """``V(q*)`` (J): the potential energy at the equilibrium ``q* = 0``."""
+    """``V(q*)`` (J): the potential energy at the equilibrium ``q* = 0``; 0
+    for a first-order model (``model.first_order``: its "energy" is an
+    invariant ``I(y)`` with no rest state, so the scale is ``|I0|``)."""
+    if getattr(model, "first_order", False):
+        return 0.0
     with np.errstate(all="ignore"):
         return float(np.asarray(model.potential(np.zeros(model.n_dof)), float))
 

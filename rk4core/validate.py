@@ -161,8 +161,14 @@ def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
 
 def check_model_y0(model, y0) -> np.ndarray:
     """``y0`` as :func:`check_y0` (real only: a complex ``y0`` is refused
-    whatever its container), of the model's length ``2 n_dof`` (``y = [q, v]``)."""
+    whatever its container), of the model's length ``2 n_dof`` (``y = [q, v]``),
+    or ``n_state`` for a first-order model (``model.first_order``: the state is ``y``)."""
     y = check_y0(y0, allow_complex=False)
+    if getattr(model, "first_order", False):
+        if y.shape[0] != model.n_state:
+            raise ValueError(f"`y0` must have length {model.n_state} (one entry per variable) for "
+                             f"{model.name}, got {y.shape[0]}")
+        return y
     if y.shape[0] != 2 * model.n_dof:
         raise ValueError(f"`y0` must have length {2 * model.n_dof} (y = [q, v]) for "
                          f"{model.name}, got {y.shape[0]}")

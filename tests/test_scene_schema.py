@@ -104,7 +104,11 @@ def _params_base(model: str) -> dict:
     """The scene of ``model`` built from the reference's examples of its required keys."""
     required, _ = model_parameters(model)
     params = {k: copy.deepcopy(REFERENCE[(f"params:{model}", k)]) for k in required}
-    n = rk4core.make_model(model, dict(params)).n_dof
+    m = rk4core.make_model(model, dict(params))
+    n = m.n_dof
+    if getattr(m, "first_order", False):  # any ODE: [initial] y, only the methods of a first-order system
+        return {**copy.deepcopy(BASE), "model": model, "params": params,
+                "initial": {"y": copy.deepcopy(REFERENCE[("initial", "y")])}}
     return {**copy.deepcopy(BASE), "model": model, "params": params, "initial": {"x": [1e-3] + [0.0] * (n - 1)}}
 
 
@@ -125,6 +129,9 @@ def _with_key(section: str, key: str, value) -> dict:
     doc = copy.deepcopy(BASE)
     if section == "top":
         doc[key] = value
+    elif section == "initial" and key == "y":  # the state of a first-order ODE (model `ode`)
+        doc = _params_base("ode")
+        doc["initial"] = {"y": value}
     elif section == "initial" and key in ("mode", "amplitude"):
         doc["initial"] = {"mode": ex("initial", "mode"), key: value}
     elif section == "methods":

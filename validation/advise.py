@@ -425,6 +425,11 @@ def _model_advice(p: _Problem, target):
     from references.exact import modal_solution
 
     m = p.model
+    if getattr(m, "first_order", False):  # any ODE: its exact solution if it came with one
+        if m.exact_solution(p.t[:2]) is not None:
+            return "closed form", ("the ODE came with its exact solution: it gives the answer without "
+                                   "integrating; integrate only to test an integrator")
+        return m.name, "a first-order ODE without a closed form; integrate"
     if m.linear:
         return "closed form", ("the model is linear: its exact modal solution (references.exact.modal_solution) "
                                "gives the answer without integrating; integrate only to test an integrator")

@@ -106,6 +106,17 @@ def _omega_bound(model) -> float:
     return w
 
 
+def _rate(scene, model) -> float:
+    """The frequency bound (rad/s) the estimate runs on: :func:`_omega_bound`,
+    or a first-order ODE's rate at its initial state
+    (:func:`validation.execute.fastest_rate`, 1/s)."""
+    if getattr(model, "first_order", False):
+        from .execute import fastest_rate
+
+        return fastest_rate(scene, model)
+    return _omega_bound(model)
+
+
 def _steps(t_end: float, h: float) -> int:
     from rk4core.solver import step_count
 
@@ -154,7 +165,7 @@ def spec_cost_function():
         if scene.name not in cache:
             try:
                 model = scene.build_model()
-                cache[scene.name] = (model, _omega_bound(model))
+                cache[scene.name] = (model, _rate(scene, model))
             except Exception:  # noqa: BLE001 - ordering only
                 cache[scene.name] = (None, math.nan)
         model, w = cache[scene.name]
@@ -175,7 +186,7 @@ def estimate(scene: Scene, model=None, *, quick: bool = False) -> Estimate:
     from .plan import plan
 
     model = model if model is not None else scene.build_model()
-    w = _omega_bound(model)
+    w = _rate(scene, model)
     if not math.isfinite(w) or w < 0:
         raise ValueError(f"the fastest frequency bound of the model is {w!r} rad/s, not a finite number "
                          f"(are the masses or stiffnesses extreme?)")
@@ -189,7 +200,7 @@ def estimate(scene: Scene, model=None, *, quick: bool = False) -> Estimate:
         raise ValueError(f"the estimate is not finite (steps {steps!r}, quadruple-precision steps {truth!r})")
     dense = model.n_dof if set(scene.outputs) - {"stability"} else 0
     return Estimate(steps=steps, truth_steps=truth, output_points=scene.n_output_points,
-                    state_size=2 * model.n_dof, omega_max=w, dense_dof=dense, runs=len(specs))
+                    state_size=model.n_state, omega_max=w, dense_dof=dense, runs=len(specs))
 
 
 def _gib(b: float) -> str:

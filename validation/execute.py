@@ -59,10 +59,23 @@ def problem(scene):
     return _PROBLEMS[key]
 
 
+def fastest_rate(scene, model) -> float:
+    """``omega_max`` (rad/s) of the convergence sweeps' ``theta = omega_max h``:
+    the fastest (linearized) mode; for a first-order ODE (``model.first_order``)
+    the spectral radius of its Jacobian at the initial state
+    (:meth:`rk4core.models.OdeModel.rate`, 1/s), or ``2 pi / t_end`` where
+    that is 0 or not finite."""
+    if getattr(model, "first_order", False):
+        r = model.rate(scene.y0())
+        return r if math.isfinite(r) and r > 0 else 2.0 * math.pi / scene.t_end
+    return float(np.max(model.modes()[0]))
+
+
 def convergence_horizon(scene, model) -> float:
     """Horizon (s) of the convergence sweeps: ``[convergence] t_end`` or one
-    period of the fastest (linearized) mode, at most the scene's ``t_end``."""
-    omega_max = float(np.max(model.modes()[0]))
+    period of the fastest (linearized) mode (:func:`fastest_rate`), at most
+    the scene's ``t_end``."""
+    omega_max = fastest_rate(scene, model)
     return min(scene.convergence.get("t_end", 2.0 * math.pi / omega_max), scene.t_end)
 
 
@@ -74,7 +87,7 @@ def grid(scene, model, spec: RunSpec) -> np.ndarray:
         return scene.t_eval()
     if spec.grid == "order":
         T = convergence_horizon(scene, model)
-        omega_max = float(np.max(model.modes()[0]))
+        omega_max = fastest_rate(scene, model)
         n0 = max(1, math.ceil(T * omega_max / spec.param("theta0")))
         return np.linspace(0.0, T, n0 + 1)
     if spec.grid == "figure":
@@ -186,8 +199,10 @@ def _truth_spec(scene, spec, quick):
                                  "no_truth": reason})
     y = np.asarray(truth.y, float)
     arrays = {"t": t, "y": y} if "trajectory" in spec.keep else {}
-    return RunRecord(spec.key, values={"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))},
-                     arrays=arrays)
+    values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))}
+    if "agreement_rel" in truth.extra:  # any ODE: two references that agree (references.ode_truth)
+        values |= {"agreement_rel": float(truth.extra["agreement_rel"]), "truth_note": _first_line(truth.message)}
+    return RunRecord(spec.key, values=values, arrays=arrays)
 
 
 def _run_spec(scene, spec, quick):

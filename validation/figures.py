@@ -1094,6 +1094,8 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title, thesis=None) -> li
         ``t``/``y`` of the wrong shape, or a drawing whose fields do not fit
         the model (unknown layout, point indices beyond ``n_dof``, ...).
     """
+    if getattr(model, "first_order", False):  # any ODE: its variables against time, no drawing
+        return _first_order_state(out_dir, scene_name, model, t, y, title)
     t, y = _check_trajectory(model, t, y)
     stem = slug(scene_name)
     out = []
@@ -1101,6 +1103,33 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title, thesis=None) -> li
         fig = build()
         out.append((_save(fig, out_dir, f"{stem}_{suffix}"), Caption(sentence, kind)))
     return out
+
+
+def _first_order_state(out_dir, scene_name, model, t, y, title):
+    """The state figure of a first-order ODE (``model.first_order``): each
+    variable against time (kind ``coordinates``); its units are the user's."""
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = model.n_state
+    if t.ndim != 1 or t.size < 2 or y.shape != (n, t.size):
+        raise ValueError(f"`y` must have shape {(n, t.size)} for {model.name} (and `t` 1-D, >= 2 times), "
+                         f"got {y.shape}")
+    names = list(model.coord_names)
+    series = list(zip(names, y))
+    head = f"Variables of the ODE ({', '.join(names[:6])}{', ...' if n > 6 else ''}), 0 to {_fmt_t(t[-1])} s"
+    fig = _new_figure()
+    _suptitle(fig, f"{title}: variables")
+    ax = fig.subplots()
+    for j, (label, v) in enumerate(series):
+        lw = 1.0 * (1.0 - 0.5 * j / max(1, n - 1))  # later curves thinner: coinciding curves stay visible
+        ax.plot(t, v, color=_COORD_COLORS[j % len(_COORD_COLORS)], lw=lw, label=label)
+    ax.set_xlim(t[0], t[-1])
+    ax.set_ylabel("value (the equations' units)")
+    ax.set_xlabel("time t (s)")
+    ax.grid(alpha=0.3)
+    _legend_below(fig)
+    sentence = _sentence(head, f"largest |value| {_peak(series, '')}")
+    return [(_save(fig, out_dir, f"{slug(scene_name)}_variables"), Caption(sentence, "coordinates"))]
 
 
 # -- work-precision -------------------------------------------------------------

@@ -96,6 +96,9 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
         rec = records[s.key]
         if s.grid == "scene":
             res.truth_kind = rec.values.get("truth_kind", "")
+            if rec.values.get("truth_note"):  # the truth is two references that agree: say how well
+                res.findings.append(f"{scene.name}: the reference is {rec.values['truth_note']}; errors below "
+                                    f"that agreement are measured against dop853 alone")
         if rec.status == "failed" and s.grid != "figure":  # (_state_figure says it for the figure grid)
             _failed(res, s, rec)  # no reference: a failed check, never blank errors beside a green line
     _runs(scene, by.get("run", []), records, res, draw, by.get("confirm", []))

@@ -182,7 +182,13 @@ def order_methods(scene) -> list[tuple[str, str, tuple]]:
     convergence sweep of ``scene``: :data:`references.registry.CONVERGENCE_ALWAYS` and the scene's
     own fixed-step methods, in that order."""
     out = []
+    first_order = _first_order(scene)
     for name in dict.fromkeys((*CONVERGENCE_ALWAYS, *scene.fixed_solvers)):
+        if first_order:  # a partitioned tableau integrates q' = v: not a first-order ODE's method
+            from references.solvers import mechanical_only
+
+            if mechanical_only(scene.method(name)):
+                continue
         high = (scene.method(name).order or 1) >= 3
         out.append((name, "theta", RK4_THETAS) if high else (name, "theta_euler", EULER_THETAS))
     return out
@@ -248,6 +254,14 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
         out += [spec("stability", unit=u) for u in stability.units(scene, quick)]
     seen = set()  # one run per key (two sweeps on one grid share their reference)
     return [s for s in out if not (s.key in seen or seen.add(s.key))]
+
+
+def _first_order(scene) -> bool:
+    """Whether ``scene``'s model is a first-order ODE (``model.first_order``)."""
+    try:
+        return bool(getattr(scene.build_model(), "first_order", False))
+    except Exception:  # noqa: BLE001 - a scene that cannot build fails at execution, with its message
+        return False
 
 
 def _nonlinear(scene) -> bool:

@@ -32,6 +32,7 @@ from pydantic_core import PydanticCustomError, PydanticUndefined
 
 from references.registry import _METHOD_NAME, BUILTIN
 from rk4core.models.base import MASS_MIN
+from rk4core.models.ode import MAX_VARIABLES
 from rk4core.models.potential import MAX_COORDINATES
 from validation.plan import EULER_THETAS, RK4_THETAS
 from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
@@ -48,7 +49,8 @@ OUTPUT_HELP = {
     "state": ("every model", "every solver at every step or tolerance against the reference: `accuracy.csv`"),
     "energy": ("every model", "energy drift of those runs, against theory for tableaux on linear models: "
                               "`energy.csv`, the energy figure"),
-    "convergence": ("models with a linearization (modes)", "observed order of every fixed-step method from a "
+    "convergence": ("models with a linearization (modes); first-order ODEs (model `ode`: theta = rate h, "
+                    "rate the spectral radius of the Jacobian at y0)", "observed order of every fixed-step method from a "
                     "sweep of omega_max h (`[convergence]`): `convergence.csv`"),
     "work_precision": ("every model", "error against wall time and RHS calls, the cheapest solver per "
                        "target: `work_precision.csv`, the work-precision figure"),
@@ -227,11 +229,29 @@ class PotentialParams(_Table):
     constants: dict[str, Finite] = _f("named numbers used in `potential`", "-", {"lam": 1.0}, default=None)
 
 
+class OdeParams(_Table):
+    """Any first-order ODE typed as text: dy/dt = f(t, y) over named variables (parsed by rk4core.expr, never
+    eval'd); the initial state is `[initial] y`."""
+
+    variables: list[str] = _f("names of the state components, in order (not `t`: the time)", "-", ["u", "v"],
+                              min_length=1, max_length=MAX_VARIABLES)
+    equations: list[str] = _f("dy/dt of each variable, in the variables, `t` and `constants`: numbers, names, "
+                              "+ - * / ^, sin cos tan sinh cosh tanh exp log sqrt", "state units/s",
+                              ["v", "-u"], min_length=1, max_length=MAX_VARIABLES)
+    constants: dict[str, Finite] = _f("named numbers used in the expressions", "-", {"w": 1.0}, default=None)
+    invariant: str = _f("a quantity I(y) the exact flow conserves; its drift is measured like energy, "
+                        "max |I(t) - I0| / |I0|", "-", "u^2 + v^2", default=None,
+                        default_text="none (no energy column)")
+    exact: list[str] = _f("the exact solution from `[initial] y`, one expression of t per variable; the truth "
+                          "when given", "state units", ["cos(t)", "-sin(t)"], default=None, min_length=1,
+                          max_length=MAX_VARIABLES, default_text="none (two references that agree)")
+
+
 #: Built-in model name -> its ``[params]`` table.
 BUILTIN_MODELS: dict[str, type[BaseModel]] = {
     "chain": ChainParams, "planar4": Planar4Params, "oscillator2d": Oscillator2DParams,
     "pendulums": PendulumsParams, "triangle": TriangleParams, "network": NetworkParams,
-    "potential": PotentialParams}
+    "potential": PotentialParams, "ode": OdeParams}
 
 
 # -- the other tables ----------------------------------------------------------------
@@ -246,11 +266,17 @@ class Initial(_Table):
                    "the mass-normalised mode shape with its first non-zero entry > 0 (thesis Code 02)", "-", 2,
                    default=None, ge=1)
     amplitude: Finite = _f("scale of the mode shape (only with `mode`)", "m kg^(1/2)", 0.001, default=1.0)
+    y: list[Finite] = _f("the state at t = 0 of a first-order ODE (model `ode`), one number per variable; "
+                         "instead of `x` and `v`", "state units", [1.0, 0.0], default=None, min_length=1)
 
     @model_validator(mode="after")
     def _one_start(self):
+        if self.y is not None:
+            if self.x is not None or self.mode is not None or self.v is not None:
+                raise _rule("give `y` alone (the state of a first-order ODE), not with `x`, `v` or `mode`")
+            return self
         if (self.x is None) == (self.mode is None):
-            raise _rule("give exactly one of `x` and `mode`")
+            raise _rule("give exactly one of `x` and `mode` (or `y` for model `ode`)")
         if self.x is not None and "amplitude" in self.model_fields_set:
             raise _rule("only goes with `mode`", at=".amplitude")
         return self
@@ -650,7 +676,8 @@ A scene looks like data, but three keys name code that runs with your user's rig
 `[methods.NAME] command = [...]` starts that program, `[methods.NAME] python = "module:function"`
 imports that module and `model = "module:Class"` imports that module (importing a module runs its
 top-level code; the module is looked up on Python's path, which may include the current directory).
-Every other key is data: a `potential` is parsed by the harness's own parser, never evaluated.
+Every other key is data: a `potential` (and an `ode`'s `equations`, `invariant` and `exact`) is parsed
+by the harness's own parser, never evaluated.
 For a scene the project does not ship (any file outside `validation/scenes/` of the installed
 package, a copy of a shipped one included), these keys are refused before anything is imported or
 started, exit 2, one line naming the file and the key, unless you pass `--allow-code` (to

@@ -266,7 +266,8 @@ class Scene:
         return make_model(self.model, dict(self.params))
 
     def y0(self) -> np.ndarray:
-        """Flat initial state ``[x, v]``."""
+        """Flat initial state ``[x, v]`` (a first-order ODE's ``[initial] y``
+        is kept in ``initial_x``, with ``initial_v`` empty)."""
         return np.concatenate([np.asarray(self.initial_x, float), np.asarray(self.initial_v, float)])
 
     def t_eval(self) -> np.ndarray:
@@ -520,15 +521,19 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     model = _build_model(path, s.model, doc["params"])
     n = model.n_dof
     ini = s.initial
-    if ini.x is not None:
+    first_order = getattr(model, "first_order", False)
+    if first_order or ini.y is not None:
+        x, v = _first_order_start(path, s.model, model, ini, doc)
+    elif ini.x is not None:
         if len(ini.x) != n:
             raise SceneError(path, "initial.x", f"must have {n} entries for this {s.model}", doc["initial"]["x"])
         x = list(ini.x)
     else:
         x = _mode_shape(path, model, ini)
-    v = list(ini.v) if ini.v is not None else [0.0] * n
-    if len(v) != n:
-        raise SceneError(path, "initial.v", f"must have {n} entries for this {s.model}", doc["initial"]["v"])
+    if not first_order:
+        v = list(ini.v) if ini.v is not None else [0.0] * n
+        if len(v) != n:
+            raise SceneError(path, "initial.v", f"must have {n} entries for this {s.model}", doc["initial"]["v"])
 
     run = s.run
     t_end = run.t_end
@@ -537,6 +542,8 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     for i, solver in enumerate(run.solvers):
         if solver not in known:
             raise SceneError(path, f"run.solvers[{i}]", f"must be one of {', '.join(known)}", solver)
+        if first_order:
+            _first_order_solver(path, i, solver, methods)
     fixed = [resolve(sv, methods).fixed_step for sv in run.solvers]
     h = []
     if any(fixed) or run.h is not None:
@@ -568,6 +575,13 @@ def _scene_from_dict(doc: dict, path) -> Scene:
             raise SceneError(path, "run.outputs", f"is missing, and only `stability` applies to a model of {n} "
                              f"degrees of freedom (every other output needs a dense eigensolve, above "
                              f"{MAX_DENSE_DOF}): give a [stability] table or outputs")
+    if first_order and run.outputs is not None:
+        fits = default_outputs(model)
+        for i, o in enumerate(outputs):
+            if o not in fits:
+                raise SceneError(path, f"run.outputs[{i}]", f"does not apply to model {s.model!r} (a first-order "
+                                 f"ODE{'' if model.has_invariant() else ' without an invariant'}): "
+                                 f"it takes {', '.join(fits)}", o)
     if "stability" in outputs and stability is None:  # its defaults, or the error of a missing `studies`
         stability = _validated(path, {**doc, "stability": {}}).stability
     if stability is not None:
@@ -585,6 +599,39 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     return scene
 
 
+def _first_order_start(path, model_name, model, ini, doc):
+    """``(y, [])`` of a first-order model's ``[initial] y`` (kept as the
+    scene's ``initial_x``, with no ``initial_v``: :meth:`Scene.y0` is ``y``)."""
+    if not getattr(model, "first_order", False):
+        raise SceneError(path, "initial.y", f"is the state of a first-order ODE (model `ode`); a {model_name} "
+                         f"starts from `x` and `v` or `mode`", doc["initial"]["y"])
+    if ini.y is None:
+        raise SceneError(path, "initial", f"needs `y` (one number per variable) for model {model_name!r}; "
+                         f"`x`, `v` and `mode` are for mechanical models")
+    if len(ini.y) != model.n_state:
+        raise SceneError(path, "initial.y", f"must have {model.n_state} entries (one per variable)",
+                         doc["initial"]["y"])
+    problem = model.state_problem(ini.y, t=0.0)  # a scene starts at t = 0
+    if problem is not None:
+        raise SceneError(path, "initial.y", f"is no state to start from: {problem}", doc["initial"]["y"])
+    check = getattr(model, "check_exact", None)
+    if check is not None:
+        try:
+            check(ini.y)
+        except ValueError as e:
+            raise SceneError(path, "params.exact", str(e)) from None
+    return list(ini.y), []
+
+
+def _first_order_solver(path, i, solver, methods) -> None:
+    """Refuse a solver that needs a mechanical model on a first-order ODE."""
+    from references.solvers import mechanical_only
+
+    if mechanical_only(resolve(solver, methods)):
+        raise SceneError(path, f"run.solvers[{i}]", "needs a mechanical model (y = [q, v], masses, a potential); "
+                         "model `ode` is a first-order ODE", solver)
+
+
 def default_outputs(model, *, stability: bool = False) -> list[str]:
     """What ``run.outputs`` is when a scene omits it: every output that applies
     to ``model`` (an rk4core model), in :data:`OUTPUTS` order.
@@ -597,7 +644,10 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
       output itself applies, ``validation.execute._uniform_chain``);
     * ``stability``: when the scene has a ``[stability]`` table;
     * ``thesis_code``: never (it runs the thesis' own programs, whatever the
-      scene's model).
+      scene's model);
+    * a first-order ODE (model ``ode``): ``state``, ``convergence``,
+      ``work_precision``, ``figures``, and ``energy`` when it has an
+      invariant.
 
     Above :data:`MAX_DENSE_DOF` degrees of freedom only
     ``stability`` applies (every other output needs a dense eigensolve: the
@@ -605,6 +655,11 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
     """
     from .execute import _uniform_chain
 
+    if getattr(model, "first_order", False):  # any ODE: no modes; energy is its invariant's drift
+        applies = {"state", "convergence", "work_precision", "figures"}
+        if model.has_invariant():
+            applies.add("energy")
+        return [o for o in OUTPUTS if o in applies]
     if model.n_dof > MAX_DENSE_DOF:
         return ["stability"] if stability else []
     try:

@@ -67,7 +67,7 @@ from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
-__all__ = ["integrate", "check_setting", "check_model", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+__all__ = ["integrate", "check_setting", "check_model", "as_model", "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
            "SolverRun", "absolute_tolerance"]
 
 
@@ -95,6 +95,35 @@ def check_model(model):
         hint = " (build it with rk4core.make_model(name, params))" if isinstance(model, str) else ""
         raise ValueError(f"`model` must be an rk4core.models.Model instance{hint}, got {model!r:.80}")
     return model
+
+
+def as_model(model, y0):
+    """``model`` itself when it is an :class:`rk4core.models.Model`; a plain
+    callable ``fun(t, y)`` (scipy's convention) as an
+    :class:`rk4core.models.FunctionOde` with ``len(y0)`` components; else
+    ``ValueError`` naming ``model``."""
+    if callable(model) and not isinstance(model, (Model, type)):
+        from rk4core.models.ode import FunctionOde
+
+        try:
+            n = int(np.asarray(y0, dtype=float).reshape(-1).shape[0])
+        except (TypeError, ValueError):
+            raise ValueError(f"`y0` must be a 1-D array of real numbers, got {y0!r:.80}") from None
+        return FunctionOde(model, n)
+    return check_model(model)
+
+
+#: Solvers that need a mechanical model (a potential: heyoka's equations,
+#: an external program's problem file), not a first-order ODE.
+MECHANICAL_ONLY = ("heyoka",)
+
+
+def mechanical_only(method) -> bool:
+    """Whether ``method`` (a :class:`references.registry.Method`) needs a
+    mechanical model: heyoka (equations from the force), a command method
+    (the problem file holds masses and springs), a partitioned tableau (it
+    integrates ``q' = v`` and uses only the acceleration half of ``fun``)."""
+    return method.name in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
 
 
 def _check_inputs(model, y0, t_eval, atol, max_steps):
@@ -131,9 +160,13 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
     solver : str or references.registry.Method
         A built-in method's name (``SOLVER_NAMES``) or a method (a scene's
         own: ``Scene.method(name)``).
-    model : rk4core.models.Model
-    y0 : array_like, shape (2 n_dof,)
-        Initial state ``[q, v]`` (SI units of the model's coordinates).
+    model : rk4core.models.Model or callable
+        A model, or a plain ``fun(t, y)`` (any first-order ODE; wrapped in
+        :class:`rk4core.models.FunctionOde`; not for ``heyoka`` or command
+        methods).
+    y0 : array_like, shape (2 n_dof,) or (n,)
+        Initial state ``[q, v]`` (SI units of the model's coordinates), or
+        ``y`` of a first-order model.
     t_eval : array_like, shape (m,)
         Output times (s), strictly increasing, ``m >= 2``.
     setting : float
@@ -154,6 +187,10 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
     """
     method = resolve(solver)
     setting = check_setting(method, setting)
+    model = as_model(model, y0)
+    if getattr(model, "first_order", False) and mechanical_only(method):
+        raise ValueError(f"solver {method.name!r} needs a mechanical model (y = [q, v], masses, a potential); "
+                         f"{model.name!r} is a first-order ODE")
     y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
     if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
         return run_fixed(method.tableau, model, y0, t, setting)

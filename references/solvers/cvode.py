@@ -195,7 +195,7 @@ def _linear_jacobian_once(model, perm: np.ndarray):
 
 
 def _options(model, perm, method, rtol, atol, max_steps):
-    n2 = 2 * model.n_dof
+    n2 = perm.size
     opts = dict(method=method, rtol=rtol, atol=atol[perm], max_num_steps=max_steps)
     y = np.empty(n2)
     if model.linear:
@@ -322,7 +322,8 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
 
     method = {"cvode-adams": "Adams", "cvode-bdf": "BDF"}[solver_name]
     n2, m = y0.shape[0], t_eval.shape[0]
-    perm = interleave(n2 // 2)
+    # a first-order model's state is not [q, v]: nothing to interleave
+    perm = np.arange(n2) if getattr(model, "first_order", False) else interleave(n2 // 2)
     y = np.full((n2, m), np.nan)
     y[:, 0] = y0
     ybuf = np.empty(n2)

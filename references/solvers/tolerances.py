@@ -39,8 +39,15 @@ def omega_bound(model) -> float:
 
 
 def group_scales(model, y0) -> tuple[float, float]:
-    """``(s_q, s_v)``: the position and velocity scales of the rule above."""
+    """``(s_q, s_v)``: the position and velocity scales of the rule above.
+    A first-order model (``model.first_order``: no positions, velocities or
+    frequencies) has one scale for its whole state, ``s = max_i |y0_i|``
+    (1 when it is 0), returned twice."""
     y0 = np.asarray(y0, dtype=float)
+    if getattr(model, "first_order", False):
+        s = float(np.abs(y0).max()) if y0.size else 0.0
+        s = s if s > 0.0 else 1.0
+        return s, s
     n = model.n_dof
     aq = float(np.abs(y0[:n]).max())
     av = float(np.abs(y0[n:]).max())
@@ -55,6 +62,8 @@ def group_scales(model, y0) -> tuple[float, float]:
 def state_scale(model, y0) -> np.ndarray:
     """Per-component scale ``s`` (shape (2 n_dof,)): ``s_q`` then ``s_v``."""
     s_q, s_v = group_scales(model, y0)
+    if getattr(model, "first_order", False):
+        return np.full(np.asarray(y0).shape[0], s_q)
     n = model.n_dof
     s = np.empty(2 * n)
     s[:n] = s_q

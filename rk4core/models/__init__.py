@@ -26,14 +26,16 @@ from .chain import Chain
 from .oscillator2d import Oscillator2D
 from .pendulums import Pendulums
 from .network import Network
+from .ode import FunctionOde, OdeModel
 from .planar4 import Planar4
 from .potential import PotentialModel
 from .triangle import Triangle
 
 MODELS: dict[str, type[Model]] = {c.name: c for c in (Chain, Planar4, Oscillator2D, Pendulums, Triangle,
-                                                      Network, PotentialModel)}
+                                                      Network, PotentialModel, OdeModel)}
 
 __all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
+           "OdeModel", "FunctionOde",
            "MODELS", "make_model", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
 
 _NAME = re.compile(r"[a-z][a-z0-9_-]*")
