@@ -43,9 +43,9 @@ BUILTIN_CLASSES: tuple[type[Model], ...] = (Chain, Planar4, Oscillator2D, Pendul
                                              PotentialModel)
 MODELS: dict[str, type[Model]] = {c.name: c for c in BUILTIN_CLASSES}
 
-__all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
-           "MODELS", "BUILTIN_CLASSES", "Param", "ParamRule", "REQUIRED", "declared", "make_model", "model_parameters",
-           "register_model", "resolve_model", "NUMPY", "HEYOKA"]
+__all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network",
+           "PotentialModel", "MODELS", "BUILTIN_CLASSES", "Param", "ParamRule", "REQUIRED", "declared", "make_model",
+           "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
 
 _NAME = re.compile(r"[a-z][a-z0-9_-]*")
 _IMPORT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
