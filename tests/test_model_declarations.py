@@ -10,7 +10,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from rk4core.models import BUILTIN_CLASSES, MODELS, Param, declared, model_parameters, register_model
+from rk4core.models import (BUILTIN_CLASSES, MODELS, Param, declared, example_parameters, make_model,
+                            model_parameters, register_model)
 from validation import scene_schema
 from validation.run_all import main
 from validation.scenes import SceneError, load_scene
@@ -126,6 +127,19 @@ def test_an_undeclared_model_is_read_from_its_constructor():
                                                           ("ky", "any", False)]
     assert ps[2].default == 2.0
     assert scene_schema.params_error(Bare, {"m": 1.0}) == ("params.kx", "is missing", None)
+
+
+@pytest.mark.parametrize("cls", BUILTIN_CLASSES, ids=lambda c: c.name)
+def test_every_builtin_model_builds_from_its_declared_examples(cls):
+    """The declaration's examples are a valid [params] table (schema and
+    constructor agree on it) and give a model whose force is finite."""
+    import numpy as np
+
+    params = example_parameters(cls.name)
+    scene_schema.BUILTIN_MODELS[cls.name].model_validate(params)
+    model = make_model(cls.name, params)
+    assert type(model) is cls and len(model.coord_names) == model.n_dof >= 1
+    assert np.all(np.isfinite(model.force(np.full(model.n_dof, 1e-3))))
 
 
 def test_a_bad_declaration_is_refused():

@@ -45,7 +45,7 @@ MODELS: dict[str, type[Model]] = {c.name: c for c in BUILTIN_CLASSES}
 
 __all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network",
            "PotentialModel", "MODELS", "BUILTIN_CLASSES", "Param", "ParamRule", "REQUIRED", "declared", "make_model",
-           "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
+           "example_parameters", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
 
 _NAME = re.compile(r"[a-z][a-z0-9_-]*")
 _IMPORT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
@@ -95,6 +95,16 @@ def model_parameters(name: str) -> tuple[list[str], list[str]]:
     (:func:`rk4core.models.params.declared`)."""
     ps = declared(MODELS[resolve_model(name)])
     return [p.name for p in ps if p.required], [p.name for p in ps if not p.required]
+
+
+def example_parameters(name: str) -> dict:
+    """``{parameter: example}`` of model ``name``'s declared ``parameters``:
+    a valid ``[params]`` table (tests build every registered model from it).
+    Raises ``ValueError`` naming ``model`` for a model without a declaration."""
+    cls = MODELS[resolve_model(name)]
+    if cls.parameters is None:
+        raise ValueError(f"`model` {name!r} declares no parameters, so has no examples")
+    return {p.name: p.example for p in cls.parameters}
 
 
 def make_model(name: str, params: dict) -> Model:
