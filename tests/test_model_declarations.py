@@ -116,11 +116,17 @@ def test_a_user_models_declaration_checks_its_params(tmp_path, morse_module, par
 
 
 def test_an_undeclared_model_is_read_from_its_constructor():
+    """A subclass with its own constructor and no declaration is read from
+    its signature, not from the declaration it inherits (which describes
+    another constructor)."""
     class Bare(MODELS["oscillator2d"]):
-        parameters = None
-
         def __init__(self, m, kx, ky=2.0):
             super().__init__(m, kx, ky)
+
+    class Same(MODELS["oscillator2d"]):
+        pass
+
+    assert declared(Same) == MODELS["oscillator2d"].parameters
 
     ps = declared(Bare)
     assert [(p.name, p.kind, p.required) for p in ps] == [("m", "any", True), ("kx", "any", True),

@@ -32,6 +32,7 @@ from pydantic_core import PydanticCustomError, PydanticUndefined
 
 from references.registry import _METHOD_NAME, BUILTIN
 from rk4core.models import BUILTIN_CLASSES, Param, ParamRule, declared
+from rk4core.models.params import is_declared
 from rk4core.models.base import MASS_MIN
 from validation.plan import EULER_THETAS, RK4_THETAS
 from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
@@ -163,6 +164,8 @@ def _check_rules(model_cls):
     """The table's ``after`` validator: ``model_cls.check_parameters`` (rules
     between parameters), its :class:`ParamRule` reported at the parameter."""
     def check(self):
+        if not is_declared(model_cls):  # the rules go with the declaration they are written for
+            return self
         try:
             model_cls.check_parameters({name: getattr(self, name) for name in type(self).model_fields})
         except ParamRule as e:

@@ -33,7 +33,7 @@ from .oscillator2d import Oscillator2D
 from .pendulums import Pendulums
 from .network import Network
 from .planar4 import Planar4
-from .params import REQUIRED, Param, ParamRule, declared
+from .params import REQUIRED, Param, ParamRule, declared, is_declared
 from .potential import PotentialModel
 from .triangle import Triangle
 
@@ -102,9 +102,9 @@ def example_parameters(name: str) -> dict:
     a valid ``[params]`` table (tests build every registered model from it).
     Raises ``ValueError`` naming ``model`` for a model without a declaration."""
     cls = MODELS[resolve_model(name)]
-    if cls.parameters is None:
+    if not is_declared(cls):
         raise ValueError(f"`model` {name!r} declares no parameters, so has no examples")
-    return {p.name: p.example for p in cls.parameters}
+    return {p.name: p.example for p in declared(cls)}
 
 
 def make_model(name: str, params: dict) -> Model:

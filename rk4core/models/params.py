@@ -127,8 +127,14 @@ class ParamRule(ValueError):
 
 
 def is_declared(cls) -> bool:
-    """True when model class ``cls`` declares its ``parameters``."""
-    return getattr(cls, "parameters", None) is not None
+    """True when model class ``cls`` has a declaration of its ``parameters``
+    that describes its constructor: written on the class itself, or inherited
+    together with the constructor it describes (a subclass that writes its
+    own ``__init__`` and no ``parameters`` is read from its signature)."""
+    for klass in cls.__mro__:
+        if klass.__dict__.get("parameters") is not None:
+            return cls.__init__ is klass.__init__ or "parameters" in cls.__dict__
+    return False
 
 
 def declared(cls) -> tuple[Param, ...]:
