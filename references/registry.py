@@ -47,7 +47,7 @@ from enum import Enum
 from typing import Mapping
 
 __all__ = ["Kind", "CostUnit", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST",
-           "CONVERGENCE_ALWAYS", "BOUNDARY_ALWAYS", "resolve", "names", "with_role", "long_references",
+           "CONVERGENCE_ALWAYS", "BOUNDARY_ALWAYS", "GROWTH_ALWAYS", "resolve", "names", "with_role", "long_references",
            "method_from_table", "methods_from_tables", "MethodError"]
 
 
@@ -276,6 +276,12 @@ CONVERGENCE_ALWAYS = ("rk4", "euler", "symplectic-euler")
 #: Built-in methods whose stability boundary every stability ``boundary``
 #: study measures (a scene's own tableaux in ``run.solvers`` are added).
 BOUNDARY_ALWAYS = ("rk4", "symplectic-euler", "stormer-verlet", "euler")
+#: Built-in methods drawn in every growth-factor figure of the stability
+#: study, beside its own method: BOUNDARY_ALWAYS less Stormer-Verlet, whose
+#: step matrix on a harmonic mode has the trace (2 - theta^2) and determinant
+#: (1) of symplectic Euler's, so the same growth factor: its curve would hide
+#: under symplectic Euler's.
+GROWTH_ALWAYS = ("rk4", "symplectic-euler", "euler")
 
 
 def _tableau_method(tab) -> Method:

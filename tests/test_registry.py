@@ -240,3 +240,22 @@ def test_every_method_declares_what_its_nfev_counts():
     run = integrate("cvode-bdf", model, model.state([0.01, 0.0]), np.linspace(0.0, 2.0, 5), 1e-8)
     assert run.ok and run.nfev == run.extra["nfev_cvode"] + run.extra["nfev_jac_dq"]
     assert BUILTIN["cvode-bdf"].cost(run.nfev, run.n_steps, run.taylor_order or 0) == run.nfev
+
+
+def test_growth_figures_leave_out_only_a_method_whose_curve_another_draws():
+    """GROWTH_ALWAYS is BOUNDARY_ALWAYS less the methods whose growth factor
+    on a harmonic mode equals a drawn one's at every theta (Stormer-Verlet:
+    symplectic Euler's)."""
+    from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS
+    from validation.stability.boundary import theory_growth
+
+    assert set(GROWTH_ALWAYS) <= set(BOUNDARY_ALWAYS)
+    thetas = (0.1, 0.5, 1.0, 1.9, 2.1, 3.0)
+
+    def curve(name):
+        return np.array([theory_growth(BUILTIN[name].tableau, th) for th in thetas])
+
+    for left_out in set(BOUNDARY_ALWAYS) - set(GROWTH_ALWAYS):
+        assert any(np.allclose(curve(left_out), curve(m), rtol=1e-12) for m in GROWTH_ALWAYS), left_out
+    for a in GROWTH_ALWAYS:
+        assert not any(np.allclose(curve(a), curve(b), rtol=1e-12) for b in GROWTH_ALWAYS if b != a), a

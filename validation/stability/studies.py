@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.registry import BOUNDARY_ALWAYS, BUILTIN, UNDER_TEST, long_references, with_role
+from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS, UNDER_TEST, long_references, with_role
 
 from . import boundary as B
 from . import geometry as G
@@ -63,8 +63,6 @@ REL_DRIFT = 0.02      # issue 6: drift and phase rates within 2 % where theta <=
 #: ``"cost"``); the scene's ``stability.method`` runs first.
 COST_REFERENCES = with_role("cost")
 COST_SOLVERS = (UNDER_TEST,) + COST_REFERENCES  # with the default method
-#: Methods drawn in every growth-factor figure, beside ``stability.method``.
-GROWTH_ALWAYS = tuple(m for m in BOUNDARY_ALWAYS if m != "stormer-verlet")
 #: Long-horizon references: (solver, rtol), from the registry's ``long_rtol``.
 LONG_REFERENCES = long_references()
 #: heyoka's step cap on the long horizon: this many times the calibrated
