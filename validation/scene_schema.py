@@ -1,7 +1,9 @@
 """The scene file's schema, declared once (pydantic v2, strict, ``extra="forbid"``).
 
 Every key a scene file may hold, its type, bounds, default, unit, example and
-meaning is declared here, and nowhere else: :mod:`validation.scenes` validates
+meaning is declared here, and nowhere else -- but a model's ``[params]``,
+which are generated from the model's own declaration (its ``parameters``,
+:mod:`rk4core.models.params`): :mod:`validation.scenes` validates
 a document's structure with :data:`SCENE` and keeps only the checks a schema
 cannot express (the model's degrees of freedom, ``h`` dividing
 ``output_dt``, the solvers a scene's own methods add, sweeps). The reference
@@ -10,10 +12,12 @@ and the JSON Schema are generated from these models::
     python -m validation.scene_schema --markdown > docs/scene-reference.md
     python -m validation.scene_schema --json-schema > docs/scene.schema.json
 
-The top level is a union on ``model``: one variant per built-in model, whose
-``[params]`` table is declared key by key, and one for a user's model
-(``"package.module:Class"``), whose ``[params]`` are its constructor's
-arguments (checked against the model registry by :mod:`validation.scenes`).
+The top level is a union on ``model``: one variant per built-in model
+(``rk4core.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
+from the model's declaration (:func:`params_table`), and one for a user's
+model (``"package.module:Class"``), whose ``[params]`` are checked by the
+table generated the same way from its class once :mod:`validation.scenes`
+has resolved it (:func:`params_error`).
 A callable discriminator picks the variant (a string naming a built-in model
 selects it, anything else the user variant), so only one variant is
 validated and its errors name the document's own fields. ``[stability]`` is
@@ -32,13 +36,13 @@ from pydantic_core import PydanticCustomError, PydanticUndefined
 
 from references.registry import _METHOD_NAME, BUILTIN
 from rk4core.models import BUILTIN_CLASSES, Param, ParamRule, declared
-from rk4core.models.params import is_declared
 from rk4core.models.base import MASS_MIN
+from rk4core.models.params import is_declared
 from validation.plan import EULER_THETAS, RK4_THETAS
 from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
 
-__all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP", "TOP_KEYS", "INITIAL_KEYS",
-           "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
+__all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP",
+           "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
 
 #: What a scene may ask for in ``run.outputs``.
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",

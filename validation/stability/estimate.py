@@ -45,6 +45,8 @@ import math
 
 import numpy as np
 
+from references.registry import BUILTIN
+
 from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
 from ..metrics import energy_log_factor, phase_lag
@@ -72,8 +74,6 @@ def _reference_steps(name, p_fast, p_exc, rtol):
     """Calibrated steps of reference ``name`` at ``rtol``, by its registry
     capabilities: a Taylor method (heyoka's fit), a stiff solver (BDF's), else
     an explicit adaptive Runge-Kutta method (DOP853's)."""
-    from references.registry import BUILTIN
-
     m = BUILTIN[name]
     if m.taylor:
         return heyoka_steps(p_fast, p_exc)
@@ -85,8 +85,6 @@ def _reference_steps(name, p_fast, p_exc, rtol):
 def _search_depth(name):
     """How far below the target the guided rtol search of ``name`` reaches
     (a stiff solver's error lags its rtol most)."""
-    from references.registry import BUILTIN
-
     return 1e-3 if BUILTIN[name].stiff else 0.1
 
 
@@ -187,8 +185,6 @@ def _long_horizon(model, p, quick, part):
         return {p["method"]: 2000.0 * len(p["drift_theta"])}
     if part == "method":
         return {p["method"]: float(math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi)))}
-    from references.registry import BUILTIN
-
     if BUILTIN[part].taylor:  # the whole horizon, under its own step cap (studies._long_reference)
         from .studies import long_reference_max_steps
 
