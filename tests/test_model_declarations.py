@@ -191,3 +191,24 @@ def test_a_new_builtin_model_is_one_file_and_one_registry_line(tmp_path):
     assert "| `a` | number >= 1e-300 | 1/m | `1.0` | `1.5` | inverse width of the well |" in got["md"]
     assert got["schema"]
     assert "params.D" in got["err"] and "must be >= 1e-300" in got["err"]
+
+
+@pytest.mark.parametrize("params, expected", [
+    ({"masses": 0.815, "springs": 41.5, "n": 10}, (0.815, 41.5)),
+    ({"masses": 0.815, "springs": 41.5, "n": 10, "walls": "left"}, None),
+    ({"masses": [1.0, 2.0], "springs": [3.0, 3.0, 3.0]}, None),
+    ({"masses": [1.0, 1.0], "springs": [3.0, 4.0, 3.0]}, None),
+    ({"masses": 2.0, "springs": 5.0, "n": 4, "beta": 1.0}, (2.0, 5.0)),  # the linearization counts
+])
+def test_uniform_chain_is_read_from_the_mechanics(params, expected):
+    assert make_model("chain", params).uniform_chain() == expected
+
+
+def test_uniform_chain_of_a_network_on_a_line_and_of_a_plane_model():
+    # masses 1 kg at 0, 1, 2 (m) between anchors at -1 and 3, springs of 7 N/m: a uniform chain
+    net = make_model("network", {"dim": 1, "masses": [1.0, 1.0, 1.0], "positions": [0.0, 1.0, 2.0],
+                                 "anchors": [-1.0, 3.0], "springs": [[3, 0, 7.0], [0, 1, 7.0], [1, 2, 7.0],
+                                                                     [2, 4, 7.0]]})
+    assert net.drawing().layout == "line"
+    assert net.uniform_chain() == pytest.approx((1.0, 7.0), rel=1e-12)
+    assert make_model("oscillator2d", {"m": 1.0, "kx": 2.0, "ky": 2.0}).uniform_chain() is None
