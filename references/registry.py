@@ -24,6 +24,14 @@ integrator"):
     ``dop853``, ``cvode-adams``, ``cvode-bdf``, ``heyoka``: adaptive, their
     setting is ``rtol``.
 
+Each method also carries, as data, what the harness needs to decide about it
+without reading its name: its adapter (which runner integrates a reference),
+its capabilities (:attr:`Method.adaptive`, :attr:`Method.partitioned`,
+``implicit``, ``stiff``), its cost unit (:class:`CostUnit`: what its ``nfev``
+counts, and :meth:`Method.cost` to put every run in right-hand-side calls) and
+the roles the stability study and the advisor give it (``roles``,
+``long_rtol``, ``advisor_rtols``).
+
 Built-in methods are :data:`BUILTIN`; a scene adds its own with
 ``[methods.NAME]`` tables (:func:`method_from_table`) and
 :func:`resolve` looks a name up in the scene's methods first, then in the
@@ -38,8 +46,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import Mapping
 
-__all__ = ["Kind", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST", "CONVERGENCE_ALWAYS",
-           "BOUNDARY_ALWAYS", "resolve", "names",
+__all__ = ["Kind", "CostUnit", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST",
+           "CONVERGENCE_ALWAYS", "BOUNDARY_ALWAYS", "GROWTH_ALWAYS", "resolve", "names", "with_role", "long_references",
            "method_from_table", "methods_from_tables", "MethodError"]
 
 
@@ -51,6 +59,41 @@ class Kind(str, Enum):
     PYTHON = "python"
     COMMAND = "command"
     REFERENCE = "reference"
+
+
+class CostUnit(str, Enum):
+    """What a method's run counts in ``nfev``, so costs compare across
+    methods (:meth:`Method.cost` turns each into right-hand-side calls)."""
+
+    #: Every call of the right-hand side: each stage of each attempted step
+    #: (rejected steps included), nothing left out.
+    RHS = "rhs"
+    #: Every call of the right-hand side, the Jacobian's difference quotients
+    #: included; evaluations of an analytic Jacobian are counted apart
+    #: (``extra["njev"]``), each about two vectorised force evaluations
+    #: (CVODE, references/solvers/cvode.py).
+    RHS_WITH_JACOBIAN_DQ = "rhs+jacobian-dq"
+    #: The solver's own count, which leaves out the right-hand-side calls of
+    #: its Jacobian's difference quotients (scipy's Radau and BDF: ``njev``
+    #: Jacobians of ``n`` calls each come on top); an adapter of such a solver
+    #: declares this unit so its cost is not read as comparable.
+    RHS_WITHOUT_JACOBIAN = "rhs-without-jacobian"
+    #: No right-hand-side calls (``nfev = 0``): Taylor steps times the Taylor
+    #: order, each order one pass over the equations (heyoka).
+    TAYLOR_STEPS = "taylor-steps"
+
+    @property
+    def text(self) -> str:
+        """One line for tables and notes."""
+        return _COST_TEXT[self]
+
+
+_COST_TEXT = {
+    CostUnit.RHS: "right-hand-side calls",
+    CostUnit.RHS_WITH_JACOBIAN_DQ: "right-hand-side calls, Jacobian difference quotients included",
+    CostUnit.RHS_WITHOUT_JACOBIAN: "right-hand-side calls, Jacobian calls left out",
+    CostUnit.TAYLOR_STEPS: "Taylor steps x order",
+}
 
 
 @dataclass(frozen=True)
@@ -90,6 +133,29 @@ class Method:
     definition : dict
         The scene's ``[methods.NAME]`` table as written (empty for built-ins);
         part of the scene's digest, so a changed definition reruns.
+    adapter : str or None
+        The runner of a ``reference`` (a key of
+        ``references.solvers.REFERENCE_RUNNERS``); None for the other kinds,
+        whose kind names their runner.
+    implicit : bool
+        Solves an implicit (Newton) system each step.
+    stiff : bool
+        Meant for stiff problems: its step is not held by the fastest mode's
+        stability (BDF).
+    cost_unit : CostUnit
+        What ``nfev`` of its runs counts.
+    roles : frozenset of str
+        Where the harness uses it as a comparison: ``"cost"`` (a reference
+        of the stability study's cost sweeps).
+    long_rtol : float or None
+        ``rtol`` of its run as a long-horizon reference of the stability
+        study; None: not one.
+    advisor_rtols : tuple of float or None
+        The two tolerances the advisor first probes it at; None: the
+        advisor's default pair.
+    rtol_floor : float or None
+        The tightest ``rtol`` the harness runs it at (confirmation runs);
+        None: the harness' default (100 machine epsilons).
     """
 
     name: str
@@ -102,6 +168,39 @@ class Method:
     target: str | None = None
     argv: tuple | None = None
     definition: dict = field(default_factory=dict)
+    adapter: str | None = None
+    implicit: bool = False
+    stiff: bool = False
+    cost_unit: CostUnit = CostUnit.RHS
+    roles: frozenset = frozenset()
+    long_rtol: float | None = None
+    advisor_rtols: tuple | None = None
+    rtol_floor: float | None = None
+
+    @property
+    def adaptive(self) -> bool:
+        """True for the references: the setting is ``rtol``, the step chosen
+        by the method."""
+        return not self.fixed_step
+
+    @property
+    def partitioned(self) -> bool:
+        """True for a partitioned tableau (positions and velocities advanced by
+        different weights)."""
+        return self.kind is Kind.PARTITIONED
+
+    @property
+    def taylor(self) -> bool:
+        """True for a Taylor method: its cost is steps x order, not calls."""
+        return self.cost_unit is CostUnit.TAYLOR_STEPS
+
+    def cost(self, nfev: int, n_steps: int, taylor_order: int = 0) -> float:
+        """A run's cost in right-hand-side calls (or passes over the
+        equations), read in this method's :attr:`cost_unit`: ``nfev``, or
+        ``n_steps * taylor_order`` for a Taylor method."""
+        if self.taylor:
+            return float(n_steps * (taylor_order or 0))
+        return float(nfev)
 
     @property
     def fixed_step(self) -> bool:
@@ -155,6 +254,17 @@ _REFERENCE_TEXT = {
     "cvode-bdf": "SUNDIALS CVODE, variable-order BDF, adaptive",
     "heyoka": "heyoka's Taylor method, adaptive order and step",
 }
+#: The adaptive references as data: adapter, capabilities, cost unit, roles.
+_REFERENCE_DATA = {
+    "dop853": dict(adapter="dop853", cost_unit=CostUnit.RHS, roles=frozenset({"cost"})),
+    "cvode-adams": dict(adapter="cvode-adams", implicit=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ),
+    "cvode-bdf": dict(adapter="cvode-bdf", implicit=True, stiff=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ,
+                      roles=frozenset({"cost"}), long_rtol=1e-10),
+    # heyoka's Taylor method in double precision runs down to 10 eps (scipy
+    # raises DOP853's rtol below 100 eps to 100 eps; CVODE's is taken the same)
+    "heyoka": dict(adapter="heyoka", cost_unit=CostUnit.TAYLOR_STEPS, roles=frozenset({"cost"}), long_rtol=1e-12,
+                   advisor_rtols=(1e-4, 1e-10), rtol_floor=10 * 2.0 ** -52),
+}
 #: The method whose trust the harness measures first (the thesis' RK4): the
 #: one the state figures, the modal-energy runs, the wave packets and the
 #: stability study integrate with.
@@ -166,6 +276,12 @@ CONVERGENCE_ALWAYS = ("rk4", "euler", "symplectic-euler")
 #: Built-in methods whose stability boundary every stability ``boundary``
 #: study measures (a scene's own tableaux in ``run.solvers`` are added).
 BOUNDARY_ALWAYS = ("rk4", "symplectic-euler", "stormer-verlet", "euler")
+#: Built-in methods drawn in every growth-factor figure of the stability
+#: study, beside its own method: BOUNDARY_ALWAYS less Stormer-Verlet, whose
+#: step matrix on a harmonic mode has the trace (2 - theta^2) and determinant
+#: (1) of symplectic Euler's, so the same growth factor: its curve would hide
+#: under symplectic Euler's.
+GROWTH_ALWAYS = ("rk4", "symplectic-euler", "euler")
 
 
 def _tableau_method(tab) -> Method:
@@ -187,7 +303,7 @@ def _builtins() -> dict[str, Method]:
 
     out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX}
     for name, text in _REFERENCE_TEXT.items():
-        out[name] = Method(name, Kind.REFERENCE, None, None, _STYLES[name], text)
+        out[name] = Method(name, Kind.REFERENCE, None, None, _STYLES[name], text, **_REFERENCE_DATA[name])
     return out
 
 
@@ -196,6 +312,19 @@ def _builtins() -> dict[str, Method]:
 BUILTIN: dict[str, Method] = _builtins()
 #: Names of the adaptive references.
 REFERENCES: tuple[str, ...] = tuple(n for n, m in BUILTIN.items() if m.kind is Kind.REFERENCE)
+
+
+def with_role(role: str) -> tuple[str, ...]:
+    """Names of the built-in methods whose ``roles`` hold ``role``, in
+    :data:`BUILTIN` order."""
+    return tuple(n for n, m in BUILTIN.items() if role in m.roles)
+
+
+def long_references() -> tuple[tuple[str, float], ...]:
+    """``(name, rtol)`` of the built-ins with a ``long_rtol``: the stability
+    study's long-horizon references, tightest first."""
+    return tuple(sorted(((n, m.long_rtol) for n, m in BUILTIN.items() if m.long_rtol is not None),
+                        key=lambda p: p[1]))
 
 
 def names(local: Mapping[str, Method] | None = None) -> list[str]:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import rk4core
-from rk4core.models import MODELS
+from rk4core.models import BUILTIN_CLASSES, MODELS, example_parameters
 
 # (id, model name, params, coordinate scale of a typical non-equilibrium state)
 MODEL_CASES = [
@@ -31,6 +31,11 @@ MODEL_CASES = [
     ("potential", "potential", {"coordinates": ["x", "y"], "masses": 1.0,
                                 "potential": "(x^2 + y^2)/2 + x^2*y - y^3/3"}, 0.1),
 ]
+# Every registered built-in model is tested: one without a case above is built
+# from its declared examples (so a new model is covered, not skipped by omission).
+# First-order models (no potential, no force) are tested in test_ode.py.
+MODEL_CASES += [(f"{cls.name}-example", cls.name, example_parameters(cls.name), 0.01) for cls in BUILTIN_CLASSES
+                if all(c[1] != cls.name for c in MODEL_CASES) and not cls.first_order]
 CASE_IDS = [c[0] for c in MODEL_CASES]
 
 
@@ -410,7 +415,7 @@ FIRST_ORDER_CASES = {"ode": {"variables": ["u", "v"], "equations": ["a*u - u*v",
                              "constants": {"a": 1.5, "c": 3.0}, "invariant": "u + v"}}
 
 
-@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("name", sorted(c.name for c in BUILTIN_CLASSES))
 def test_params_round_trip(name):
     # A model rebuilt from its own params() is the same model.
     if name in FIRST_ORDER_CASES:

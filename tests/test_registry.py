@@ -202,8 +202,60 @@ def test_a_reference_without_an_adapter_is_an_error_not_another_solver():
     from references.registry import BUILTIN
     from references.solvers import REFERENCE_RUNNERS, integrate
 
-    fake = dataclasses.replace(BUILTIN["heyoka"], name="radau-fake")
-    assert fake.name not in REFERENCE_RUNNERS
+    fake = dataclasses.replace(BUILTIN["heyoka"], name="radau-fake", adapter="radau")
+    assert fake.adapter not in REFERENCE_RUNNERS
     model = rk4core.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
-    with pytest.raises(ValueError, match="no adapter runs the reference 'radau-fake'"):
+    with pytest.raises(ValueError, match="no adapter runs the reference 'radau-fake' \\(adapter 'radau'"):
         integrate(fake, model, model.state([0.01]), np.linspace(0.0, 1.0, 5), 1e-8)
+
+
+def test_a_reference_runs_on_its_adapter_whatever_its_name():
+    import dataclasses
+
+    import rk4core
+    from references.registry import BUILTIN
+    from references.solvers import REFERENCE_RUNNERS, integrate
+
+    assert {m.adapter for m in BUILTIN.values() if m.adaptive} <= set(REFERENCE_RUNNERS)
+    renamed = dataclasses.replace(BUILTIN["dop853"], name="my-explicit-ref")
+    model = rk4core.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
+    t = np.linspace(0.0, 1.0, 5)
+    got = integrate(renamed, model, model.state([0.01]), t, 1e-8)
+    want = integrate("dop853", model, model.state([0.01]), t, 1e-8)
+    assert got.ok and np.array_equal(got.y, want.y) and got.nfev == want.nfev
+
+
+def test_every_method_declares_what_its_nfev_counts():
+    """The cost unit is data: a Taylor method's cost is steps x order, the
+    others' their nfev; CVODE's nfev includes its Jacobian's difference
+    quotients (its extra counters add up to it)."""
+    import rk4core
+    from references.registry import BUILTIN, CostUnit
+    from references.solvers import integrate
+
+    assert all(isinstance(m.cost_unit, CostUnit) and m.cost_unit.text for m in BUILTIN.values())
+    assert BUILTIN["heyoka"].cost(0, 10, 20) == 200.0 and BUILTIN["dop853"].cost(77, 10, 0) == 77.0
+    assert BUILTIN["cvode-bdf"].cost_unit is CostUnit.RHS_WITH_JACOBIAN_DQ
+    model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 3.0, 1.0]})
+    run = integrate("cvode-bdf", model, model.state([0.01, 0.0]), np.linspace(0.0, 2.0, 5), 1e-8)
+    assert run.ok and run.nfev == run.extra["nfev_cvode"] + run.extra["nfev_jac_dq"]
+    assert BUILTIN["cvode-bdf"].cost(run.nfev, run.n_steps, run.taylor_order or 0) == run.nfev
+
+
+def test_growth_figures_leave_out_only_a_method_whose_curve_another_draws():
+    """GROWTH_ALWAYS is BOUNDARY_ALWAYS less the methods whose growth factor
+    on a harmonic mode equals a drawn one's at every theta (Stormer-Verlet:
+    symplectic Euler's)."""
+    from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS
+    from validation.stability.boundary import theory_growth
+
+    assert set(GROWTH_ALWAYS) <= set(BOUNDARY_ALWAYS)
+    thetas = (0.1, 0.5, 1.0, 1.9, 2.1, 3.0)
+
+    def curve(name):
+        return np.array([theory_growth(BUILTIN[name].tableau, th) for th in thetas])
+
+    for left_out in set(BOUNDARY_ALWAYS) - set(GROWTH_ALWAYS):
+        assert any(np.allclose(curve(left_out), curve(m), rtol=1e-12) for m in GROWTH_ALWAYS), left_out
+    for a in GROWTH_ALWAYS:
+        assert not any(np.allclose(curve(a), curve(b), rtol=1e-12) for b in GROWTH_ALWAYS if b != a), a

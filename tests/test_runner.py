@@ -33,12 +33,12 @@ LINEAR = [s for s in load_scenes() if s.build_model().linear and "convergence" i
 # (method, model structure) pair compiles its own loop on a cold cache.
 _EULER_DEFAULT = {"thesis-2dof-case1", "lattice100"}
 ORDER_CASES = [pytest.param(s, m, id=f"{s.name}-{m}",
-                            marks=() if m == "rk4" or s.name in _EULER_DEFAULT else pytest.mark.slow)
-               for s in LINEAR for m in ("rk4", "euler", "symplectic-euler")]
+                            marks=() if m == registry.UNDER_TEST or s.name in _EULER_DEFAULT else pytest.mark.slow)
+               for s in LINEAR for m in registry.CONVERGENCE_ALWAYS]
 # Every other fixed-step method of a scene (Stormer-Verlet, a scene's own
 # tableaux and Python stepper): observed order = the computed/declared one.
 ORDER_CASES += [pytest.param(s, m, id=f"{s.name}-{m}") for s in LINEAR for m in s.fixed_solvers
-                if m not in ("rk4", "euler", "symplectic-euler")]
+                if m not in registry.CONVERGENCE_ALWAYS]
 
 
 @pytest.mark.parametrize("scene, method", ORDER_CASES)
@@ -142,7 +142,7 @@ def test_small_run_writes_tables_and_index(tmp_path, previous_report):
     modes = pd.read_csv(out / "modes.csv")
     assert modes["omega_rad_s"].tolist() == pytest.approx([2.0], rel=1e-14)  # sqrt((2 + 2) / 1)
     conv = pd.read_csv(out / "convergence.csv")
-    assert set(conv[conv.quantity == "order in h"]["solver"]) == {"rk4", "euler", "symplectic-euler"}
+    assert set(conv[conv.quantity == "order in h"]["solver"]) == set(registry.CONVERGENCE_ALWAYS)
     index = (out / "index.md").read_text()
     assert index.index("## Failures") < index.index("## Main findings") < index.index("## Errata")
     for name in ("accuracy.csv", "convergence.csv", "modes.csv", "work_precision.csv", "energy.csv",

@@ -150,17 +150,28 @@ def test_every_documented_key_is_accepted_with_its_example(section, key):
     assert len(points) == (2 if (section, key) == ("top", "sweep") else 1)
 
 
+def test_the_builtin_tables_are_the_model_registry():
+    from rk4core.models import BUILTIN_CLASSES
+
+    assert list(scene_schema.BUILTIN_MODELS) == [cls.name for cls in BUILTIN_CLASSES]
+    assert all(c.parameters is not None and c.summary for c in BUILTIN_CLASSES)
+
+
 @pytest.mark.parametrize("model", sorted(scene_schema.BUILTIN_MODELS))
 def test_each_params_table_matches_the_models_constructor(model):
+    """The table generated from the declaration, the declaration and the
+    constructor's signature agree: names in order, required, defaults."""
     table = scene_schema.BUILTIN_MODELS[model]
     required, optional = model_parameters(model)
     assert list(table.model_fields) == required + optional
-    sig = inspect.signature(MODELS[model].__init__).parameters
+    sig = {k: v for k, v in inspect.signature(MODELS[model].__init__).parameters.items() if k != "self"}
+    assert list(sig) == required + optional
     for name, info in table.model_fields.items():
-        assert info.is_required() == (name in required), name
+        assert info.is_required() == (name in required) == (sig[name].default is inspect.Parameter.empty), name
         if not info.is_required():
             default = sig[name].default
             assert info.default == (list(default) if isinstance(default, tuple) else default), name
+        assert (info.json_schema_extra or {}).get("unit"), name
 
 
 def test_method_keys_are_the_registrys():

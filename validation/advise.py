@@ -129,7 +129,8 @@ SKIP_FACTOR = 10.0
 SKIP_MIN_S = 0.2
 TIMING_NOTE = (f"wall time measured on this machine: median of up to {TIMING_REPEATS} runs at the setting, "
                f"compile time (heyoka's JIT, numba) apart; a shared machine's load moves it")
-_RTOLS = {"heyoka": (1e-4, 1e-10)}
+#: The two tolerances an adaptive method is first probed at, unless its
+#: registry entry gives its own (``Method.advisor_rtols``: heyoka's).
 _RTOL_PAIR = (1e-4, 1e-8)
 _RTOL_MIN = 1e-14
 
@@ -260,7 +261,7 @@ def _fixed_candidate(p: _Problem, method, target):
 
 
 def _adaptive_candidate(p: _Problem, method, target):
-    tols = _RTOLS.get(method.name, _RTOL_PAIR)
+    tols = method.advisor_rtols or _RTOL_PAIR
     pts = [(tol, *p.run(method, tol)) for tol in tols]
     good = [(tol, e, rhs) for tol, e, rhs, _, st in pts if st == "ok" and e > 0 and math.isfinite(e)]
     if len(good) < 2:

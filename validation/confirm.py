@@ -31,6 +31,8 @@ import math
 
 import numpy as np
 
+from references.registry import BUILTIN
+
 from . import trust
 from .plan import TARGETS, RunSpec, scene_digest, under_test
 
@@ -46,10 +48,10 @@ CONFIRM_TRIES = 3
 #: unconfirmed for it). The predicted steps of the committed report stay below 4.1e6.
 MAX_CONFIRM_STEPS = 1e7
 _EPS = float(np.finfo(float).eps)
-#: The tightest rtol each reference is run at: scipy raises DOP853's rtol below 100 eps to 100 eps
-#: (``references.solvers.dop853.RTOL_MIN``); CVODE's is taken the same; heyoka's Taylor method in
-#: double precision is run down to 10 eps.
-RTOL_FLOOR = {"heyoka": 10 * _EPS}
+#: The tightest rtol each reference is run at where the registry gives one (``Method.rtol_floor``:
+#: heyoka's Taylor method in double precision, 10 eps); else 100 eps: scipy raises DOP853's rtol below
+#: 100 eps to 100 eps (``references.solvers.dop853.RTOL_MIN``), and CVODE's is taken the same.
+RTOL_FLOOR = {n: m.rtol_floor for n, m in BUILTIN.items() if m.rtol_floor is not None}
 _RTOL_FLOOR_DEFAULT = 100 * _EPS
 
 

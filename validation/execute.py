@@ -304,43 +304,14 @@ def _modes_spec(scene, spec, quick):
     return RunRecord(spec.key, values={"omega": [float(w) for w in omega], "linear": bool(model.linear)})
 
 
-def _uniform_chain(model):
-    """``(m, k)`` (kg, N/m) when ``model`` is drawn as masses on a line and its
-    linearization is that of equal masses ``m`` on equal springs ``k`` between
-    two walls: stiffness matrix ``k tridiag(-1, 2, -1)`` (to 1e-12). Else None.
-    Read from the drawing and the mechanics, never from the model's name."""
-    import scipy.sparse as sp
-
-    if model.drawing().layout != "line":
-        return None
-    mass = np.asarray(model.mass, dtype=float)
-    if mass.size == 0 or np.any(mass != mass[0]):
-        return None
-    try:
-        try:
-            K = model.stiffness_matrix(sparse=True)
-        except TypeError:
-            K = model.stiffness_matrix()
-    except NotImplementedError:
-        return None
-    K = sp.csr_matrix(K, dtype=float)
-    diag, up, low = K.diagonal(), K.diagonal(1), K.diagonal(-1)
-    outside = float(abs(K).sum() - np.abs(diag).sum() - np.abs(up).sum() - np.abs(low).sum())
-    k = float(diag[0]) / 2.0
-    tol = 1e-12 * abs(k)
-    uniform = (k > 0 and bool(np.all(np.abs(diag - 2 * k) <= tol)) and bool(np.all(np.abs(up + k) <= tol))
-               and bool(np.all(np.abs(low + k) <= tol)) and abs(outside) <= tol * mass.size)
-    return (float(mass[0]), k) if uniform else None
-
-
 def _lattice(scene, spec):
     """``(model, m, k, d)`` of a scene whose model is a uniform chain between
-    walls (:func:`_uniform_chain`; ``d`` the thesis' lattice spacing), or the
+    walls (:meth:`rk4core.models.Model.uniform_chain`; ``d`` the thesis' lattice spacing), or the
     failed record of ``spec`` saying why not."""
     from references import dispersion
 
     model, _ = problem(scene)
-    mk = _uniform_chain(model)
+    mk = model.uniform_chain()
     if mk is None:
         return RunRecord(spec.key, status="failed", message="the dispersion output needs a uniform chain "
                                                              "between walls")

@@ -226,16 +226,19 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
     ``methods`` maps a scene to the method its study is about (its
     ``stability.method``: given, or the first classical tableau it runs);
     a scene not in it gets the fixed-step method of its round-off or
-    long-horizon rows, else rk4."""
+    long-horizon rows, else the registry's method under test (rk4)."""
+    from references.registry import BUILTIN, UNDER_TEST
+
+    adaptive = {n for n, m in BUILTIN.items() if m.adaptive}  # the references, not the method under study
     out = []
     rows = list(stability_rows or [])
     method = dict(methods or {})
     for r in rows:
-        if r["study"] in ("roundoff", "long_horizon") and r["solver"] not in ("-", "heyoka", "cvode-bdf"):
+        if r["study"] in ("roundoff", "long_horizon") and r["solver"] != "-" and r["solver"] not in adaptive:
             method.setdefault(r["scene"], r["solver"])
     for r in rows:
         sc, q = r["scene"], r["quantity"]
-        m = method.get(sc, "rk4")
+        m = method.get(sc, UNDER_TEST)
         if q == "largest_stable_h_s" and r["solver"] == m and r["measured"] > 0:
             out.append({"scene": sc, "limit": f"{m} stable up to", "value": f"omega_max h = {r['theta']:.4g}",
                         "detail": f"h = {r['measured']:.4g} s (theory {r['theory']:.4g} s)"})

@@ -1,7 +1,9 @@
 """The scene file's schema, declared once (pydantic v2, strict, ``extra="forbid"``).
 
 Every key a scene file may hold, its type, bounds, default, unit, example and
-meaning is declared here, and nowhere else: :mod:`validation.scenes` validates
+meaning is declared here, and nowhere else -- but a model's ``[params]``,
+which are generated from the model's own declaration (its ``parameters``,
+:mod:`rk4core.models.params`): :mod:`validation.scenes` validates
 a document's structure with :data:`SCENE` and keeps only the checks a schema
 cannot express (the model's degrees of freedom, ``h`` dividing
 ``output_dt``, the solvers a scene's own methods add, sweeps). The reference
@@ -10,10 +12,12 @@ and the JSON Schema are generated from these models::
     python -m validation.scene_schema --markdown > docs/scene-reference.md
     python -m validation.scene_schema --json-schema > docs/scene.schema.json
 
-The top level is a union on ``model``: one variant per built-in model, whose
-``[params]`` table is declared key by key, and one for a user's model
-(``"package.module:Class"``), whose ``[params]`` are its constructor's
-arguments (checked against the model registry by :mod:`validation.scenes`).
+The top level is a union on ``model``: one variant per built-in model
+(``rk4core.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
+from the model's declaration (:func:`params_table`), and one for a user's
+model (``"package.module:Class"``), whose ``[params]`` are checked by the
+table generated the same way from its class once :mod:`validation.scenes`
+has resolved it (:func:`params_error`).
 A callable discriminator picks the variant (a string naming a built-in model
 selects it, anything else the user variant), so only one variant is
 validated and its errors name the document's own fields. ``[stability]`` is
@@ -26,19 +30,19 @@ import json
 import sys
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, WrapValidator,
-                      create_model, model_validator)
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
+                      WrapValidator, create_model, model_validator)
 from pydantic_core import PydanticCustomError, PydanticUndefined
 
 from references.registry import _METHOD_NAME, BUILTIN
+from rk4core.models import BUILTIN_CLASSES, Param, ParamRule, declared
 from rk4core.models.base import MASS_MIN
-from rk4core.models.ode import MAX_VARIABLES
-from rk4core.models.potential import MAX_COORDINATES
+from rk4core.models.params import is_declared
 from validation.plan import EULER_THETAS, RK4_THETAS
 from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
 
-__all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "OUTPUTS", "OUTPUT_HELP", "TOP_KEYS", "INITIAL_KEYS",
-           "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
+__all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP",
+           "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
 
 #: What a scene may ask for in ``run.outputs``.
 OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
@@ -133,125 +137,67 @@ class _Table(BaseModel):
     model_config = _STRICT
 
 
-# -- [params], one table per built-in model --------------------------------------------
-class ChainParams(_Table):
-    """Masses in a line joined by springs (thesis sec. 2.1-2.2; FPUT chains with alpha, beta)."""
+# -- [params], one table per model, generated from its declaration ---------------------------
+def _param_type(p: Param):
+    """The pydantic type of declared parameter ``p`` (:data:`rk4core.models.params.KINDS`)."""
+    lengths = {k: v for k, v in (("min_length", p.min_length), ("max_length", p.max_length)) if v is not None}
+    if p.kind == "int":
+        bounds = {k: v for k, v in (("ge", p.ge), ("le", p.le)) if v is not None}
+        return Annotated[int, Field(**bounds)] if bounds else int
+    if p.kind == "choice":
+        return Literal[p.choices]  # type: ignore[valid-type]
+    if p.kind == "list[list[float]]":
+        lo, hi = p.item_length or (None, None)
+        row = Annotated[list[float], Field(**{k: v for k, v in (("min_length", lo), ("max_length", hi))
+                                              if v is not None})]
+        return Annotated[list[row], Field(**lengths)] if lengths else list[row]
+    base = {"normal": Normal, "finite": Finite, "bool": bool, "str": str, "normal|list": NormalOrList,
+            "list[normal]": list[Normal], "list[finite]": list[Finite], "list[str]": list[str],
+            "dict[str,finite]": dict[str, Finite], "any": Any}[p.kind]
+    return Annotated[base, Field(**lengths)] if lengths else base
 
-    masses: NormalOrList = _f("mass of each block, left to right; one number with `n` for n equal masses",
-                              "kg", [0.815, 3.099])
-    springs: NormalOrList = _f("stiffness of each spring, left to right: N+1 with walls = both, N with one wall, "
-                               "N-1 with none; one number for all", "N/m", [41.5, 138.0, 157.8])
-    walls: Literal["both", "left", "right", "none"] = _f("which ends are tied to a wall", "-", "both",
-                                                        default="both")
-    alpha: Finite = _f("cubic term of each spring's energy k r^2/2 + alpha r^3/3 + beta r^4/4 (FPUT alpha)",
-                       "N/m^2", 0.25, default=0.0)
-    beta: Finite = _f("quartic term of each spring's energy (FPUT beta)", "N/m^3", 1.0, default=0.0)
-    n: int = _f("number of masses when `masses` is one number", "masses", 2, default=None, ge=1, le=10**7)
 
-    @model_validator(mode="after")
-    def _counts(self):
-        many = isinstance(self.masses, list)
-        if not many and self.n is None:
-            raise _rule("must be given when `masses` is one number", at=".n")
-        if many and self.n is not None and self.n != len(self.masses):
-            raise _rule(f"disagrees with the {len(self.masses)} entries of `masses`", at=".n", value=self.n)
-        count = len(self.masses) if many else self.n
-        n_springs = count + {"both": 1, "left": 0, "right": 0, "none": -1}[self.walls]
-        if n_springs < 1:
-            raise _rule("must have at least 2 entries when walls = 'none'", at=".masses", value=self.masses)
-        if isinstance(self.springs, list) and len(self.springs) != n_springs:
-            raise _rule(f"must have {n_springs} entries for {count} masses and walls = {self.walls!r}",
-                       at=".springs", value=self.springs)
+def _param_field(p: Param):
+    """``(type, Field)`` of declared parameter ``p``."""
+    kw = {} if p.required else {"default": p.default}
+    if p.default_text is not None:
+        kw["default_text"] = p.default_text
+    return _param_type(p), _f(p.description, p.unit, p.example, **kw)
+
+
+def _check_rules(model_cls):
+    """The table's ``after`` validator: ``model_cls.check_parameters`` (rules
+    between parameters), its :class:`ParamRule` reported at the parameter."""
+    def check(self):
+        if not is_declared(model_cls):  # the rules go with the declaration they are written for
+            return self
+        try:
+            model_cls.check_parameters({name: getattr(self, name) for name in type(self).model_fields})
+        except ParamRule as e:
+            shown = {} if e.value is None else {"value": e.value}
+            raise _rule(e.problem, at=f".{e.at}", **shown) from None
         return self
+    return check
 
 
-class Planar4Params(_Table):
-    """One mass on four springs to anchors at (+-l, 0), (0, +-l) (thesis sec. 2.3, Tables 4.4-4.5)."""
-
-    m: Normal = _f("the mass", "kg", 0.815)
-    k: Normal = _f("stiffness of each spring", "N/m", 41.5)
-    l: Normal = _f("distance of each anchor from the centre, the springs' natural length", "m", 0.01)  # noqa: E741
-    linear: bool = _f("true: the linearized (small-amplitude) model; false: the exact spring geometry", "-",
-                      True, default=False)
-
-
-class Oscillator2DParams(_Table):
-    """The 2-D harmonic oscillator, isotropic or not (thesis sec. 2.3.2, Table 4.6)."""
-
-    m: Normal = _f("the mass", "kg", 0.815)
-    kx: Normal = _f("stiffness along x", "N/m", 41.5)
-    ky: Normal = _f("stiffness along y", "N/m", 83.0)
+def params_table(model_cls) -> type[BaseModel]:
+    """The ``[params]`` table of model class ``model_cls``, generated from its
+    declared ``parameters`` (:func:`rk4core.models.params.declared`: its
+    constructor's arguments, of any type, when it declares none), with its
+    ``check_parameters`` rules. Cached on the class."""
+    cached = model_cls.__dict__.get("_params_table")
+    if cached is not None:
+        return cached
+    name = model_cls.__name__.removesuffix("Model") or model_cls.__name__
+    fields = {p.name: _param_field(p) for p in declared(model_cls)}
+    table = create_model(f"{name}Params", __base__=_Table, __doc__=model_cls.summary or model_cls.__doc__,
+                         __validators__={"_rules": model_validator(mode="after")(_check_rules(model_cls))}, **fields)
+    model_cls._params_table = table
+    return table
 
 
-class PendulumsParams(_Table):
-    """Two equal pendulums coupled by a spring between the bobs (thesis sec. 1.1.1)."""
-
-    m: Normal = _f("mass of each bob", "kg", 1.0)
-    length: Normal = _f("length of each rod", "m", 1.0)
-    g: Normal = _f("gravitational acceleration", "m/s^2", 9.81)
-    k: Normal = _f("stiffness of the coupling spring", "N/m", 0.5)
-    linear: bool = _f("true: the small-angle equations; false: the exact ones", "-", True, default=False)
-    separation: Normal = _f("distance between the pivots, the spring's natural length", "m", 1.0, default=None,
-                            default_text="length")
-
-
-class TriangleParams(_Table):
-    """Three equal masses on the corners of an equilateral triangle of springs, free in the plane
-    (thesis sec. 1.1.1)."""
-
-    m: Normal = _f("mass at each corner", "kg", 0.815)
-    k: Normal = _f("stiffness of each side's spring", "N/m", 41.5)
-    side: Normal = _f("side of the triangle, the springs' natural length", "m", 0.1)
-
-
-class NetworkParams(_Table):
-    """Masses, anchors and springs with exact geometry, on a line or in the plane."""
-
-    dim: int = _f("dimension of the positions: 1 (a line) or 2 (the plane)", "-", 2, ge=1, le=2)
-    masses: list[Normal] = _f("one mass per node; the masses are nodes 0 .. n-1", "kg", [0.5, 0.8], min_length=1)
-    positions: list[Finite] = _f("reference positions of the masses, flat: dim numbers per mass", "m",
-                                 [-0.2, 0.0, 0.2, 0.0])
-    springs: list[Annotated[list[float], Field(min_length=3, max_length=4)]] = _f(
-        "springs as [a, b, k] or [a, b, k, rest]: nodes a and b (masses, then anchors), stiffness k (N/m), "
-        "natural length rest (m; default: the reference distance)", "N/m, m", [[0, 1, 50.0]], min_length=1)
-    anchors: list[Finite] = _f("fixed points, flat (dim numbers each): nodes n, n+1, ...", "m", [-0.6, 0.0],
-                               default=[])
-
-
-class PotentialParams(_Table):
-    """Any potential typed as text: V(q) over named coordinates (parsed by rk4core.expr, never eval'd)."""
-
-    coordinates: list[str] = _f("names of the generalized coordinates, as used in `potential`", "-",
-                                ["x", "y"], min_length=1, max_length=MAX_COORDINATES)
-    masses: NormalOrList = _f("mass of each coordinate (kg m^2 for an angle); one number for all", "kg", 1.0)
-    potential: str = _f("the potential energy V of the coordinates and `constants`: numbers, names, + - * / ^, "
-                        "sin cos tan sinh cosh tanh exp log sqrt", "J", "(x^2 + y^2)/2 + x^2*y - y^3/3")
-    constants: dict[str, Finite] = _f("named numbers used in `potential`", "-", {"lam": 1.0}, default=None)
-
-
-class OdeParams(_Table):
-    """Any first-order ODE typed as text: dy/dt = f(t, y) over named variables (parsed by rk4core.expr, never
-    eval'd); the initial state is `[initial] y`."""
-
-    variables: list[str] = _f("names of the state components, in order (not `t`: the time)", "-", ["u", "v"],
-                              min_length=1, max_length=MAX_VARIABLES)
-    equations: list[str] = _f("dy/dt of each variable, in the variables, `t` and `constants`: numbers, names, "
-                              "+ - * / ^, sin cos tan sinh cosh tanh exp log sqrt", "state units/s",
-                              ["v", "-u"], min_length=1, max_length=MAX_VARIABLES)
-    constants: dict[str, Finite] = _f("named numbers used in the expressions", "-", {"w": 1.0}, default=None)
-    invariant: str = _f("a quantity I(y) the exact flow conserves; its drift is measured like energy, "
-                        "max |I(t) - I0| / |I0|", "-", "u^2 + v^2", default=None,
-                        default_text="none (no energy column)")
-    exact: list[str] = _f("the exact solution from `[initial] y`, one expression of t per variable; the truth "
-                          "when given", "state units", ["cos(t)", "-sin(t)"], default=None, min_length=1,
-                          max_length=MAX_VARIABLES, default_text="none (two references that agree)")
-
-
-#: Built-in model name -> its ``[params]`` table.
-BUILTIN_MODELS: dict[str, type[BaseModel]] = {
-    "chain": ChainParams, "planar4": Planar4Params, "oscillator2d": Oscillator2DParams,
-    "pendulums": PendulumsParams, "triangle": TriangleParams, "network": NetworkParams,
-    "potential": PotentialParams, "ode": OdeParams}
+#: Built-in model name -> its ``[params]`` table, generated from rk4core's model registry.
+BUILTIN_MODELS: dict[str, type[BaseModel]] = {cls.name: params_table(cls) for cls in BUILTIN_CLASSES}
 
 
 # -- the other tables ----------------------------------------------------------------
@@ -446,7 +392,24 @@ _FIELD_PROBLEMS = {
     "run.max_output_points": "must be an integer >= 2",
 }
 
-def first_error(exc, doc) -> tuple[str, str, object]:
+def params_error(model_cls, params) -> tuple[str, str, object] | None:
+    """The first error of ``params`` as the ``[params]`` of model class
+    ``model_cls`` (a user's model: its :func:`params_table`), as
+    :func:`first_error` words it (field ``params.KEY``); None when valid."""
+    wrapper = model_cls.__dict__.get("_params_doc")
+    if wrapper is None:
+        wrapper = create_model(f"{params_table(model_cls).__name__}Doc", __config__=_STRICT,
+                               params=(params_table(model_cls), ...))
+        model_cls._params_doc = wrapper
+    doc = {"params": params}
+    try:
+        wrapper.model_validate(doc)
+    except ValidationError as e:
+        return first_error(e, doc, variant=wrapper)
+    return None
+
+
+def first_error(exc, doc, variant=None) -> tuple[str, str, object]:
     """The one error a scene reports of a failed :data:`SCENE` validation.
 
     Parameters
@@ -455,6 +418,8 @@ def first_error(exc, doc) -> tuple[str, str, object]:
         From ``SCENE.validate_python(doc)``.
     doc : dict
         The document validated (its keys give the error's path).
+    variant : type of BaseModel, optional
+        The model ``doc`` was validated with, when not :data:`SCENE`.
 
     Returns
     -------
@@ -471,6 +436,8 @@ def first_error(exc, doc) -> tuple[str, str, object]:
     the first error pydantic lists (fields in declaration order).
     """
     errors = exc.errors(include_url=False)
+    if variant is not None:  # validated by one model, not the union: no variant tag in front
+        errors = [{**e, "loc": (variant.__name__, *e["loc"])} for e in errors]
     err = min(errors, key=lambda e: e["type"] != "extra_forbidden")
     parts = _doc_path(err["loc"], doc)
     field = _dotted(parts)
@@ -480,7 +447,7 @@ def first_error(exc, doc) -> tuple[str, str, object]:
     if kind == "missing":
         return field, "is missing", None
     if kind == "extra_forbidden":
-        known = _known_keys(SCENE_MODELS[_which(doc)], parts[:-1])
+        known = _known_keys(variant or SCENE_MODELS[_which(doc)], parts[:-1])
         return field, f"unknown key (known: {', '.join(sorted(known))})", None
     value = err.get("input")
     if field in _FIELD_PROBLEMS:
@@ -703,7 +670,9 @@ _USER = """\
 ### `[params]` of a user's model
 
 With `model = "package.module:Class"` (a subclass of `rk4core.Model`, importable), the keys are the
-arguments of the class's `__init__`: those without a default are required, unknown keys are refused.
+class's declared `parameters` (`rk4core.models.Param` rows: kind, unit, default, description; checked
+as the built-ins' tables above are), or, when it declares none, the arguments of its `__init__`: those
+without a default are required, unknown keys are refused.
 """
 
 

@@ -641,7 +641,7 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
       (a stiffness matrix: its frequencies set the convergence grid);
     * ``linearization``: a nonlinear model with a linearization;
     * ``dispersion``: a uniform chain between walls (the rule the dispersion
-      output itself applies, ``validation.execute._uniform_chain``);
+      output itself applies, :meth:`rk4core.models.Model.uniform_chain`);
     * ``stability``: when the scene has a ``[stability]`` table;
     * ``thesis_code``: never (it runs the thesis' own programs, whatever the
       scene's model);
@@ -653,8 +653,6 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
     ``stability`` applies (every other output needs a dense eigensolve: the
     budget refuses it), so the list may be empty.
     """
-    from .execute import _uniform_chain
-
     if getattr(model, "first_order", False):  # any ODE: no modes; energy is its invariant's drift
         applies = {"state", "convergence", "work_precision", "figures"}
         if model.has_invariant():
@@ -672,7 +670,7 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
         applies |= {"convergence", "modes", "modal_energy"}
         if not model.linear:
             applies.add("linearization")
-        if _uniform_chain(model) is not None:
+        if model.uniform_chain() is not None:
             applies.add("dispersion")
     if stability:
         applies.add("stability")
@@ -680,18 +678,18 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
 
 
 def _build_model(path, model_name, params):
-    """The rk4core model of the scene's ``[params]``. A user's model's keys are
-    checked against its constructor here (a built-in's by the schema); what
-    rk4core still refuses is one line naming ``params``."""
-    from rk4core import make_model
-    from rk4core.models import model_parameters
+    """The rk4core model of the scene's ``[params]``. A user's model's
+    ``[params]`` are checked here by the table generated from its declared
+    parameters (its constructor's, when it declares none), as the schema
+    checks a built-in's; what rk4core still refuses is one line naming
+    ``params``."""
+    from rk4core import MODELS, make_model
+    from rk4core.models import resolve_model
 
     if model_name not in scene_schema.BUILTIN_MODELS:
-        required, optional = model_parameters(model_name)
-        _unknown_keys(path, "params", params, set(required) | set(optional))
-        for key in required:
-            if key not in params:
-                raise SceneError(path, f"params.{key}", "is missing")
+        err = scene_schema.params_error(MODELS[resolve_model(model_name)], params)
+        if err is not None:
+            raise SceneError(path, *err)
     try:
         return make_model(model_name, dict(params))
     except ValueError as e:

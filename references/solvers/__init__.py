@@ -140,9 +140,9 @@ def _check_inputs(model, y0, t_eval, atol, max_steps):
     return y0, t, atol
 
 
-#: The adapter of each reference solver: ``runner(model, y0, t, rtol, atol,
-#: max_steps) -> SolverRun``. A reference without an entry is an error, never
-#: another solver's run.
+#: The runner of each reference adapter (``Method.adapter`` in the registry):
+#: ``runner(model, y0, t, rtol, atol, max_steps) -> SolverRun``. A reference
+#: whose adapter has no entry is an error, never another solver's run.
 REFERENCE_RUNNERS = {
     "dop853": run_dop853,
     "cvode-adams": lambda *a: run_cvode("cvode-adams", *a),
@@ -203,8 +203,8 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
                                   nfev_per_step=method.nfev_per_step)
     if atol is None:
         atol = absolute_tolerance(model, y0, setting)
-    runner = REFERENCE_RUNNERS.get(method.name)
+    runner = REFERENCE_RUNNERS.get(method.adapter)
     if runner is None:
-        raise ValueError(f"solver: no adapter runs the reference {method.name!r} "
-                         f"(adapters: {', '.join(sorted(REFERENCE_RUNNERS))})")
+        raise ValueError(f"solver: no adapter runs the reference {method.name!r} (adapter {method.adapter!r}; "
+                         f"adapters: {', '.join(sorted(REFERENCE_RUNNERS))})")
     return runner(model, y0, t, setting, atol, int(max_steps))

@@ -12,12 +12,18 @@ numpy path, no compiled kernel). Give it a unique ``name``, and either call
 :func:`register_model` on the class or name it in a scene as ``model =
 "package.module:ClassName"`` (the module must be importable, e.g. on
 ``PYTHONPATH``; it is imported, so it must be your own code). Its
-constructor's keyword arguments are the scene's ``[params]``.
+constructor's keyword arguments are the scene's ``[params]``: declare them
+once as ``parameters`` (:class:`~rk4core.models.params.Param` rows: kind,
+unit, default, description) and the scene schema, its checks and the scene
+reference are generated from them; without a declaration they are read from
+the constructor's signature.
+
+A new built-in model is one file (the class, with its ``parameters``) plus
+its class in :data:`BUILTIN_CLASSES`.
 """
 from __future__ import annotations
 
 import importlib
-import inspect
 import re
 from collections.abc import Mapping
 
@@ -28,15 +34,19 @@ from .pendulums import Pendulums
 from .network import Network
 from .ode import FunctionOde, OdeModel
 from .planar4 import Planar4
+from .params import REQUIRED, Param, ParamRule, declared, is_declared
 from .potential import PotentialModel
 from .triangle import Triangle
 
-MODELS: dict[str, type[Model]] = {c.name: c for c in (Chain, Planar4, Oscillator2D, Pendulums, Triangle,
-                                                      Network, PotentialModel, OdeModel)}
+#: The built-in models, in the order the scene reference lists them: the
+#: registry's one line per model.
+BUILTIN_CLASSES: tuple[type[Model], ...] = (Chain, Planar4, Oscillator2D, Pendulums, Triangle, Network,
+                                             PotentialModel, OdeModel)
+MODELS: dict[str, type[Model]] = {c.name: c for c in BUILTIN_CLASSES}
 
-__all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network", "PotentialModel",
-           "OdeModel", "FunctionOde",
-           "MODELS", "make_model", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
+__all__ = ["Model", "Defined", "Drawing", "Chain", "Planar4", "Oscillator2D", "Pendulums", "Triangle", "Network",
+           "PotentialModel", "OdeModel", "FunctionOde", "MODELS", "BUILTIN_CLASSES", "Param", "ParamRule", "REQUIRED", "declared", "make_model",
+           "example_parameters", "model_parameters", "register_model", "resolve_model", "NUMPY", "HEYOKA"]
 
 _NAME = re.compile(r"[a-z][a-z0-9_-]*")
 _IMPORT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
@@ -81,11 +91,21 @@ def resolve_model(name: str) -> str:
 
 
 def model_parameters(name: str) -> tuple[list[str], list[str]]:
-    """(required, optional) parameter names of model ``name``."""
-    sig = inspect.signature(MODELS[resolve_model(name)].__init__)
-    ps = [p for p in sig.parameters.values() if p.name != "self"]
-    return ([p.name for p in ps if p.default is inspect.Parameter.empty],
-            [p.name for p in ps if p.default is not inspect.Parameter.empty])
+    """(required, optional) parameter names of model ``name``: its declared
+    ``parameters``, else its constructor's arguments
+    (:func:`rk4core.models.params.declared`)."""
+    ps = declared(MODELS[resolve_model(name)])
+    return [p.name for p in ps if p.required], [p.name for p in ps if not p.required]
+
+
+def example_parameters(name: str) -> dict:
+    """``{parameter: example}`` of model ``name``'s declared ``parameters``:
+    a valid ``[params]`` table (tests build every registered model from it).
+    Raises ``ValueError`` naming ``model`` for a model without a declaration."""
+    cls = MODELS[resolve_model(name)]
+    if not is_declared(cls):
+        raise ValueError(f"`model` {name!r} declares no parameters, so has no examples")
+    return {p.name: p.example for p in declared(cls)}
 
 
 def make_model(name: str, params: dict) -> Model:

@@ -300,6 +300,21 @@ class Model:
     n_dof: int
     mass: np.ndarray
     coord_names: list[str]
+    #: The constructor's keyword arguments, declared once
+    #: (:class:`rk4core.models.params.Param` rows); None: read from the signature.
+    parameters: ClassVar[tuple | None] = None
+    #: One line on what the model is (the scene reference's ``[params]`` heading).
+    summary: ClassVar[str] = ""
+    #: True for a first-order ODE dy/dt = f(t, y) (state y, no coordinates,
+    #: force or modes); False for a mechanical model with state [q, v].
+    first_order: ClassVar[bool] = False
+
+    @classmethod
+    def check_parameters(cls, values: dict) -> None:
+        """Rules between parameters that no single :class:`Param` row states;
+        ``values`` holds every declared parameter (defaults filled in). Raise
+        :class:`rk4core.models.params.ParamRule` naming the parameter blamed.
+        The default checks nothing."""
 
     # -- to implement -----------------------------------------------------
     def _potential(self, q, ops):  # pragma: no cover - abstract
@@ -315,6 +330,36 @@ class Model:
     def params(self) -> dict:
         """The parameters the model was built with (plain Python values)."""
         raise NotImplementedError
+
+    def uniform_chain(self) -> tuple[float, float] | None:
+        """``(m, k)`` (kg, N/m) when the model is drawn as masses on a line and
+        its linearization is that of equal masses ``m`` on equal springs ``k``
+        between two walls: stiffness matrix ``k tridiag(-1, 2, -1)`` (to
+        1e-12 relative). Else None. Read from the drawing and the mechanics,
+        never from the model's name; a model without a stiffness matrix gives
+        None."""
+        import scipy.sparse as sp
+
+        if self.drawing().layout != "line":
+            return None
+        mass = np.asarray(self.mass, dtype=float)
+        if mass.size == 0 or np.any(mass != mass[0]):
+            return None
+        try:
+            try:
+                K = self.stiffness_matrix(sparse=True)
+            except TypeError:
+                K = self.stiffness_matrix()
+        except NotImplementedError:
+            return None
+        K = sp.csr_matrix(K, dtype=float)
+        diag, up, low = K.diagonal(), K.diagonal(1), K.diagonal(-1)
+        outside = float(abs(K).sum() - np.abs(diag).sum() - np.abs(up).sum() - np.abs(low).sum())
+        k = float(diag[0]) / 2.0
+        tol = 1e-12 * abs(k)
+        uniform = (k > 0 and bool(np.all(np.abs(diag - 2 * k) <= tol)) and bool(np.all(np.abs(up + k) <= tol))
+                   and bool(np.all(np.abs(low + k) <= tol)) and abs(outside) <= tol * mass.size)
+        return (float(mass[0]), k) if uniform else None
 
     def force_kernel(self):
         """The compiled form of the force (:mod:`rk4core.models.compiled`),

@@ -31,6 +31,7 @@ from .base import Drawing, Model, check_masses, check_normal_positive
 from .compiled import ChainKernel
 from .network import (_np_stiffness, _np_tension_harmonic, spring_energy, spring_energy_heyoka, spring_tension,
                       spring_tension_heyoka)
+from .params import Param, ParamRule
 
 WALLS = ("both", "left", "right", "none")
 
@@ -54,6 +55,36 @@ class Chain(Model):
 
     name = "chain"
     linear = True
+    summary = "Masses in a line joined by springs (thesis sec. 2.1-2.2; FPUT chains with alpha, beta)."
+    parameters = (
+        Param("masses", "normal|list", "kg", "mass of each block, left to right; one number with `n` for n equal "
+              "masses", [0.815, 3.099]),
+        Param("springs", "normal|list", "N/m", "stiffness of each spring, left to right: N+1 with walls = both, N "
+              "with one wall, N-1 with none; one number for all", [41.5, 138.0, 157.8]),
+        Param("walls", "choice", "-", "which ends are tied to a wall", "both", default="both", choices=WALLS),
+        Param("alpha", "finite", "N/m^2", "cubic term of each spring's energy k r^2/2 + alpha r^3/3 + beta r^4/4 "
+              "(FPUT alpha)", 0.25, default=0.0),
+        Param("beta", "finite", "N/m^3", "quartic term of each spring's energy (FPUT beta)", 1.0, default=0.0),
+        Param("n", "int", "masses", "number of masses when `masses` is one number", 2, default=None, ge=1, le=10**7),
+    )
+
+    @classmethod
+    def check_parameters(cls, values):
+        """``n`` goes with one number for ``masses``; ``springs`` has as many
+        entries as the walls and masses need."""
+        masses, springs, walls, n = values["masses"], values["springs"], values["walls"], values["n"]
+        many = isinstance(masses, list)
+        if not many and n is None:
+            raise ParamRule("n", "must be given when `masses` is one number")
+        if many and n is not None and n != len(masses):
+            raise ParamRule("n", f"disagrees with the {len(masses)} entries of `masses`", n)
+        count = len(masses) if many else n
+        n_springs = count + {"both": 1, "left": 0, "right": 0, "none": -1}[walls]
+        if n_springs < 1:
+            raise ParamRule("masses", "must have at least 2 entries when walls = 'none'", masses)
+        if isinstance(springs, list) and len(springs) != n_springs:
+            raise ParamRule("springs", f"must have {n_springs} entries for {count} masses and walls = {walls!r}",
+                            springs)
 
     def __init__(self, masses, springs, walls="both", alpha=0.0, beta=0.0, n=None):
         self.walls = choice("walls", walls, WALLS)

@@ -34,6 +34,7 @@ import numpy as np
 from .. import expr as ex
 from .base import NUMPY, Drawing, Model, check_masses
 from .compiled import SpringKernel
+from .params import Param
 from .spring_template import NAMES, SPRING_ENERGY, TENSION
 
 __all__ = ["Network", "SPRING_ENERGY", "spring_energy", "spring_tension", "spring_energy_heyoka",
@@ -106,6 +107,19 @@ class Network(Model):
 
     name = "network"
     linear = False
+    summary = "Masses, anchors and springs with exact geometry, on a line or in the plane."
+    parameters = (
+        Param("dim", "int", "-", "dimension of the positions: 1 (a line) or 2 (the plane)", 2, ge=1, le=2),
+        Param("masses", "list[normal]", "kg", "one mass per node; the masses are nodes 0 .. n-1", [0.5, 0.8],
+              min_length=1),
+        Param("positions", "list[finite]", "m", "reference positions of the masses, flat: dim numbers per mass",
+              [-0.2, 0.0, 0.2, 0.0]),
+        Param("springs", "list[list[float]]", "N/m, m", "springs as [a, b, k] or [a, b, k, rest]: nodes a and b "
+              "(masses, then anchors), stiffness k (N/m), natural length rest (m; default: the reference "
+              "distance)", [[0, 1, 50.0]], min_length=1, item_length=(3, 4)),
+        Param("anchors", "list[finite]", "m", "fixed points, flat (dim numbers each): nodes n, n+1, ...",
+              [-0.6, 0.0], default=[]),
+    )
 
     def __init__(self, dim, masses, positions, springs, anchors=()):
         if isinstance(dim, bool) or dim not in (1, 2):

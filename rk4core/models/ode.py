@@ -40,6 +40,7 @@ import numpy as np
 
 from .. import expr as ex
 from .base import Model
+from .params import Param
 
 __all__ = ["OdeModel", "FunctionOde", "MAX_VARIABLES", "EXACT_Y0_RTOL"]
 
@@ -188,6 +189,23 @@ class OdeModel(_FirstOrder):
     """
 
     name = "ode"
+    summary = ("Any first-order ODE typed as text: dy/dt = f(t, y) over named variables (parsed by rk4core.expr, "
+               "never eval'd); the initial state is `[initial] y`.")
+    parameters = (
+        Param("variables", "list[str]", "-", "names of the state components, in order (not `t`: the time)",
+              ["u", "v"], min_length=1, max_length=MAX_VARIABLES),
+        Param("equations", "list[str]", "state units/s", "dy/dt of each variable, in the variables, `t` and "
+              "`constants`: numbers, names, + - * / ^, sin cos tan sinh cosh tanh exp log sqrt", ["v", "-u"],
+              min_length=1, max_length=MAX_VARIABLES),
+        Param("constants", "dict[str,finite]", "-", "named numbers used in the expressions", {"w": 1.0},
+              default=None),
+        Param("invariant", "str", "-", "a quantity I(y) the exact flow conserves; its drift is measured like "
+              "energy, max |I(t) - I0| / |I0|", "u^2 + v^2", default=None,
+              default_text="none (no energy column)"),
+        Param("exact", "list[str]", "state units", "the exact solution from `[initial] y`, one expression of t "
+              "per variable; the truth when given", ["cos(t)", "-sin(t)"], default=None, min_length=1,
+              max_length=MAX_VARIABLES, default_text="none (two references that agree)"),
+    )
 
     def __init__(self, variables, equations, constants=None, invariant=None, exact=None):
         names = self._check_variables(variables)

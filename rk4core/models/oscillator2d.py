@@ -10,6 +10,7 @@ import math
 
 from ..validate import positive
 from .base import Defined, Drawing, check_normal_positive
+from .params import Param
 from .potential import PotentialModel
 
 
@@ -18,6 +19,12 @@ class Oscillator2D(Defined):
     ``kx x^2/2 + ky y^2/2``."""
 
     name = "oscillator2d"
+    summary = "The 2-D harmonic oscillator, isotropic or not (thesis sec. 2.3.2, Table 4.6)."
+    parameters = (
+        Param("m", "normal", "kg", "the mass", 0.815),
+        Param("kx", "normal", "N/m", "stiffness along x", 41.5),
+        Param("ky", "normal", "N/m", "stiffness along y", 83.0),
+    )
 
     def __init__(self, m, kx, ky):
         self.m = check_normal_positive("m", positive("m", m))

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from ..validate import boolean, positive
 from .base import MASS_MIN, Defined, Drawing, check_normal_positive
+from .params import Param
 from .potential import PotentialModel
 
 #: The potential (J) of the exact model in the angles and the constants
@@ -33,6 +34,16 @@ class Pendulums(Defined):
     Defined by the potential :data:`EXACT` (or :data:`LINEAR`)."""
 
     name = "pendulums"
+    summary = "Two equal pendulums coupled by a spring between the bobs (thesis sec. 1.1.1)."
+    parameters = (
+        Param("m", "normal", "kg", "mass of each bob", 1.0),
+        Param("length", "normal", "m", "length of each rod", 1.0),
+        Param("g", "normal", "m/s^2", "gravitational acceleration", 9.81),
+        Param("k", "normal", "N/m", "stiffness of the coupling spring", 0.5),
+        Param("linear", "bool", "-", "true: the small-angle equations; false: the exact ones", True, default=False),
+        Param("separation", "normal", "m", "distance between the pivots, the spring's natural length", 1.0,
+              default=None, default_text="length"),
+    )
 
     def __init__(self, m, length, g, k, linear=False, separation=None):
         self.m = check_normal_positive("m", positive("m", m))

@@ -16,6 +16,7 @@ from __future__ import annotations
 from ..validate import boolean, positive
 from .base import Defined, Drawing, check_normal_positive
 from .network import Network
+from .params import Param
 from .potential import PotentialModel
 
 
@@ -27,6 +28,14 @@ class Planar4(Defined):
     the potential ``k (x^2 + y^2)``."""
 
     name = "planar4"
+    summary = "One mass on four springs to anchors at (+-l, 0), (0, +-l) (thesis sec. 2.3, Tables 4.4-4.5)."
+    parameters = (
+        Param("m", "normal", "kg", "the mass", 0.815),
+        Param("k", "normal", "N/m", "stiffness of each spring", 41.5),
+        Param("l", "normal", "m", "distance of each anchor from the centre, the springs' natural length", 0.01),
+        Param("linear", "bool", "-", "true: the linearized (small-amplitude) model; false: the exact spring "
+              "geometry", True, default=False),
+    )
 
     def __init__(self, m, k, l, linear=False):  # noqa: E741 - the thesis' symbol
         self.m = check_normal_positive("m", positive("m", m))

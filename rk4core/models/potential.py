@@ -54,6 +54,7 @@ from .. import expr as ex
 from ..validate import float_list, positive
 from .base import Model, check_masses
 from .compiled import ExprKernel
+from .params import Param
 
 __all__ = ["PotentialModel", "MAX_COORDINATES"]
 
@@ -95,6 +96,17 @@ class PotentialModel(Model):
     """
 
     name = "potential"
+    summary = "Any potential typed as text: V(q) over named coordinates (parsed by rk4core.expr, never eval'd)."
+    parameters = (
+        Param("coordinates", "list[str]", "-", "names of the generalized coordinates, as used in `potential`",
+              ["x", "y"], min_length=1, max_length=MAX_COORDINATES),
+        Param("masses", "normal|list", "kg", "mass of each coordinate (kg m^2 for an angle); one number for all",
+              1.0),
+        Param("potential", "str", "J", "the potential energy V of the coordinates and `constants`: numbers, names, "
+              "+ - * / ^, sin cos tan sinh cosh tanh exp log sqrt", "(x^2 + y^2)/2 + x^2*y - y^3/3"),
+        Param("constants", "dict[str,finite]", "-", "named numbers used in `potential`", {"lam": 1.0},
+              default=None),
+    )
 
     def __init__(self, coordinates, masses, potential, constants=None):
         self.coordinates = self._check_coordinates(coordinates)

@@ -15,6 +15,7 @@ import math
 from ..validate import positive
 from .base import Defined, Drawing, check_normal_positive
 from .network import Network
+from .params import Param
 
 _PAIRS = ((0, 1), (1, 2), (0, 2))
 
@@ -26,6 +27,13 @@ class Triangle(Defined):
     positions and three springs of natural length ``side``."""
 
     name = "triangle"
+    summary = ("Three equal masses on the corners of an equilateral triangle of springs, free in the plane "
+               "(thesis sec. 1.1.1).")
+    parameters = (
+        Param("m", "normal", "kg", "mass at each corner", 0.815),
+        Param("k", "normal", "N/m", "stiffness of each side's spring", 41.5),
+        Param("side", "normal", "m", "side of the triangle, the springs' natural length", 0.1),
+    )
 
     def __init__(self, m, k, side):
         self.m = check_normal_positive("m", positive("m", m))

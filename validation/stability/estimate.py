@@ -45,13 +45,15 @@ import math
 
 import numpy as np
 
+from references.registry import BUILTIN
+
 from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
 from ..metrics import energy_log_factor, phase_lag
 from .boundary import theory_boundary
 from ._common import frequency_range, heyoka_steps
 from .params import pick, validate_params
-from .studies import GROWTH_ALWAYS, context_method, parse_unit, units
+from .studies import COST_REFERENCES, GROWTH_ALWAYS, LONG_REFERENCES, context_method, parse_unit, units
 
 __all__ = ["estimate_steps", "unit_steps", "frequency_range", "heyoka_steps"]
 
@@ -66,6 +68,24 @@ def _dop853(p_fast, p_exc):
 
 def _bdf(p_exc, rtol):
     return 100.0 * (1e-10 / rtol) ** 0.2 * p_exc + 100
+
+
+def _reference_steps(name, p_fast, p_exc, rtol):
+    """Calibrated steps of reference ``name`` at ``rtol``, by its registry
+    capabilities: a Taylor method (heyoka's fit), a stiff solver (BDF's), else
+    an explicit adaptive Runge-Kutta method (DOP853's)."""
+    m = BUILTIN[name]
+    if m.taylor:
+        return heyoka_steps(p_fast, p_exc)
+    if m.stiff:
+        return _bdf(p_exc, rtol)
+    return _dop853(p_fast, p_exc)
+
+
+def _search_depth(name):
+    """How far below the target the guided rtol search of ``name`` reaches
+    (a stiff solver's error lags its rtol most)."""
+    return 1e-3 if BUILTIN[name].stiff else 0.1
 
 
 def _rungs(ladder, target, depth):
@@ -121,11 +141,9 @@ def _sweep(model, y0, target, ladder, skipped, meth, tab, max_rk4_steps=5e7):
         if err <= target:
             break
         h /= 2
-    out["dop853"] = 0.0 if "dop853" in skipped else sum(
-        min(_dop853(p_fast, p_exc), _ADAPTIVE_CAP) for _ in _rungs(ladder, target, 0.1))
-    out["cvode-bdf"] = 0.0 if "cvode-bdf" in skipped else sum(
-        min(_bdf(p_exc, r), _ADAPTIVE_CAP) for r in _rungs(ladder, target, 1e-3))
-    out["heyoka"] = sum(min(heyoka_steps(p_fast, p_exc), _ADAPTIVE_CAP) for _ in _rungs(ladder, target, 0.1))
+    for ref in COST_REFERENCES:
+        out[ref] = 0.0 if ref in skipped else sum(min(_reference_steps(ref, p_fast, p_exc, r), _ADAPTIVE_CAP)
+                                                  for r in _rungs(ladder, target, _search_depth(ref)))
     return out
 
 
@@ -135,7 +153,7 @@ def _cost_point(p, quick, study, x):
     what, build = {"stiffness": ("ratio", stiff_chain), "mass_ratio": ("mu", mass_ratio_chain)}[study]
     model, y0 = build(x)
     ratio, exc = excited_ratio(model, y0)
-    skipped = {sv for sv in ("dop853", "cvode-bdf", "heyoka") if skip_reason(sv, what, ratio, exc, quick)}
+    skipped = {sv for sv in COST_REFERENCES if skip_reason(sv, what, ratio, exc, quick)}
     return _sweep(model, y0, p["target_error"], RTOL_LADDER_QUICK if quick else RTOL_LADDER, skipped,
                   p["method"], p["_tab"])
 
@@ -159,7 +177,7 @@ def _boundary(model, p, quick, part):
 
 
 def _long_horizon(model, p, quick, part):
-    if not model.linear or part not in ("drift", "method", "heyoka", "cvode-bdf"):
+    if not model.linear or part not in ("drift", "method") + tuple(dict(LONG_REFERENCES)):
         return {}
     w_lo, w_hi = frequency_range(model)
     periods = pick(p, "long_periods", quick)
@@ -167,13 +185,13 @@ def _long_horizon(model, p, quick, part):
         return {p["method"]: 2000.0 * len(p["drift_theta"])}
     if part == "method":
         return {p["method"]: float(math.ceil(periods * 2 * math.pi / w_lo / (p["long_theta"] / w_hi)))}
-    if part == "heyoka":
+    if BUILTIN[part].taylor:  # the whole horizon, under its own step cap (studies._long_reference)
         from .studies import long_reference_max_steps
 
-        return {"heyoka": float(min(heyoka_steps(periods * w_hi / w_lo, periods * w_hi / w_lo),
-                                    long_reference_max_steps(model, periods)))}
-    ref = min(periods, pick(p, "reference_periods", quick))
-    return {"cvode-bdf": min(_bdf(ref * w_hi / w_lo, 1e-10), _ADAPTIVE_CAP)}
+        return {part: float(min(heyoka_steps(periods * w_hi / w_lo, periods * w_hi / w_lo),
+                                long_reference_max_steps(model, periods)))}
+    p_ref = min(periods, pick(p, "reference_periods", quick)) * w_hi / w_lo
+    return {part: min(_reference_steps(part, p_ref, p_ref, dict(LONG_REFERENCES)[part]), _ADAPTIVE_CAP)}
 
 
 def _roundoff(model, p, quick, part):

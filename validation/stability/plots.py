@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from references.registry import BUILTIN
+
 from .. import figures as F
 from ._common import FREQUENCY_RATIO, SWEEP_NAMES, cost_at_point, stiffest_index
 
@@ -181,7 +183,8 @@ def _cost(plot, out_dir):
     for solver in F._in_palette_order(list(d["nfev"])):
         color, marker = F.solver_style(solver)
         n, w = np.asarray(d["nfev"][solver], float), np.asarray(d["wall_s"][solver], float)
-        lab = solver + (" (steps x Taylor order)" if solver == "heyoka" else "")
+        meth = BUILTIN.get(solver)
+        lab = solver + (" (steps x Taylor order)" if meth is not None and meth.taylor else "")
         if not np.isfinite(n).any():
             lab += " (not run / not reached)"
         order = np.argsort(xd[main])

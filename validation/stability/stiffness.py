@@ -40,6 +40,7 @@ import numpy as np
 
 import rk4core
 from references.exact import modal_solution
+from references.registry import CostUnit, resolve
 
 from ._common import error_rel, integrate_fixed
 
@@ -94,11 +95,17 @@ def skip_reason(solver: str, what: str, ratio: float, exc_ratio: float, quick: b
     """Why ``solver`` is skipped at a sweep point (``what``: "ratio" for the
     stiff chain, "mu" for the two-mass chain), or None; see the module
     docstring. ``ratio``/``exc_ratio`` from :func:`excited_ratio`."""
-    if solver == "dop853" and what == "ratio" and ratio > DOP853_MAX_RATIO[bool(quick)]:
+    from references.registry import BUILTIN
+
+    m = BUILTIN.get(solver)
+    if m is None or not m.adaptive:  # the fixed-step method under study is never skipped
+        return None
+    explicit_rk = not (m.implicit or m.taylor)  # an explicit adaptive Runge-Kutta method (DOP853)
+    if explicit_rk and what == "ratio" and ratio > DOP853_MAX_RATIO[bool(quick)]:
         return (f"skipped for cost: omega_max/omega_min = {ratio:.3g} > {DOP853_MAX_RATIO[bool(quick)]:g}; "
-                f"explicit DOP853 is held to h ~ 3.3/omega_max by stability (~{ratio:.2g} steps of ~0.1-0.2 ms "
-                f"from Python per rtol tried) for an error the slow mode alone sets")
-    if solver == "cvode-bdf" and what == "mu" and exc_ratio > BDF_MAX_EXCITED_RATIO:
+                f"explicit {solver.upper()} is held to h ~ 3.3/omega_max by stability (~{ratio:.2g} steps of "
+                f"~0.1-0.2 ms from Python per rtol tried) for an error the slow mode alone sets")
+    if m.stiff and what == "mu" and exc_ratio > BDF_MAX_EXCITED_RATIO:
         return (f"skipped for cost: both modes excited, omega_max/omega_min = {exc_ratio:.3g} > "
                 f"{BDF_MAX_EXCITED_RATIO:g}; BDF must resolve every fast period (measured at mu = 1e-6: first "
                 f"meets 1e-6 at rtol 1e-12 with 4.3e5 steps, 51 s CPU for the rtol search)")
@@ -235,7 +242,7 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
                 with np.errstate(all="ignore"):
                     run = integrate(solver, model, y0, np.array([0.0, t_end]), rtol)
                 err = error_rel(model, run.y[:, -1:], ref, scale) if run.ok else math.nan
-                nfev = run.nfev if solver != "heyoka" else run.n_steps * (run.taylor_order or 0)
+                nfev = int(resolve(solver).cost(run.nfev, run.n_steps, run.taylor_order or 0))
                 return {"status": "ok" if run.ok else run.status.value, "error": err, "setting": rtol,
                         "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message}
 
@@ -245,7 +252,8 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
             r = runs[pick_]
             rec.update({k: r[k] for k in ("setting", "error", "nfev", "n_steps", "wall_s")})
             rec["status"] = "ok" if found is not None else ("not-reached" if r["status"] == "ok" else r["status"])
-            rec["note"] = ("heyoka: nfev = Taylor steps x order; " if solver == "heyoka" else "") + \
+            unit = resolve(solver).cost_unit
+            rec["note"] = (f"{solver}: nfev = {unit.text}; " if unit is CostUnit.TAYLOR_STEPS else "") + \
                 f"rtol tried: {tried}" + ("" if r["status"] == "ok" else f"; {r['message']}")
         out.append(rec)
     return out

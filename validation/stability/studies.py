@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.registry import BOUNDARY_ALWAYS, UNDER_TEST
+from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS, UNDER_TEST, long_references, with_role
 
 from . import boundary as B
 from . import geometry as G
@@ -59,13 +59,12 @@ __all__ = ["context_method", "units", "run_unit", "run_unit_in", "assemble", "fa
 
 REL_BOUNDARY = 0.005  # issue 6: boundaries within 0.5 % of theory
 REL_DRIFT = 0.02      # issue 6: drift and phase rates within 2 % where theta <= 0.5
-#: The references of the cost sweeps; the scene's ``stability.method`` runs first.
-COST_REFERENCES = ("dop853", "cvode-bdf", "heyoka")
+#: The references of the cost sweeps (the registry's methods with role
+#: ``"cost"``); the scene's ``stability.method`` runs first.
+COST_REFERENCES = with_role("cost")
 COST_SOLVERS = (UNDER_TEST,) + COST_REFERENCES  # with the default method
-#: Methods drawn in every growth-factor figure, beside ``stability.method``.
-GROWTH_ALWAYS = tuple(m for m in BOUNDARY_ALWAYS if m != "stormer-verlet")
-#: Long-horizon references: (solver, rtol).
-LONG_REFERENCES = (("heyoka", 1e-12), ("cvode-bdf", 1e-10))
+#: Long-horizon references: (solver, rtol), from the registry's ``long_rtol``.
+LONG_REFERENCES = long_references()
 #: heyoka's step cap on the long horizon: this many times the calibrated
 #: estimate (:mod:`.estimate`), at least LONG_MIN_STEPS (the references'
 #: default cap, which stopped the former 1e6-period run at 63 %), at most
@@ -74,7 +73,7 @@ LONG_STEP_MARGIN = 3.0
 LONG_MIN_STEPS = 5_000_000
 LONG_MAX_STEPS = 100_000_000
 #: ``method``: the long run of the scene's ``stability.method``.
-_LONG_PARTS = ("drift", "method", "heyoka", "cvode-bdf")
+_LONG_PARTS = ("drift", "method") + tuple(name for name, _ in LONG_REFERENCES)
 
 
 @dataclass
@@ -206,7 +205,7 @@ def failed_unit(scene, unit: str, exc: BaseException | str) -> StudyResult:
         study, part, params = parse_unit(unit)
     except ValueError:
         study, part, params = str(unit).partition(":")[0], None, {}
-    solver = part if part in ("heyoka", "cvode-bdf") else "-"
+    solver = part if part in dict(LONG_REFERENCES) else "-"
     text = exc if isinstance(exc, str) else f"{type(exc).__name__}: {exc}"
     return StudyResult(rows=[row(scene_name, study, solver, study, math.nan, passed=False, status="failed",
                                  note=f"unit {unit}: {text}", **params)])
@@ -375,8 +374,9 @@ def _long_reference(ctx, solver):
     _, w_lo = _omegas(m)
     rtol = dict(LONG_REFERENCES)[solver]
     periods = pick(p, "long_periods", ctx.quick)
-    per = periods if solver == "heyoka" else min(periods, pick(p, "reference_periods", ctx.quick))
-    cap = long_reference_max_steps(m, per) if solver == "heyoka" else None
+    taylor = BUILTIN[solver].taylor  # a Taylor method's long steps cover the whole horizon
+    per = periods if taylor else min(periods, pick(p, "reference_periods", ctx.quick))
+    cap = long_reference_max_steps(m, per) if taylor else None
     run, t, err = LH.reference_drift(solver, m, ctx.y0, per * 2 * math.pi / w_lo, rtol, max_steps=cap)
     ok = run.ok
     res.rows.append(row(s, "long_horizon", solver, "energy_drift_per_period", err[-1] / per if ok else math.nan,
@@ -508,7 +508,8 @@ def _assemble_cost(scene, study, res: StudyResult) -> None:
     res.findings.append(f"{scene}: RHS evaluations to reach {data['target_error']:g} at {FREQUENCY_RATIO} "
                         f"{pl['stiffness_ratio']:.3g} ({SWEEP_NAMES[what]} = {pl['x']:g}): "
                         + ", ".join(cost_at_point(sv, data["nfev"][sv][k], data["status"][sv][k]) for sv in solvers)
-                        + " (heyoka: Taylor steps x order)")
+                        + "".join(f" ({sv}: {BUILTIN[sv].cost_unit.text})" for sv in solvers
+                                  if sv in BUILTIN and BUILTIN[sv].taylor))
 
 
 def _sweep_unit(ctx: Context, study, part, params) -> StudyResult:
