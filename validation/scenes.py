@@ -586,8 +586,10 @@ def _scene_from_dict(doc: dict, path) -> Scene:
 
 
 def default_outputs(model, *, stability: bool = False) -> list[str]:
-    """What ``run.outputs`` is when a scene omits it: every output that applies
-    to ``model`` (an rk4core model), in :data:`OUTPUTS` order.
+    """What ``run.outputs`` is when a scene omits it: every output of
+    :data:`validation.outputs.OUTPUTS` whose ``applies`` holds for ``model``
+    (an rk4core model), in the registry's order. Each output module states its
+    rule; the built-ins:
 
     * ``state``, ``energy``, ``work_precision``, ``figures``: every model;
     * ``convergence``, ``modes``, ``modal_energy``: a model with a linearization
@@ -596,32 +598,17 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
     * ``dispersion``: a uniform chain between walls (the rule the dispersion
       output itself applies, ``validation.execute._uniform_chain``);
     * ``stability``: when the scene has a ``[stability]`` table;
-    * ``thesis_code``: never (it runs the thesis' own programs, whatever the
-      scene's model).
+    * ``thesis_code``, ``trajectory``: never (the thesis' own programs; every
+      run's states).
 
-    Above :data:`MAX_DENSE_DOF` degrees of freedom only
-    ``stability`` applies (every other output needs a dense eigensolve: the
-    budget refuses it), so the list may be empty.
+    Above :data:`MAX_DENSE_DOF` degrees of freedom only outputs that need no
+    dense eigensolve apply (``stability``: the budget refuses the others), so
+    the list may be empty.
     """
-    from .execute import _uniform_chain
+    from . import outputs
 
-    if model.n_dof > MAX_DENSE_DOF:
-        return ["stability"] if stability else []
-    try:
-        model.omega_bound()  # O(nnz): needs a stiffness matrix, no eigensolve
-        linearized = True
-    except Exception:  # noqa: BLE001 - a model without a linearization
-        linearized = False
-    applies = {"state", "energy", "work_precision", "figures"}
-    if linearized:
-        applies |= {"convergence", "modes", "modal_energy"}
-        if not model.linear:
-            applies.add("linearization")
-        if _uniform_chain(model) is not None:
-            applies.add("dispersion")
-    if stability:
-        applies.add("stability")
-    return [o for o in OUTPUTS if o in applies]
+    return outputs.default_outputs(outputs.ModelFacts(model, stability=stability,
+                                                      dense=model.n_dof <= MAX_DENSE_DOF))
 
 
 def _build_model(path, model_name, params):
