@@ -6,6 +6,7 @@ the runs' arrays."""
 import ast
 import importlib.util
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -89,38 +90,14 @@ def test_register_refuses_a_duplicate_and_a_non_output():
 
 
 # -- a new output in one file -------------------------------------------------------------
-NEW_OUTPUT = '''
-"""``initial_energy``: the model's energy at t = 0 (one run, one table)."""
-from validation.outputs import Output, Table, register
+def _docs_example() -> str:
+    """The one-file output of docs/outputs.md (so the example there is what runs here)."""
+    text = (REPO / "docs" / "outputs.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    return next(b for b in blocks if "OUTPUT = register(" in b)
 
 
-def plan(p):
-    return [p.spec("initial_energy")]
-
-
-def execute(scene, spec, quick):
-    from validation.execute import problem
-    from validation.records import RunRecord
-
-    model, y0 = problem(scene)
-    return RunRecord(spec.key, values={"energy_j": float(model.energy(y0))})
-
-
-def measure(m):
-    for spec in m.specs("initial_energy"):
-        m.res.add("initial_energy", {"scene": m.scene.name,
-                                     "energy_j": m.records[spec.key].values["energy_j"]})
-
-
-OUTPUT = register(Output(
-    name="initial_energy", when="never by default", what="the energy at t = 0: `initial_energy.csv`",
-    plan=plan, measure=measure, execute={"initial_energy": execute},
-    purposes={"initial_energy": "the model's energy at t = 0"},
-    tables=(Table("initial_energy", columns=(("scene", "", "str", "scene name"),
-                                             ("energy_j", "J", "float", "energy at t = 0")),
-                  description="the energy of each scene's initial state"),),
-))
-'''
+NEW_OUTPUT = _docs_example()
 
 
 @pytest.fixture
@@ -132,6 +109,7 @@ def new_output(tmp_path):
     spec.loader.exec_module(module)
     yield module.OUTPUT
     outputs.unregister("initial_energy")
+    assert "initial_energy" not in tables.COLUMNS and "initial_energy" not in outputs.names()
 
 
 def _scene(tmp_path, name, outs, **kw):

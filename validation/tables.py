@@ -144,6 +144,17 @@ def declare(table) -> None:
             TIMING[table.name] = set(table.timing)
 
 
+def forget(output) -> None:
+    """Remove the tables only ``output`` declared itself (after
+    :func:`validation.outputs.unregister`)."""
+    from validation import outputs
+
+    for t in output.tables:
+        if t.columns is not None and t.name not in outputs.table_names():
+            for d in (COLUMNS, DESCRIPTIONS, TIMING):
+                d.pop(t.name, None)
+
+
 def _derive() -> None:
     from validation import outputs
 
@@ -152,7 +163,7 @@ def _derive() -> None:
             declare(t)
     for name in SCENE_TABLES:
         COLUMNS[name] = _BUILTIN[name]
-    outputs.on_register(lambda o: [declare(t) for t in o.tables])
+    outputs.on_register(lambda o: [declare(t) for t in o.tables], forget)
 
 
 #: table -> its columns in written order: every registered output's tables

@@ -228,17 +228,26 @@ def register(output: Output, *, replace: bool = False) -> Output:
 
 
 def unregister(name: str) -> None:
-    """Remove output ``name`` (a test's clean-up); its tables stay declared."""
-    _REGISTRY.pop(name, None)
+    """Remove output ``name`` (a test's clean-up), and the tables only it declared."""
+    out = _REGISTRY.pop(name, None)
+    if out is not None:
+        for hook in _ON_UNREGISTER:
+            hook(out)
 
 
 #: Called with each newly registered output (validation.tables declares its tables).
 _ON_REGISTER: list[Callable[[Output], None]] = []
 
 
-def on_register(hook: Callable[[Output], None]) -> None:
-    """Call ``hook(output)`` for every output registered from now on."""
+_ON_UNREGISTER: list[Callable[[Output], None]] = []
+
+
+def on_register(hook: Callable[[Output], None], unregister: Callable[[Output], None] | None = None) -> None:
+    """Call ``hook(output)`` for every output registered from now on (and
+    ``unregister(output)`` for every one removed)."""
     _ON_REGISTER.append(hook)
+    if unregister is not None:
+        _ON_UNREGISTER.append(unregister)
 
 
 def _discover() -> None:
