@@ -163,6 +163,7 @@ def test_trajectory_netcdf_holds_the_records_arrays(tmp_path):
         assert ds.attrs["scene"] == "traj" and "energy: J" in ds.attrs["units"]
         assert ds["time"].attrs["units"] == "s" and ds["energy"].attrs["units"] == "J"
         assert ds.sizes["run"] == 4 and ds.sizes["component"] == 2
+        assert [str(c) for c in ds["component"].values] == ["x1", "dx1/dt"]
         for i, spec in enumerate(runs):
             rec = execute.execute(scene, spec)  # the run again: fixed steps and DOP853 repeat exactly
             one = ds.isel(run=i)

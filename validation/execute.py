@@ -235,7 +235,10 @@ def _trajectory(model, t, run) -> dict:
     y = np.asarray(run.y, float)
     if y.ndim != 2 or y.shape[1] != t.shape[0]:
         return {}
+    names = [str(n) for n in getattr(model, "coord_names", [])]
     out = {"trajectory_t": np.asarray(t, float), "trajectory_y": y}
+    if len(names) == model.n_dof:  # the state's components: q names, then their rates
+        out["trajectory_names"] = np.array(names + [f"d{n}/dt" for n in names], dtype=str)
     try:
         out["trajectory_energy"] = np.asarray(model.energy(y), float).reshape(t.shape)
     except Exception:  # noqa: BLE001 - a model without an energy: none recorded

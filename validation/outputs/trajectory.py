@@ -6,7 +6,8 @@ engine: no C library), with dimensions ``run``, ``time``, ``component``:
 * ``y(run, time, component)``: the state ``[q, v]`` in the model's units
   (m and m/s, or rad and rad/s);
 * ``energy(run, time)``: the model's energy (J) where it has one, else NaN;
-* ``time(time)`` (s), and per run ``solver``, ``setting``, ``h`` (s, NaN for
+* ``time(time)`` (s), ``component(component)`` the state's names (the
+  model's coordinates, then ``d<name>/dt``), and per run ``solver``, ``setting``, ``h`` (s, NaN for
   an adaptive reference), ``rtol`` (NaN for a fixed-step method) and
   ``status``;
 * attributes ``scene``, ``units`` and the convention of ``setting``.
@@ -45,7 +46,8 @@ def measure(m) -> None:
                      "t": None if t is None else np.asarray(t, float),
                      "y": None if t is None else np.asarray(a["trajectory_y"], float),
                      "energy": None if t is None or "trajectory_energy" not in a
-                     else np.asarray(a["trajectory_energy"], float)})
+                     else np.asarray(a["trajectory_energy"], float),
+                     "names": None if "trajectory_names" not in a else [str(x) for x in a["trajectory_names"]]})
         n_times = 0 if t is None else int(np.asarray(t).shape[0])
         n_state = 0 if t is None else int(np.asarray(a["trajectory_y"]).shape[0])
         m.res.add("trajectory", {"scene": m.scene.name, "solver": spec.solver, "setting": float(spec.setting),
@@ -67,6 +69,7 @@ def dataset(scene: str, runs: list, references=None):
     kept = [r for r in runs if r["t"] is not None]
     t = kept[0]["t"] if kept else np.zeros(0)
     n_state = kept[0]["y"].shape[0] if kept else 0
+    names = next((r["names"] for r in kept if r.get("names") and len(r["names"]) == n_state), None)
     y = np.full((len(runs), t.shape[0], n_state), np.nan)
     energy = np.full((len(runs), t.shape[0]), np.nan)
     for i, r in enumerate(runs):
@@ -81,6 +84,7 @@ def dataset(scene: str, runs: list, references=None):
         {"y": (("run", "time", "component"), y, {"long_name": "state [q, v]", "units": "model units"}),
          "energy": (("run", "time"), energy, {"long_name": "energy of the model", "units": "J"})},
         coords={"time": ("time", t, {"units": "s"}),
+                **({"component": ("component", np.array(names, dtype=str))} if names else {}),
                 "run": ("run", np.arange(len(runs))),
                 "solver": ("run", np.array([r["solver"] for r in runs], dtype=str)),
                 "setting": ("run", setting, {"units": "s or 1"}),
