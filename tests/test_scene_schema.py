@@ -18,6 +18,7 @@ from pydantic import BaseModel
 import rk4core
 from rk4core.models import MODELS, model_parameters
 from validation import scene_schema
+from validation import outputs as registry
 from validation.scenes import SCENE_DIR, SceneError, default_outputs, scene_from_dict, scene_points_from_dict
 
 REPO = Path(__file__).resolve().parent.parent
@@ -305,24 +306,35 @@ def no_linearization():
     MODELS.pop(NoLinearization.name, None)
 
 
+#: The built-in rules: outputs every model gets, those a linearization adds.
 EVERY = ["state", "energy", "work_precision", "figures"]
-MODAL = ["state", "energy", "convergence", "work_precision", "modes", "figures", "modal_energy"]
+MODAL = EVERY + ["convergence", "modes", "modal_energy"]
+#: Built-ins only some models (or no default) get.
+SPECIAL = ["dispersion", "linearization", "stability", "thesis_code", "trajectory"]
 
 
-def _ordered(names):
-    return [o for o in scene_schema.OUTPUTS if o in names]
+def _defaults_hold(outputs, including):
+    """``outputs`` (a scene's default) holds ``including``, no other output of
+    :data:`SPECIAL`, and is in the registry's order. Outputs the test does not
+    name (a later registration) are left to their own ``applies``."""
+    assert set(including) <= set(outputs), sorted(set(including) - set(outputs))
+    assert not (set(SPECIAL) - set(including)) & set(outputs)
+    assert outputs == [o for o in registry.names() if o in outputs]
+
+
+def test_the_rules_name_registered_outputs():
+    assert set(MODAL + SPECIAL) <= set(registry.names())
 
 
 OUTPUT_CASES = [
     ("chain", lambda d: None, MODAL),
     ("uniform-chain-has-dispersion", lambda d: d["params"].update(masses=1.0, springs=1.0, n=2),
-     _ordered(MODAL + ["dispersion"])),
+     MODAL + ["dispersion"]),
     ("nonlinear-planar4-has-linearization", lambda d: d.update(_params_base("planar4")),
-     _ordered(MODAL + ["linearization"])),
+     MODAL + ["linearization"]),
     ("linear-planar4", lambda d: d.update(_params_base("planar4"), params={**_params_base("planar4")["params"],
                                                                            "linear": True}), MODAL),
-    ("stability-table", lambda d: d.update(stability={"studies": ["boundary"]}), _ordered(MODAL + ["stability"])),
-    ("explicit-outputs-kept", lambda d: d["run"].update(outputs=["energy"]), ["energy"]),
+    ("stability-table", lambda d: d.update(stability={"studies": ["boundary"]}), MODAL + ["stability"]),
 ]
 
 
@@ -331,14 +343,21 @@ def test_outputs_default_to_what_applies(case, change, expected):
     doc = copy.deepcopy(BASE)
     change(doc)
     scene = scene_from_dict(doc, "ok.toml")
-    assert scene.outputs == expected
-    assert "thesis_code" not in scene.outputs
+    _defaults_hold(scene.outputs, expected)
+
+
+def test_explicit_outputs_are_kept():
+    doc = copy.deepcopy(BASE)
+    doc["run"].update(outputs=["energy"])
+    assert scene_from_dict(doc, "ok.toml").outputs == ["energy"]
 
 
 def test_a_model_without_linearization_gets_no_modal_output(no_linearization):
     doc = {**copy.deepcopy(BASE), "model": no_linearization, "params": {"m": 1.0, "k": 4.0},
            "initial": {"x": [0.1]}}
-    assert scene_from_dict(doc, "ok.toml").outputs == EVERY
+    got = scene_from_dict(doc, "ok.toml").outputs
+    _defaults_hold(got, EVERY)
+    assert not set(MODAL[len(EVERY):]) & set(got)
 
 
 def test_each_sweep_point_gets_its_own_default():

@@ -237,9 +237,13 @@ def table_columns(name: str, strict: bool = True) -> list[Column]:
     A column of :data:`validation.tables.COLUMNS` without a declaration
     raises ``KeyError`` when ``strict``, else gets dtype :data:`UNDECLARED`
     (a report run is not lost to a column someone forgot to declare)."""
+    from validation import outputs
     from validation.tables import COLUMNS
 
     own = _TABLES.get(name, {})
+    declared_by_output = outputs.own_table(name)
+    if declared_by_output is not None:  # an output's own table (validation.outputs.Table)
+        own = {c[0]: tuple(c[1:]) for c in declared_by_output.columns}
     out = []
     for c in COLUMNS[name]:
         spec = own.get(c) or _COMMON.get(c)

@@ -66,6 +66,11 @@ def _draw(job, out_dir, scenes_by_name) -> list:
         return [sweep_figure(out_dir, **d)]
     if job.kind == "crossover":
         return [f.crossover(out_dir, pd.DataFrame(d["rows"]))]
+    from . import outputs
+
+    fn = outputs.drawer(job.kind)  # a figure an output draws itself (validation.outputs.Output.draw)
+    if fn is not None:
+        return list(fn(out_dir, job, scenes_by_name.get(name) if scenes_by_name else None))
     raise ValueError(f"unknown figure kind {job.kind!r}")
 
 

@@ -179,7 +179,7 @@ def execute(scene, spec: RunSpec, quick: bool = False) -> RunRecord:
     t0 = time.perf_counter()
     try:
         with np.errstate(all="ignore"):
-            rec = _PURPOSE[spec.purpose](scene, spec, quick)
+            rec = _executor(spec.purpose)(scene, spec, quick)
     except Exception as e:  # noqa: BLE001 - a fault in one run is a failed record
         if is_environment_error(e) or interrupt.pending():
             raise
@@ -236,10 +236,29 @@ def _run_spec(scene, spec, quick):
     if "energy" in spec.keep and ok:
         arrays["energy_t"] = t
         arrays["energy_rel"] = np.abs(metrics.relative_energy_error(model, run.y))
+    if "trajectory" in spec.keep:  # the trajectory output (validation.outputs.trajectory)
+        arrays.update(_trajectory(model, t, run))
     timing = {"wall_s": float(np.median(walls)), "wall_min": float(min(walls)), "wall_max": float(max(walls)),
               "repeats": len(walls), "compile_s": float(run.compile_s)}
     return RunRecord(spec.key, status=status, message=_first_line(run.message), values=values, timing=timing,
                      arrays=arrays)
+
+
+def _trajectory(model, t, run) -> dict:
+    """The run's times (s), states (2 n_dof, m) and energies (J, where the
+    model has an energy) when it covers the whole grid ``t``; else nothing."""
+    y = np.asarray(run.y, float)
+    if y.ndim != 2 or y.shape[1] != t.shape[0]:
+        return {}
+    names = [str(n) for n in getattr(model, "coord_names", [])]
+    out = {"trajectory_t": np.asarray(t, float), "trajectory_y": y}
+    if len(names) == model.n_dof:  # the state's components: q names, then their rates
+        out["trajectory_names"] = np.array(names + [f"d{n}/dt" for n in names], dtype=str)
+    try:
+        out["trajectory_energy"] = np.asarray(model.energy(y), float).reshape(t.shape)
+    except Exception:  # noqa: BLE001 - a model without an energy: none recorded
+        pass
+    return out
 
 
 def _figure_spec(scene, spec, quick):
@@ -384,3 +403,16 @@ _PURPOSE = {"truth": _truth_spec, "run": _run_spec, "figure": _figure_spec, "ord
             "confirm": _run_spec, "modal": _modal_spec, "modes": _modes_spec, "dispersion": _dispersion_spec,
             "packet": _packet_spec, "linearization": _linearization_spec, "stability": _stability_spec,
             "thesis_code": _thesis_code_spec}
+
+
+def _executor(purpose: str):
+    """The function running a spec of ``purpose``: a built-in, else the one an
+    output declares (:attr:`validation.outputs.Output.execute`)."""
+    fn = _PURPOSE.get(purpose)
+    if fn is None:
+        from . import outputs
+
+        fn = outputs.executor(purpose)
+    if fn is None:
+        raise ValueError(f"no executor for purpose {purpose!r}")
+    return fn

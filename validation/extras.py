@@ -4,7 +4,7 @@ saying how to get it when it is missing.
 The base install (numpy, scipy) is what :func:`rk4core.solve` needs. The
 report and the advisor need the extras ``fast`` (numba: the compiled
 loops), ``references`` (heyoka, scikit-sundae) and ``report`` (pandas,
-matplotlib, pydantic, pyarrow: the Parquet tables); ``--scheduler`` needs ``cluster`` (dask,
+matplotlib, pydantic, pyarrow: the Parquet tables; xarray: netCDF trajectories); ``--scheduler`` needs ``cluster`` (dask,
 distributed). ``pip install 'rk4-validation-harness[all]'`` installs them all.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ __all__ = ["EXTRAS", "NEEDS", "missing", "message"]
 EXTRAS = {
     "fast": ("numba",),
     "references": ("heyoka", "sksundae"),
-    "report": ("pandas", "matplotlib", "pydantic", "pyarrow"),
+    "report": ("pandas", "matplotlib", "pydantic", "pyarrow", "xarray"),
     "cluster": ("dask", "distributed"),
 }
 #: Command -> the extras it cannot run without.

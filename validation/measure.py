@@ -70,6 +70,8 @@ class SceneTables:
     truth_kind: str = ""
     seconds: float = 0.0
     drawn: list = field(default_factory=list)
+    #: files other than tables and figures (validation.outputs.FileJob)
+    files: list = field(default_factory=list)
 
     def add(self, table, row):
         self.tables.setdefault(table, []).append(row)
@@ -101,18 +103,11 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
                                     f"that agreement are measured against dop853 alone")
         if rec.status == "failed" and s.grid != "figure":  # (_state_figure says it for the figure grid)
             _failed(res, s, rec)  # no reference: a failed check, never blank errors beside a green line
-    _runs(scene, by.get("run", []), records, res, draw, by.get("confirm", []))
-    _state_figure(scene, by.get("figure", []) + [s for s in by.get("truth", []) if s.grid == "figure"],
-                  records, res)
-    _linearization(scene, by.get("linearization", []), records, res)
-    if by.get("order"):
-        _convergence(scene, by["order"], records, res, draw)
-    _modes(scene, by.get("modes", []), records, res)
-    _dispersion(scene, by.get("dispersion", []), by.get("packet", []), records, res, draw)
-    _modal(scene, by.get("modal", []), records, res, draw)
-    if by.get("stability"):
-        _stability(scene, by["stability"], records, res, quick)
-    _thesis_code(scene, by.get("thesis_code", []), records, res)
+    from . import outputs
+
+    m = outputs.Measuring(scene, by, records, res, quick, draw)
+    for hook in outputs.measure_hooks(scene.outputs):  # each output's measurement (validation.outputs)
+        hook(m)
     _methods_table(scene, res)
     if scene_sweep(scene):
         cols = scene_sweep(scene)
@@ -503,6 +498,18 @@ def _stability(scene, specs, records, res, quick):
     res.findings.extend(study.findings)
     for p in study.plots:
         res.figures.append(FigureJob(scene.name, "stability", {"plot": p}))
+
+
+#: The measurements the output modules delegate to (validation.outputs).
+measure_runs = _runs
+measure_state_figure = _state_figure
+measure_linearization = _linearization
+measure_convergence = _convergence
+measure_modes = _modes
+measure_dispersion = _dispersion
+measure_modal = _modal
+measure_stability = _stability
+measure_thesis_code = _thesis_code
 
 
 def _params_text(row) -> str:

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from references.registry import CONVERGENCE_ALWAYS, UNDER_TEST
+from references.registry import CONVERGENCE_ALWAYS
 
 __all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS",
            "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "order_methods", "settings_of", "PURPOSES",
@@ -207,51 +207,16 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
 
     ``figures`` adds what the figures keep (energy series, the trajectory of
     the state figures); ``repeats`` is the timing repeats of ``run`` specs."""
-    dig = scene_digest(scene)
-    want = set(scene.outputs)
-    draw = figures and "figures" in want
-    spec = lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw)  # noqa: E731
-    out = []
-    trajectories = bool({"state", "energy", "work_precision"} & want)
-    nonlinear = _nonlinear(scene)
-    if trajectories or "linearization" in want:
-        out.append(spec("truth", grid="scene"))
-    if trajectories:
-        for solver in scene.solvers:
-            for s in settings_of(scene, solver):
-                out.append(spec("run", solver=solver, setting=float(s), grid="scene", repeats=int(repeats),
-                                keep=("energy",) if draw and "energy" in want else ()))
-    if draw:  # the thesis' state figures: RK4 at the finest step, or the reference
-        if scene.h and under_test(scene):
-            out.append(spec("figure", solver=under_test(scene), setting=float(min(scene.h)), grid="figure",
-                            keep=("trajectory",)))
-        else:
-            out.append(spec("truth", grid="figure", keep=("trajectory",)))
-    if "linearization" in want and nonlinear:
-        out.append(spec("linearization", grid="scene", keep=("trajectory",) if draw else ()))
-    if "convergence" in want:
-        for method, key, default in order_methods(scene):
-            thetas = tuple(sorted(scene.convergence.get(key, default), reverse=True))
-            out.append(spec("truth", grid="order", params=(("theta0", float(thetas[0])),)))
-            for th in thetas:
-                out.append(spec("order", solver=method, setting=float(th), grid="order",
-                                params=(("theta0", float(thetas[0])),)))
-    if "modes" in want:
-        out.append(spec("modes"))
-    if "dispersion" in want:
-        out.append(spec("dispersion"))
-        packet_method = under_test(scene) or UNDER_TEST
-        out += [spec("packet", solver=packet_method, setting=float(kp)) for kp in PACKET_KP]
-    if "modal_energy" in want:
-        for solver in scene.solvers:
-            out.append(spec("modal", solver=solver, setting=float(min(settings_of(scene, solver))),
-                            grid="scene", keep=("modal",)))
-    if "thesis_code" in want:
-        out.append(spec("thesis_code"))
-    if "stability" in want:
-        from . import stability
+    from . import outputs
 
-        out += [spec("stability", unit=u) for u in stability.units(scene, quick)]
+    dig = scene_digest(scene)
+    want = frozenset(scene.outputs)
+    draw = figures and "figures" in want
+    p = outputs.Planning(scene, want, draw, quick, int(repeats),
+                         lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw))
+    out = []
+    for hook in outputs.plan_hooks(want):  # each output's runs (validation.outputs), in plan order
+        out += hook(p)
     seen = set()  # one run per key (two sweeps on one grid share their reference)
     return [s for s in out if not (s.key in seen or seen.add(s.key))]
 

@@ -459,6 +459,11 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
         failures += r.failures
         findings += r.findings
     findings = timing_context.findings(load) + report.summarize(tables) + findings
+    from validation import outputs
+
+    files, file_failures = outputs.write_files(out_dir, results)  # e.g. the trajectory output's netCDF
+    findings += [str(sentence) for _, sentence in files]
+    failures += file_failures
     front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
     paths = report.write_tables(out_dir, tables, front=front)
     report.write_index(out_dir, results=results, tables=tables, table_paths=paths,

@@ -32,45 +32,26 @@ from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
                       WrapValidator, create_model, model_validator)
-from pydantic_core import PydanticCustomError, PydanticUndefined
+from pydantic_core import PydanticCustomError, PydanticUndefined, core_schema
 
 from references.registry import _METHOD_NAME, BUILTIN
 from rk4core.models import BUILTIN_CLASSES, Param, ParamRule, declared
 from rk4core.models.base import MASS_MIN
 from rk4core.models.params import is_declared
+from validation import outputs as _outputs
 from validation.plan import EULER_THETAS, RK4_THETAS
 from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
 
 __all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP",
            "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
 
-#: What a scene may ask for in ``run.outputs``.
-OUTPUTS = ("state", "energy", "convergence", "work_precision", "modes", "figures",
-           "stability", "dispersion", "modal_energy", "linearization", "thesis_code")
-#: output -> (when it applies, so is in the default ``run.outputs``; what it adds to the report).
-#: The rule is :func:`validation.scenes.default_outputs`.
-OUTPUT_HELP = {
-    "state": ("every model", "every solver at every step or tolerance against the reference: `accuracy.csv`"),
-    "energy": ("every model", "energy drift of those runs, against theory for tableaux on linear models: "
-                              "`energy.csv`, the energy figure"),
-    "convergence": ("models with a linearization (modes); first-order ODEs (model `ode`: theta = rate h, "
-                    "rate the spectral radius of the Jacobian at y0)", "observed order of every fixed-step method from a "
-                    "sweep of omega_max h (`[convergence]`): `convergence.csv`"),
-    "work_precision": ("every model", "error against wall time and RHS calls, the cheapest solver per "
-                       "target: `work_precision.csv`, the work-precision figure"),
-    "modes": ("models with a linearization", "natural frequencies of the linearization: `modes.csv`"),
-    "figures": ("every model", "the figures of the outputs above and the state figures (trajectory, phase "
-                "portrait)"),
-    "stability": ("scenes with a `[stability]` table", "the stability study: `stability.csv` and its figures"),
-    "dispersion": ("uniform chains between walls", "the chain's frequencies against the lattice's dispersion "
-                   "relation, and RK4 wave packets: `dispersion.csv`"),
-    "modal_energy": ("models with a linearization", "energy in each of the lowest four modes against time (FPUT): "
-                     "`modal_energy.csv` and its figure"),
-    "linearization": ("nonlinear models with a linearization", "the linearized model's exact solution against "
-                      "the nonlinear truth: `linearization.csv`"),
-    "thesis_code": ("never by default (it runs the thesis' own programs, not the scene's model)",
-                    "the thesis' Code 01-03 in GNU Octave against rk4core: `thesis_code.csv`"),
-}
+#: What a scene may ask for in ``run.outputs``: the output registry's names
+#: (:mod:`validation.outputs`) when this module was imported; the schema
+#: itself reads the registry at validation time (:class:`_OutputName`).
+OUTPUTS = _outputs.names()
+#: output -> (when it applies, so is in the default ``run.outputs``; what it adds to the report),
+#: from the registry. The rule is :func:`validation.scenes.default_outputs`.
+OUTPUT_HELP = _outputs.help_rows()
 NAME_PATTERN = "^[a-z0-9][a-z0-9_-]*$"
 NAME_MAX = 100
 #: A name in a ``[sweep]`` path.
@@ -117,7 +98,31 @@ OpenUnit = Annotated[float, Field(allow_inf_nan=False, json_schema_extra={"exclu
                                                                           "exclusiveMaximum": 1}),
                      AfterValidator(_open_unit)]
 Names = Annotated[list[str], Field(min_length=1), AfterValidator(_distinct)]
-Output = Literal[OUTPUTS]  # type: ignore[valid-type]
+
+
+def _output_name(name: str) -> str:
+    known = _outputs.names()
+    if name not in known:
+        expected = ", ".join(f"'{o}'" for o in known[:-1]) + f" or '{known[-1]}'"
+        raise _rule(f"must be {expected}", value=name)
+    return name
+
+
+class _OutputName(str):
+    """A name of :data:`validation.outputs.OUTPUTS`, read when a scene is
+    validated (an output registered after import is accepted); its JSON
+    Schema is the registry's names."""
+
+    @classmethod
+    def __get_pydantic_core_schema__(cls, source, handler):
+        return core_schema.no_info_after_validator_function(_output_name, core_schema.str_schema(strict=True))
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, schema, handler):
+        return {"type": "string", "enum": list(_outputs.names())}
+
+
+Output = _OutputName
 
 
 def _shape(v) -> str:
@@ -678,7 +683,7 @@ without a default are required, unknown keys are refused.
 
 def _outputs_table() -> str:
     rows = ["| output | in the default when | adds |", "|---|---|---|"]
-    rows += [f"| `{o}` | {when} | {what} |" for o, (when, what) in OUTPUT_HELP.items()]
+    rows += [f"| `{o}` | {when} | {what} |" for o, (when, what) in _outputs.help_rows().items()]
     return "\n".join(rows)
 
 

@@ -633,8 +633,10 @@ def _first_order_solver(path, i, solver, methods) -> None:
 
 
 def default_outputs(model, *, stability: bool = False) -> list[str]:
-    """What ``run.outputs`` is when a scene omits it: every output that applies
-    to ``model`` (an rk4core model), in :data:`OUTPUTS` order.
+    """What ``run.outputs`` is when a scene omits it: every output of
+    :data:`validation.outputs.OUTPUTS` whose ``applies`` holds for ``model``
+    (an rk4core model), in the registry's order. Each output module states its
+    rule; the built-ins:
 
     * ``state``, ``energy``, ``work_precision``, ``figures``: every model;
     * ``convergence``, ``modes``, ``modal_energy``: a model with a linearization
@@ -643,38 +645,20 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
     * ``dispersion``: a uniform chain between walls (the rule the dispersion
       output itself applies, :meth:`rk4core.models.Model.uniform_chain`);
     * ``stability``: when the scene has a ``[stability]`` table;
-    * ``thesis_code``: never (it runs the thesis' own programs, whatever the
-      scene's model);
+    * ``thesis_code``, ``trajectory``: never (the thesis' own programs; every
+      run's states);
     * a first-order ODE (model ``ode``): ``state``, ``convergence``,
       ``work_precision``, ``figures``, and ``energy`` when it has an
       invariant.
 
-    Above :data:`MAX_DENSE_DOF` degrees of freedom only
-    ``stability`` applies (every other output needs a dense eigensolve: the
-    budget refuses it), so the list may be empty.
+    Above :data:`MAX_DENSE_DOF` degrees of freedom only outputs that need no
+    dense eigensolve apply (``stability``: the budget refuses the others), so
+    the list may be empty.
     """
-    if getattr(model, "first_order", False):  # any ODE: no modes; energy is its invariant's drift
-        applies = {"state", "convergence", "work_precision", "figures"}
-        if model.has_invariant():
-            applies.add("energy")
-        return [o for o in OUTPUTS if o in applies]
-    if model.n_dof > MAX_DENSE_DOF:
-        return ["stability"] if stability else []
-    try:
-        model.omega_bound()  # O(nnz): needs a stiffness matrix, no eigensolve
-        linearized = True
-    except Exception:  # noqa: BLE001 - a model without a linearization
-        linearized = False
-    applies = {"state", "energy", "work_precision", "figures"}
-    if linearized:
-        applies |= {"convergence", "modes", "modal_energy"}
-        if not model.linear:
-            applies.add("linearization")
-        if model.uniform_chain() is not None:
-            applies.add("dispersion")
-    if stability:
-        applies.add("stability")
-    return [o for o in OUTPUTS if o in applies]
+    from . import outputs
+
+    return outputs.default_outputs(outputs.ModelFacts(model, stability=stability,
+                                                      dense=model.first_order or model.n_dof <= MAX_DENSE_DOF))
 
 
 def _build_model(path, model_name, params):

@@ -3,12 +3,20 @@
 change between two runs on one machine) and what it holds
 (:data:`DESCRIPTIONS`). Below :mod:`validation.columns` (each column's unit,
 type and description) and :mod:`validation.report` (which writes them).
+
+Which tables exist comes from the output registry (:mod:`validation.outputs`:
+each output names its tables) plus :data:`SCENE_TABLES`; the built-in
+tables' columns are declared below, an output's own tables in its module.
 """
 from __future__ import annotations
 
 __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS"]
 
-COLUMNS = {
+#: Tables of the scene itself, not of an output (the scene's own tableau methods).
+SCENE_TABLES = ("methods",)
+
+#: The built-in tables' columns (an output names the tables it writes).
+_BUILTIN = {
     "accuracy": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "error_final",
                  "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message", "note"],
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
@@ -40,7 +48,7 @@ TIMING = {"accuracy": {"wall_s", "compile_s"}, "work_precision": {"wall_s", "wal
 def _stability_columns():
     from validation.stability import COLUMNS as cols, TIMING_COLUMNS as timing
 
-    COLUMNS["stability"] = list(cols)
+    _BUILTIN["stability"] = list(cols)
     TIMING["stability"] = set(timing)
 
 
@@ -50,7 +58,7 @@ _stability_columns()
 def _trust_columns():
     from validation.trust import COLUMNS as cols, TIMING_COLUMNS as timing
 
-    COLUMNS["cheapest"] = list(cols)
+    _BUILTIN["cheapest"] = list(cols)
     TIMING["cheapest"] = set(timing)
 
 
@@ -120,3 +128,45 @@ DESCRIPTIONS = {
                "whether every condition of order p holds; `order` is the computed order, `precision` what it "
                "and the stability boundaries are judged at (rk4core.methods.Tableau.coefficient_tol).",
 }
+
+
+def declare(table) -> None:
+    """Add a :class:`validation.outputs.Table` to :data:`COLUMNS`
+    (:data:`DESCRIPTIONS`, :data:`TIMING`): a built-in's declared columns, or
+    the columns an output declares itself. A built-in name without a
+    declaration raises ``KeyError``."""
+    if table.columns is None:
+        COLUMNS[table.name] = _BUILTIN[table.name]
+    else:
+        COLUMNS[table.name] = [c[0] for c in table.columns]
+        DESCRIPTIONS[table.name] = table.description
+        if table.timing:
+            TIMING[table.name] = set(table.timing)
+
+
+def forget(output) -> None:
+    """Remove the tables only ``output`` declared itself (after
+    :func:`validation.outputs.unregister`)."""
+    from validation import outputs
+
+    for t in output.tables:
+        if t.columns is not None and t.name not in outputs.table_names():
+            for d in (COLUMNS, DESCRIPTIONS, TIMING):
+                d.pop(t.name, None)
+
+
+def _derive() -> None:
+    from validation import outputs
+
+    for o in outputs.OUTPUTS.values():
+        for t in o.tables:
+            declare(t)
+    for name in SCENE_TABLES:
+        COLUMNS[name] = _BUILTIN[name]
+    outputs.on_register(lambda o: [declare(t) for t in o.tables], forget)
+
+
+#: table -> its columns in written order: every registered output's tables
+#: (in the registry's order), then :data:`SCENE_TABLES`.
+COLUMNS: dict = {}
+_derive()

@@ -1,0 +1,33 @@
+"""``dispersion``: a uniform chain against the lattice's dispersion relation."""
+from validation.outputs import Output, Table
+
+
+def applies(facts) -> bool:
+    """A uniform chain between walls (read from the model, never its name)."""
+    return facts.dense and facts.linearized and facts.model.uniform_chain() is not None
+
+
+def plan(p) -> list:
+    from references.registry import UNDER_TEST
+    from validation.plan import PACKET_KP, under_test
+
+    packet_method = under_test(p.scene) or UNDER_TEST
+    return [p.spec("dispersion")] + [p.spec("packet", solver=packet_method, setting=float(kp)) for kp in PACKET_KP]
+
+
+def measure(m) -> None:
+    from validation.measure import measure_dispersion
+
+    measure_dispersion(m.scene, m.specs("dispersion"), m.specs("packet"), m.records, m.res, m.draw)
+
+
+OUTPUT = Output(
+    name="dispersion", rank=80, plan_rank=60, measure_rank=60,
+    when="uniform chains between walls",
+    what="the chain's frequencies against the lattice's dispersion relation, and RK4 wave packets: "
+         "`dispersion.csv`",
+    applies=applies, plan=plan, measure=measure,
+    purposes={"dispersion": "the finite chain's frequencies against the dispersion relation",
+              "packet": "one wave packet of the method under test against the group velocity"},
+    tables=(Table("dispersion"),),
+)

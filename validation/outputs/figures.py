@@ -1,0 +1,32 @@
+"""``figures``: the figures of the other outputs and the state figures."""
+from validation.outputs import Output
+
+
+def plan(p) -> list:
+    """The trajectory of the state figures: the method under test at the
+    scene's finest step, else the reference, on the figure grid."""
+    from validation.plan import under_test
+
+    if not p.draw:
+        return []
+    if p.scene.h and under_test(p.scene):
+        return [p.spec("figure", solver=under_test(p.scene), setting=float(min(p.scene.h)), grid="figure",
+                       keep=("trajectory",))]
+    return [p.spec("truth", grid="figure", keep=("trajectory",))]
+
+
+def measure(m) -> None:
+    from validation.measure import measure_state_figure
+
+    measure_state_figure(m.scene, m.specs("figure") + [s for s in m.specs("truth") if s.grid == "figure"],
+                         m.records, m.res)
+
+
+OUTPUT = Output(
+    name="figures", rank=60, plan_rank=20, measure_rank=20,
+    when="every model",
+    what="the figures of the outputs above and the state figures (trajectory, phase portrait)",
+    applies=lambda facts: facts.dense,
+    plan=plan, measure=measure,
+    purposes={"figure": "the trajectory of the state figures (the method under test at the finest step)"},
+)

@@ -1,0 +1,14 @@
+"""``work_precision``: error against cost, and the trust table of the method under test."""
+from validation.outputs import Output, Table, _runs
+
+OUTPUT = Output(
+    name="work_precision", rank=40, plan_rank=10, measure_rank=10,
+    when="every model",
+    what="error against wall time and RHS calls, the cheapest solver per target: `work_precision.csv`, the "
+         "work-precision figure",
+    applies=lambda facts: facts.dense,
+    plan=_runs.plan, measure=_runs.measure,
+    purposes={**_runs.PURPOSES, "confirm": "a run confirming a verdict of the trust table, planned from the "
+                                           "records (validation.confirm)"},
+    tables=(Table("work_precision"), Table("cheapest")),
+)
