@@ -598,6 +598,12 @@ STORMER_VERLET = make_tableau(
 METHODS: dict[str, Tableau] = {m.name: m for m in (RK4, EULER, SYMPLECTIC_EULER, STORMER_VERLET, RK38,
                                                    HEUN3, RALSTON)}
 
+# Splitting and composition methods (Yoshida, Suzuki, Forest-Ruth, Blanes-Moan) are built from
+# Stormer-Verlet above, as tableaux: rk4core.geometric.
+from .geometric import GEOMETRIC as _GEOMETRIC  # noqa: E402
+
+METHODS.update(_GEOMETRIC)
+
 
 def get_method(method: str | Tableau) -> Tableau:
     """Return the tableau named ``method`` (or ``method`` itself)."""
