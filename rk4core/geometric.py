@@ -267,6 +267,8 @@ class SeparableTableau(Tableau):
     def _trees(self):
         return order_conditions.separable_trees if self.partitioned else None
 
+    _order_trees = _trees
+
 
 def _build(name, A, b, A_v, b_v, dA, db, dA_v, db_v, description) -> Tableau:
     """A tableau of exact entries with the given per-entry bounds as its precision."""
@@ -280,7 +282,7 @@ def _build(name, A, b, A_v, b_v, dA, db, dA_v, db_v, description) -> Tableau:
         worst = max(worst, max(db), max(db_v) if db_v is not None else 0)
         object.__setattr__(tab, "_uncertainty", unc)
         object.__setattr__(tab, "coefficient_tol", worst)
-        object.__setattr__(tab, "precision", f"computed, each entry within {float(worst):.1e}")
+        object.__setattr__(tab, "precision", f"computed to within {float(worst):.1e} per entry")
     return tab
 
 

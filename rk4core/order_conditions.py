@@ -55,7 +55,7 @@ from typing import Sequence
 
 __all__ = ["MAX_ORDER", "MAX_ORDER_PARTITIONED", "rooted_trees", "bicoloured_trees", "tree_order", "density",
            "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order", "residuals",
-           "separable_trees"]
+           "separable_trees", "symmetry", "error_coefficients", "principal_error_norm"]
 
 #: Highest order :func:`order` checks for a classical method (1205 trees).
 MAX_ORDER = 10
@@ -354,3 +354,50 @@ def _absm(M):
 
 def _absv(v):
     return tuple(abs(x) for x in v)
+
+
+# -- error coefficients -------------------------------------------------------------------------------
+def symmetry(tree) -> int:
+    """``sigma(t)``, the order of the tree's automorphism group: the product,
+    over the distinct subtrees ``u`` of the root occurring ``m`` times, of
+    ``sigma(u)^m m!`` (Butcher 2008, sec. 301; colours must match for a
+    bi-coloured tree)."""
+    children = tree[1] if _coloured(tree) else tree
+    out = 1
+    for u in set(children):
+        m = children.count(u)
+        out *= symmetry(u) ** m * _factorial(m)
+    return out
+
+
+def _factorial(m: int) -> int:
+    out = 1
+    for k in range(2, m + 1):
+        out *= k
+    return out
+
+
+def error_coefficients(A, b, A_v=None, b_v=None, p: int = 1, *, trees=None) -> list[Fraction]:
+    """The truncation-error coefficients of order ``p``: ``(w^T Phi(t) -
+    1/gamma(t)) / sigma(t)`` for every tree ``t`` with ``p`` vertices (plain,
+    bi-coloured, or ``trees(p)``), as nodepy's ``error_coeffs`` (Butcher
+    2008, sec. 318: the local error is ``h^p sum_t (coefficient) F(t)(y) +
+    O(h^{p+1})`` with the elementary differentials ``F(t)``)."""
+    J = _Judge(A, b, A_v, b_v, None, 0, trees)
+    return [J.residual(t) / symmetry(t) for t in J.trees(p)]
+
+
+def principal_error_norm(A, b, A_v=None, b_v=None, p: int | None = None, *, trees=None) -> float:
+    """The principal error coefficient of a method of order ``p``: the 2-norm
+    of its error coefficients of order ``p + 1`` (:func:`error_coefficients`),
+    as nodepy's ``principal_error_norm`` (classical RK4: 0.014504). ``p``
+    defaults to :func:`order`. Dimensionless; nan above the orders checked
+    (``p + 1`` > :data:`MAX_ORDER` + 1, or > :data:`MAX_ORDER_PARTITIONED`
+    for a partitioned method over all bi-coloured trees)."""
+    if p is None:
+        p = order(A, b, A_v, b_v, trees=trees)
+    partitioned = A_v is not None
+    top = MAX_ORDER + 1 if not partitioned or trees is not None else MAX_ORDER_PARTITIONED
+    if p + 1 > top:
+        return float("nan")
+    return float(sum(float(c) ** 2 for c in error_coefficients(A, b, A_v, b_v, p + 1, trees=trees))) ** 0.5
