@@ -611,12 +611,9 @@ STORMER_VERLET = make_tableau(
 
 METHODS: dict[str, Tableau] = {m.name: m for m in (RK4, EULER, SYMPLECTIC_EULER, STORMER_VERLET, RK38,
                                                    HEUN3, RALSTON)}
-
-# Splitting and composition methods (Yoshida, Suzuki, Forest-Ruth, Blanes-Moan) are built from
-# Stormer-Verlet above, as tableaux: rk4core.geometric.
-from .geometric import GEOMETRIC as _GEOMETRIC  # noqa: E402
-
-METHODS.update(_GEOMETRIC)
+# (rk4core's package import adds the splitting and composition methods of
+# rk4core.geometric, built from Stormer-Verlet above: yoshida4, yoshida6,
+# suzuki4, forest-ruth, blanes-moan4, blanes-moan6.)
 
 
 def get_method(method: str | Tableau) -> Tableau:
