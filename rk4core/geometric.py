@@ -81,6 +81,15 @@ class _Bad(ValueError):
     pass
 
 
+class _Valued:
+    """A coefficient already evaluated: ``value`` and ``bound`` (Fractions)."""
+
+    __slots__ = ("value", "bound")
+
+    def __init__(self, value: Fraction, bound: Fraction):
+        self.value, self.bound = value, bound
+
+
 def _mp_eval(node, mp):
     from . import expr as E
 
@@ -194,20 +203,17 @@ def coefficient(x, where: str = "coefficient") -> tuple[Fraction, Fraction]:
         return exact, Fraction(0)
     import mpmath
 
-    mp = mpmath.mp.clone() if hasattr(mpmath.mp, "clone") else mpmath.mp
-    old = mp.dps
-    mp.dps = DIGITS
+    mp = mpmath.mp
     try:
-        v = _mp_eval(node, mp)
-        if not isinstance(v, mp.mpf) or not mp.isfinite(v):
-            raise _Bad("is not a finite real number")
-        scaled = int(mp.nint(v * mp.mpf(2) ** BITS))
+        with mpmath.workdps(DIGITS):
+            v = _mp_eval(node, mp)
+            if not isinstance(v, mpmath.mpf) or not mp.isfinite(v):
+                raise _Bad("is not a finite real number")
+            scaled = int(mp.nint(v * mp.mpf(2) ** BITS))
     except _Bad as e:
         raise ValueError(f"{where} = {text!r:.60} {e}") from None
     except (ZeroDivisionError, ValueError, OverflowError) as e:
         raise ValueError(f"{where} = {text!r:.60} cannot be evaluated ({type(e).__name__})") from None
-    finally:
-        mp.dps = old
     f = Fraction(scaled, 2**BITS)
     return f, Fraction(1, 2**(BITS - 8)) * max(1, abs(f))
 
@@ -225,6 +231,9 @@ def _values(seq, field_: str, name: str):
         raise ValueError(f"method {name!r}: `{field_}` must be a non-empty list of coefficients, got {seq!r:.60}")
     out = []
     for i, x in enumerate(seq):
+        if isinstance(x, _Valued):
+            out.append((x.value, x.bound))
+            continue
         try:
             out.append(coefficient(x, f"entry {field_}[{i}]"))
         except ValueError as e:
@@ -509,17 +518,8 @@ def _bm(a_half, b_half, name, description):
     b_last = (Fraction(1, 2) - sum((v for v, _ in bv), Fraction(0)), sum((d for _, d in bv), Fraction(0)))
     a_all = _palindrome(av, a_mid)
     b_all = bv + [b_last, b_last] + list(reversed(bv)) + [(Fraction(0), Fraction(0))]
-    # exact Fractions with their bounds: pass the values, then set the bounds
-    tab = splitting_tableau(name, [v for v, _ in a_all], [v for v, _ in b_all], description=description)
-    s = len(a_all)
-    z = Fraction(0)
-    ad, bd = [d for _, d in a_all], [d for _, d in b_all]
-    dA = [[ad[j] if j <= i else z for j in range(s)] for i in range(s)]
-    dA_v = [[bd[j] if j < i else z for j in range(s)] for i in range(s)]
-    A, av_, A_v, bv_, dA, ad, dA_v, bd = _merge_repeated(
-        [list(r) for r in tab.A_exact], list(tab.b_exact), [list(r) for r in tab.A_v_exact], list(tab.b_v_exact),
-        dA, ad, dA_v, bd)
-    return _build(name, A, av_, A_v, bv_, dA, ad, dA_v, bd, description)
+    return splitting_tableau(name, [_Valued(*x) for x in a_all], [_Valued(*x) for x in b_all],
+                             description=description)
 
 
 #: Blanes and Moan's optimised fourth-order symmetric splitting S6 (six
