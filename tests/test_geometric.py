@@ -174,6 +174,15 @@ def test_scene_file_error_is_one_line(tmp_path):
         load_scene(path)
 
 
+def test_triple_jump_of_a_composition_gains_two_orders():
+    """Yoshida's triple jump of the symmetric fourth-order yoshida4 (gamma =
+    1/(2 - 2^(1/5)), ...): order 6 from the conditions, 3 x 3 sub-steps with
+    the joins merged: 9 force evaluations per step (HLW sec. II.4)."""
+    tab = G.composition_tableau("tj6", "yoshida4", ["1/(2 - 2^(1/5))", "-2^(1/5)/(2 - 2^(1/5))",
+                                                    "1/(2 - 2^(1/5))"])
+    assert (tab.order, tab.nfev_per_step, tab.fsal) == (6, 9, True)
+
+
 def test_a_classical_composition_keeps_plain_trees():
     """Three RK4 steps composed Yoshida-style: a classical tableau, order 4
     (the symmetric composition of a non-symmetric method gains nothing),
