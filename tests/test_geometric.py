@@ -253,3 +253,24 @@ def test_principal_error_coefficient():
     # Blanes-Moan's optimised methods beat Yoshida's at the same order (their point)
     assert METHODS["blanes-moan4"].error_coefficient < METHODS["yoshida4"].error_coefficient / 100
     assert METHODS["blanes-moan6"].error_coefficient < METHODS["yoshida6"].error_coefficient / 100
+
+
+def test_methods_table_has_the_error_coefficient():
+    """validation.measure's methods table: one error coefficient per method,
+    on every order row, equal to the tableau's."""
+    from types import SimpleNamespace
+
+    from references.registry import methods_from_tables
+    from validation import measure
+    from validation.tables import COLUMNS
+
+    own = methods_from_tables(CONTRACT)
+    rows = []
+    res = SimpleNamespace(add=lambda table, r: rows.append((table, r)))
+    scene = SimpleNamespace(name="s", registry=own, solvers=["rk4", "forest-ruth", "yoshida4"])
+    measure._methods_table(scene, res)
+    assert {t for t, _ in rows} == {"methods"} and {r["method"] for _, r in rows} == {"forest-ruth", "yoshida4"}
+    for _, r in rows:
+        assert r["error_coefficient"] == own[r["method"]].tableau.error_coefficient
+        assert set(r) == set(COLUMNS["methods"])
+    assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.12654, 0.16675}
