@@ -74,6 +74,8 @@ DIGITS = 60
 #: double precision: the tableau's floats are its correctly rounded values).
 BITS = 180
 
+#: Largest power of two an intermediate value of an expression may reach.
+_MAX_LOG2 = 4096
 _DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
@@ -115,11 +117,15 @@ def _mp_eval(node, mp):
             raise _Bad("takes a non-integer power of a negative number")
         if base == 0 and exp <= 0:
             raise _Bad("divides by zero")
+        if base != 0 and abs(exp * mp.log(abs(base), 2)) > _MAX_LOG2:
+            raise _Bad(f"is too large (a power beyond 2^{_MAX_LOG2})")
         return mp.power(base, exp)
     if isinstance(node, E.Call):
         arg = _mp_eval(node.arg, mp)
         if node.func in ("sqrt", "log") and arg < 0 or node.func == "log" and arg == 0:
             raise _Bad(f"takes {node.func} of a number outside its domain")
+        if node.func in ("exp", "sinh", "cosh") and abs(arg) > _MAX_LOG2 / 2:
+            raise _Bad(f"is too large ({node.func} of {float(arg):.3g})")
         return getattr(mp, node.func)(arg)
     raise _Bad("has a symbol; a coefficient is a constant")
 
@@ -146,6 +152,8 @@ def _rational(node):
         base, exp = _rational(node.base), _rational(node.exp)
         if base is None or exp is None or exp.denominator != 1 or abs(exp) > 64 or (base == 0 and exp < 0):
             return None
+        if abs(exp) * max(base.numerator.bit_length(), base.denominator.bit_length()) > _MAX_LOG2:
+            return None  # left to the evaluation below, which refuses it as too large
         return base ** int(exp)
     return None
 

@@ -209,6 +209,9 @@ def test_coefficients_exact_or_high_precision():
     assert v == Fraction(1.3512071919596578) and Fraction(1, 10**17) < d < Fraction(1, 10**14)
     with pytest.raises(ValueError, match="not exact"):
         G.coefficient("sqrt(0.29697761)")
+    for text in ("9^9^9^9", "((99999^64)^64)^64", "exp(exp(10))"):  # refused, not computed for minutes
+        with pytest.raises(ValueError, match="too large"):
+            G.coefficient(text)
 
 
 # -- stability regions and error coefficients ---------------------------------------------------------
