@@ -62,7 +62,7 @@ from fractions import Fraction
 from functools import cached_property
 
 from . import order_conditions
-from .methods import EXACT_DECIMALS, FLOAT_ULPS, STORMER_VERLET, Tableau, decimal_digits, make_tableau
+from .methods import EXACT_DECIMALS, FLOAT_ULPS, STORMER_VERLET, Tableau, decimal_digits
 
 __all__ = ["DIGITS", "BITS", "coefficient", "splitting_tableau", "composition_tableau", "YOSHIDA4",
            "YOSHIDA6", "SUZUKI4", "FOREST_RUTH", "BLANES_MOAN4", "BLANES_MOAN6", "GEOMETRIC"]

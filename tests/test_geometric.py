@@ -156,9 +156,7 @@ def test_bad_tables_name_the_key(table, field, text):
     assert "\n" not in str(e.value)
 
 
-def test_scene_file_error_is_one_line(tmp_path):
-    import subprocess
-    import sys
+def test_scene_file_error_names_the_key(tmp_path):
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[1]
@@ -277,3 +275,21 @@ def test_methods_table_has_the_error_coefficient():
         assert r["error_coefficient"] == own[r["method"]].tableau.error_coefficient
         assert set(r) == set(COLUMNS["methods"])
     assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.12654, 0.16675}
+
+
+def test_cli_refuses_a_bad_composition_in_one_line(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    text = (repo / "validation" / "scenes" / "geometric_2dof.toml").read_text(encoding="utf-8")
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('base = "stormer-verlet"', 'base = "verlet"'), encoding="utf-8")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(bad), "--out", str(out)],
+                       cwd=repo, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr
+    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "methods.yoshida4.base" in r.stderr and "'verlet'" in r.stderr
+    assert not out.exists()
