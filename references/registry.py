@@ -349,7 +349,10 @@ def resolve(method, local: Mapping[str, Method] | None = None) -> Method:
 
 # -- methods from scenes ---------------------------------------------------------
 _TARGET = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
-_KEYS = {"A", "b", "c", "A_v", "b_v", "description", "python", "command", "order", "nfev_per_step"}
+_KEYS = {"A", "b", "c", "A_v", "b_v", "description", "python", "command", "order", "nfev_per_step",
+         "kind", "a", "base", "gamma"}
+#: Keys of a ``kind = "splitting"`` / ``"composition"`` method (rk4core.geometric).
+_GEOMETRIC_KEYS = {"splitting": ("a", "b"), "composition": ("base", "gamma")}
 _METHOD_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]{0,39}")
 
 
@@ -398,6 +401,8 @@ def method_from_table(name: str, table: Mapping, index: int = 0) -> Method:
     unknown = sorted(set(table) - _KEYS)
     if unknown:
         raise MethodError(name, unknown[0], f"is not a method key (known: {', '.join(sorted(_KEYS))})")
+    if "kind" in table or any(k in table for k in ("a", "base", "gamma")):
+        return _geometric_method(name, table, index)
     kinds = [k for k in ("A", "python", "command") if k in table]
     if len(kinds) != 1:
         raise MethodError(name, "A", "give exactly one of a tableau (`A`, `b`), `python` or `command`")
@@ -444,3 +449,47 @@ def methods_from_tables(tables: Mapping) -> dict[str, Method]:
     if not isinstance(tables, Mapping):
         raise MethodError("methods", "methods", f"must be a table of method tables, got {tables!r:.60}")
     return {name: method_from_table(name, t, i) for i, (name, t) in enumerate(tables.items())}
+
+
+def _geometric_method(name: str, table: Mapping, index: int) -> Method:
+    """A ``kind = "splitting"`` (``a``, ``b``) or ``kind = "composition"``
+    (``base``, ``gamma``) method, converted to its partitioned tableau by
+    :mod:`rk4core.geometric`; ``kind = "tableau"`` is the plain tableau."""
+    from rk4core.geometric import composition_tableau, splitting_tableau
+
+    kind = table.get("kind")
+    allowed = ("tableau", "splitting", "composition")
+    if kind is None:
+        extra = next(k for k in ("a", "base", "gamma") if k in table)
+        raise MethodError(name, "kind", f"is missing: `{extra}` belongs to kind = \"splitting\" (a, b) or "
+                                        f"\"composition\" (base, gamma)")
+    if kind not in allowed:
+        raise MethodError(name, "kind", f"must be one of {', '.join(allowed)}, got {kind!r:.40}")
+    if kind == "tableau":
+        for key in ("a", "base", "gamma"):
+            if key in table:
+                raise MethodError(name, key, "is not a key of a tableau (kind = \"tableau\" takes A, b, c, A_v, b_v)")
+        return method_from_table(name, {k: v for k, v in table.items() if k != "kind"}, index)
+    keys = _GEOMETRIC_KEYS[kind]
+    for key in sorted(set(table) - set(keys) - {"kind", "description"}):
+        raise MethodError(name, key, f"is not a key of kind = {kind!r} (it takes {', '.join(keys)}, description)")
+    for key in keys:
+        if key not in table:
+            raise MethodError(name, key, "is missing")
+    description = table.get("description", "")
+    if not isinstance(description, str):
+        raise MethodError(name, "description", f"must be a string, got {description!r:.60}")
+    if kind == "composition" and not isinstance(table["base"], str):
+        raise MethodError(name, "base", f"must be a method name, got {table['base']!r:.60}")
+    try:
+        if kind == "splitting":
+            tab = splitting_tableau(name, table["a"], table["b"], description=description)
+        else:
+            tab = composition_tableau(name, table["base"], table["gamma"], description=description)
+    except ValueError as e:
+        text = str(e).splitlines()[0].split(": ", 1)[-1]
+        m = re.match(r"`([A-Za-z_]+)` ", text)
+        raise MethodError(name, m.group(1) if m else keys[0], text[m.end():] if m else text) from None
+    kind_ = Kind.PARTITIONED if tab.partitioned else Kind.TABLEAU
+    return Method(name, kind_, int(tab.order), int(tab.nfev_per_step), _USER_STYLES[index % len(_USER_STYLES)],
+                  description or f"{kind} method", tableau=tab, definition=dict(table))

@@ -434,6 +434,20 @@ class Tableau:
         return order_conditions.residuals(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
                                           uncertainty=self.uncertainty, max_order=self.order + 1)
 
+    #: Trees of the order conditions of a partitioned tableau (None: every
+    #: bi-coloured tree; rk4core.geometric's splittings use the Nystrom subset).
+    _order_trees = None
+
+    @cached_property
+    def error_coefficient(self) -> float:
+        """Principal error coefficient: the 2-norm of the truncation-error
+        coefficients of order ``order + 1`` over the trees its order is
+        judged on (:func:`rk4core.order_conditions.principal_error_norm`, as
+        nodepy computes it; RK4 0.01450). From the
+        coefficients as given; dimensionless."""
+        return order_conditions.principal_error_norm(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
+                                                     self.order, trees=self._order_trees)
+
     @property
     def n_stages(self) -> int:
         return len(self.b_exact)
@@ -597,6 +611,9 @@ STORMER_VERLET = make_tableau(
 
 METHODS: dict[str, Tableau] = {m.name: m for m in (RK4, EULER, SYMPLECTIC_EULER, STORMER_VERLET, RK38,
                                                    HEUN3, RALSTON)}
+# (rk4core's package import adds the splitting and composition methods of
+# rk4core.geometric, built from Stormer-Verlet above: yoshida4, yoshida6,
+# suzuki4, forest-ruth, blanes-moan4, blanes-moan6.)
 
 
 def get_method(method: str | Tableau) -> Tableau:

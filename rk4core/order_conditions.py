@@ -54,7 +54,8 @@ from functools import lru_cache
 from typing import Sequence
 
 __all__ = ["MAX_ORDER", "MAX_ORDER_PARTITIONED", "rooted_trees", "bicoloured_trees", "tree_order", "density",
-           "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order", "residuals"]
+           "tree_conditions", "bicoloured_tree_conditions", "elementary_weight", "order", "residuals",
+           "separable_trees", "symmetry", "error_coefficients", "principal_error_norm"]
 
 #: Highest order :func:`order` checks for a classical method (1205 trees).
 MAX_ORDER = 10
@@ -122,6 +123,27 @@ def bicoloured_trees(p: int) -> tuple:
     return tuple(sorted({g for t in bicoloured_trees(p - 1) for g in _grow_coloured(t)}))
 
 
+@lru_cache(maxsize=None)
+def separable_trees(p: int) -> tuple:
+    """The bi-coloured trees with ``p`` vertices that a method applied to
+    ``q' = v``, ``v' = a(q, t)`` must integrate (Nystrom trees; HNW I, sec.
+    II.14; HLW sec. III.2.3): a colour-0 vertex (``q' = v``, linear in
+    ``v`` alone) has at most one child, of colour 1; a colour-1 vertex
+    (``v' = a(q)``) has only colour-0 children. Every other elementary
+    differential of such a system vanishes (2, 2, 3, 5, 9, 16, 30, 56 trees
+    for p = 1..8)."""
+
+    def ok(t):
+        colour, kids = t
+        if colour == 0 and (len(kids) > 1 or any(k[0] != 1 for k in kids)):
+            return False
+        if colour == 1 and any(k[0] != 0 for k in kids):
+            return False
+        return all(ok(k) for k in kids)
+
+    return tuple(t for t in bicoloured_trees(p) if ok(t))
+
+
 def tree_conditions(p: int) -> list[tuple[tuple, int]]:
     """The order conditions of order exactly ``p``: ``(tree, gamma)`` for every
     rooted tree with ``p`` vertices; the condition is ``b^T Phi(tree) = 1/gamma``."""
@@ -185,7 +207,7 @@ def elementary_weight(tree, A, b, A_v=None, b_v=None) -> Fraction:
 class _Judge:
     """The residual and the tolerance of each condition of one method."""
 
-    def __init__(self, A, b, A_v, b_v, uncertainty, tol):
+    def __init__(self, A, b, A_v, b_v, uncertainty, tol, trees=None):
         partitioned = A_v is not None or b_v is not None
         if partitioned and (A_v is None or b_v is None):
             raise ValueError("`A_v` and `b_v` must be given together")
@@ -195,7 +217,7 @@ class _Judge:
         if partitioned:
             A_v, b_v = _exact(A_v), _exact(b_v)
             mats, weights = (A, A_v), (b, b_v)
-            self.trees, self.root = bicoloured_trees, (lambda t: t[0])
+            self.trees, self.root = trees or bicoloured_trees, (lambda t: t[0])
         else:
             mats, weights = (A,), (b,)
             self.trees, self.root = rooted_trees, (lambda t: 0)
@@ -237,7 +259,7 @@ def _zeros_like(M):
 
 
 def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,
-          max_order: int | None = None, tol=0, uncertainty=None) -> int:
+          max_order: int | None = None, tol=0, uncertainty=None, trees=None) -> int:
     """Order of the (partitioned) Runge-Kutta method from its order conditions.
 
     Parameters
@@ -263,6 +285,11 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
         (:attr:`rk4core.methods.Tableau.uncertainty`); a condition holds when
         its residual is within what such errors can produce (module
         docstring). None: exact.
+    trees : callable, optional
+        ``p -> trees of order p`` for a partitioned method, in place of
+        :func:`bicoloured_trees`: :func:`separable_trees` gives the order on
+        ``q' = v``, ``v' = a(q, t)`` alone (splitting methods written as
+        tableaux are equivalent to their splitting only there).
 
     Returns
     -------
@@ -271,7 +298,7 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
         ``<= p`` holds; ``max_order`` means "at least ``max_order``". 0 when
         the weights do not sum to 1.
     """
-    J = _Judge(A, b, A_v, b_v, uncertainty, tol)
+    J = _Judge(A, b, A_v, b_v, uncertainty, tol, trees)
     if max_order is None:
         max_order = MAX_ORDER_PARTITIONED if J.partitioned else MAX_ORDER
     for p in range(1, max_order + 1):
@@ -286,7 +313,7 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
 
 
 def residuals(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,
-              max_order: int | None = None, tol=0, uncertainty=None) -> list[dict]:
+              max_order: int | None = None, tol=0, uncertainty=None, trees=None) -> list[dict]:
     """The order conditions' residuals, order by order.
 
     Parameters are those of :func:`order`. Returns one dict per order ``p =
@@ -299,10 +326,10 @@ def residuals(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequen
     condition fails, 0 when all residuals are 0) and ``holds`` (every
     condition of order ``p`` holds).
     """
-    J = _Judge(A, b, A_v, b_v, uncertainty, tol)
+    J = _Judge(A, b, A_v, b_v, uncertainty, tol, trees)
     top = MAX_ORDER_PARTITIONED if J.partitioned else MAX_ORDER
     if max_order is None:
-        max_order = min(order(A, b, A_v, b_v, tol=tol, uncertainty=uncertainty) + 1, top)
+        max_order = min(order(A, b, A_v, b_v, tol=tol, uncertainty=uncertainty, trees=trees) + 1, top)
     out = []
     for p in range(1, min(max_order, top) + 1):
         worst, worst_allowed, ratio, holds, n = Fraction(0), Fraction(0), 0.0, True, 0
@@ -327,3 +354,50 @@ def _absm(M):
 
 def _absv(v):
     return tuple(abs(x) for x in v)
+
+
+# -- error coefficients -------------------------------------------------------------------------------
+def symmetry(tree) -> int:
+    """``sigma(t)``, the order of the tree's automorphism group: the product,
+    over the distinct subtrees ``u`` of the root occurring ``m`` times, of
+    ``sigma(u)^m m!`` (Butcher 2008, sec. 301; colours must match for a
+    bi-coloured tree)."""
+    children = tree[1] if _coloured(tree) else tree
+    out = 1
+    for u in set(children):
+        m = children.count(u)
+        out *= symmetry(u) ** m * _factorial(m)
+    return out
+
+
+def _factorial(m: int) -> int:
+    out = 1
+    for k in range(2, m + 1):
+        out *= k
+    return out
+
+
+def error_coefficients(A, b, A_v=None, b_v=None, p: int = 1, *, trees=None) -> list[Fraction]:
+    """The truncation-error coefficients of order ``p``: ``(w^T Phi(t) -
+    1/gamma(t)) / sigma(t)`` for every tree ``t`` with ``p`` vertices (plain,
+    bi-coloured, or ``trees(p)``), as nodepy's ``error_coeffs`` (Butcher
+    2008, sec. 318: the local error is ``h^p sum_t (coefficient) F(t)(y) +
+    O(h^{p+1})`` with the elementary differentials ``F(t)``)."""
+    J = _Judge(A, b, A_v, b_v, None, 0, trees)
+    return [J.residual(t) / symmetry(t) for t in J.trees(p)]
+
+
+def principal_error_norm(A, b, A_v=None, b_v=None, p: int | None = None, *, trees=None) -> float:
+    """The principal error coefficient of a method of order ``p``: the 2-norm
+    of its error coefficients of order ``p + 1`` (:func:`error_coefficients`),
+    as nodepy's ``principal_error_norm`` (classical RK4: 0.014504). ``p``
+    defaults to :func:`order`. Dimensionless; nan above the orders checked
+    (``p + 1`` > :data:`MAX_ORDER` + 1, or > :data:`MAX_ORDER_PARTITIONED`
+    for a partitioned method over all bi-coloured trees)."""
+    if p is None:
+        p = order(A, b, A_v, b_v, trees=trees)
+    partitioned = A_v is not None
+    top = MAX_ORDER + 1 if not partitioned or trees is not None else MAX_ORDER_PARTITIONED
+    if p + 1 > top:
+        return float("nan")
+    return float(sum(float(c) ** 2 for c in error_coefficients(A, b, A_v, b_v, p + 1, trees=trees))) ** 0.5

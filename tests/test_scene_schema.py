@@ -117,7 +117,8 @@ def _params_base(model: str) -> dict:
 #: both halves, a python or command method its order.
 _METHOD_COMPANIONS = {"A": ("b",), "b": ("A",), "c": ("A", "b"), "A_v": ("A", "b", "b_v"), "b_v": ("A", "b", "A_v"),
                       "description": ("A", "b"), "python": ("order",), "order": ("python",),
-                      "nfev_per_step": ("python", "order"), "command": ("order",)}
+                      "nfev_per_step": ("python", "order"), "command": ("order",),
+                      "kind": ("a", "b"), "a": ("kind", "b"), "base": ("kind", "gamma"), "gamma": ("kind", "base")}
 
 
 def _with_key(section: str, key: str, value) -> dict:
@@ -137,6 +138,8 @@ def _with_key(section: str, key: str, value) -> dict:
         doc["initial"] = {"mode": ex("initial", "mode"), key: value}
     elif section == "methods":
         doc["methods"] = {"mine": {**{k: ex("methods", k) for k in _METHOD_COMPANIONS[key]}, key: value}}
+        if key in ("base", "gamma"):  # the example kind is a splitting's
+            doc["methods"]["mine"]["kind"] = "composition"
     elif section == "stability":
         doc["stability"] = {"studies": ex("stability", "studies"), key: value}
     else:

@@ -218,6 +218,8 @@ _TABLES = {
         "coefficient_tol": _c("1", "float", "rk4core.methods.Tableau.coefficient_tol"),
         "stages": _c("1", "int", "stages of the tableau"),
         "partitioned": _c("", "bool", "a partitioned (position/velocity) tableau"),
+        "error_coefficient": _c("1", "float", "principal error coefficient: 2-norm of the order-(order+1) "
+                                "truncation-error coefficients (rk4core.methods.Tableau.error_coefficient)"),
     },
 }
 

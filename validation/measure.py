@@ -270,7 +270,8 @@ def _methods_table(scene, res):
     ``[methods]`` tables), per order ``p`` up to its order plus one, the
     largest residual of the order conditions of order ``p``, the residual the
     coefficients' precision allows for that condition, and whether every
-    condition of order ``p`` holds (:attr:`rk4core.methods.Tableau.order_residuals`).
+    condition of order ``p`` holds (:attr:`rk4core.methods.Tableau.order_residuals`),
+    and the method's principal error coefficient (:attr:`rk4core.methods.Tableau.error_coefficient`).
     Computed from the coefficients, not from runs; the built-in tableaux are
     exact rationals (every residual 0)."""
     own = getattr(scene, "registry", None) or {}
@@ -284,7 +285,8 @@ def _methods_table(scene, res):
                                 "conditions": r["conditions"], "max_residual": r["max_residual"],
                                 "tolerance": r["tolerance"], "holds": bool(r["holds"]), "order": tab.order,
                                 "precision": tab.precision, "coefficient_tol": float(tab.coefficient_tol),
-                                "stages": tab.n_stages, "partitioned": tab.partitioned})
+                                "stages": tab.n_stages, "partitioned": tab.partitioned,
+                                "error_coefficient": float(tab.error_coefficient)})
 
 
 # -- convergence -----------------------------------------------------------------------------

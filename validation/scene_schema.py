@@ -269,7 +269,20 @@ class MethodTable(_Table):
 
     A: list[list[Coefficient]] = _f("Butcher matrix of an explicit tableau (zero on and above the diagonal, "
                                     "except in a partitioned pair)", "-", [["0", "0"], ["2/3", "0"]], default=None)
-    b: list[Coefficient] = _f("weights of the tableau", "-", ["1/4", "3/4"], default=None)
+    kind: Literal["tableau", "splitting", "composition"] = _f(
+        "how the method is written: a Butcher tableau (A, b), a drift-kick splitting (a, b) or a composition "
+        "of a base method (base, gamma); the last two become a partitioned tableau (docs/geometric.md)", "-",
+        "splitting", default=None, default_text="tableau (or python / command)")
+    b: list[Coefficient] = _f("weights of the tableau; with kind = splitting, the kick fractions b_i (end with 0 "
+                              "after a last drift)", "-", ["1/4", "3/4"], default=None)
+    a: list[Coefficient] = _f("drift fractions of a splitting (kind = splitting): drift a_i h, then kick b_i h, "
+                              "for i = 1..s; numbers, decimals or expressions such as '1/(2 - 2^(1/3))'", "-",
+                              ["1/2", "1/2"], default=None)
+    base: str = _f("base method of a composition (kind = composition): a tableau of rk4core's library", "-",
+                   "stormer-verlet", default=None)
+    gamma: list[Coefficient] = _f("step fractions of a composition, in the order the sub-steps are taken; they "
+                                  "sum to 1", "-", ["1/(2 - 2^(1/3))", "-2^(1/3)/(2 - 2^(1/3))",
+                                                     "1/(2 - 2^(1/3))"], default=None)
     c: list[Coefficient] = _f("nodes of the tableau", "-", ["0", "2/3"], default=None,
                               default_text="the row sums of A")
     A_v: list[list[Coefficient]] = _f("velocity-half matrix of a partitioned tableau (A, b act on the positions); "
