@@ -3,7 +3,7 @@ ticks cost.
 
 Draws every figure kind of ``tests/test_figure_layout.py`` (its synthetic
 inputs, shaped like the shipped scenes') with the log axes' minor ticks at
-2 and 5 of each decade (``validation.figures.MINOR_SUBS``, the default) and at
+2 and 5 of each decade (``validation.figures.style.MINOR_SUBS``, the default) and at
 matplotlib's 2..9, alternating the two settings round by round so machine
 drift hits both alike. Prints, per kind, the median seconds per call of its
 builder (one or more figures, PNG written) under each setting and their
@@ -31,7 +31,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     import test_figure_layout as layout  # the synthetic inputs of every figure kind
 
-    from validation import figures
+    from validation.figures import style
 
     settings = {"2,5": (2.0, 5.0), "2..9": None}
     times = {(k, s): [] for k in layout.BUILDERS for s in settings}
@@ -41,7 +41,7 @@ def main(argv=None) -> int:
             build(out)
         for _ in range(args.rounds):
             for name, subs in settings.items():
-                figures.MINOR_SUBS = subs
+                style.MINOR_SUBS = subs
                 for kind, build in layout.BUILDERS.items():
                     t0 = time.perf_counter()
                     build(out)
