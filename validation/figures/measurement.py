@@ -466,7 +466,7 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
                    f"(m = {kit.fmt(m)} kg, k = {kit.fmt(k)} N/m, d = {kit.fmt(d)} m)")
     axes = fig.subplots(3, 1, sharex=True)
     curve = "#1f77b4"
-    ylabels = (r"$\omega$ (rad/s)", r"$v_p = \omega/k_p$ (m/s)", r"$v_g = d\omega/dk_p$ (m/s)")
+    ylabels = ("\u03c9 (rad/s)", "v_p = \u03c9/k_p (m/s)", "v_g = d\u03c9/dk_p (m/s)")
     for ax, f, lab in zip(axes, (omega, phase_velocity, group_velocity), ylabels):
         ax.axvspan(-kz, kz, color="#ffe9a8", alpha=0.6, lw=0,
                    label="first Brillouin zone" if ax is axes[0] else None)
@@ -477,21 +477,21 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
         ax.grid(alpha=0.3)
         ax.axhline(0.0, color="0.5", lw=0.5)
     axes[0].axhline(w0, color="0.4", ls="--", lw=0.8)
-    axes[0].text(0.0, 0.97 * w0, r"$\omega_0 = \sqrt{4k/m}$" + f" = {w0:.4g} rad/s", ha="center", va="top",
+    axes[0].text(0.0, 0.97 * w0, f"\u03c9_0 = \u221a(4k/m) = {w0:.4g} rad/s", ha="center", va="top",
                  fontsize=8, color="0.3")
     for ax in axes[1:]:
         ax.set_ylim(-1.25 * v0, 1.25 * v0)
     if n_fin:
         axes[0].plot(finite_chain_wavenumbers(n_fin, d), finite_omega, "o", color="k",
                      ms=4 if n_fin <= 30 else (2.5 if n_fin <= 60 else 1.8), ls="none",
-                     label=f"finite chain, N = {n_fin}: eigenfrequencies at $k_n = n\\pi/((N+1)d)$")
+                     label=f"finite chain, N = {n_fin}: eigenfrequencies at k_n = n\u03c0/((N+1)d)")
     if len(pk):
         color, _ = kit.solver_style(UNDER_TEST)
         axes[2].plot(pk[:, 0], pk[:, 1], "o", color=color, ms=7, mfc="none", mew=1.5, ls="none",
                      label="wave packet integrated by RK4: measured group velocity")
-    axes[-1].set_xticks(np.arange(-2, 3) * kz, [r"$-2\pi/d$", r"$-\pi/d$", "0", r"$\pi/d$", r"$2\pi/d$"])
+    axes[-1].set_xticks(np.arange(-2, 3) * kz, ["\u22122\u03c0/d", "\u2212\u03c0/d", "0", "\u03c0/d", "2\u03c0/d"])
     axes[-1].set_xlim(-2 * kz, 2 * kz)
-    axes[-1].set_xlabel(f"wavenumber $k_p$ (rad/m; $\\pi/d$ = {kit.fmt(kz)} rad/m)")
+    axes[-1].set_xlabel(f"wavenumber k_p (rad/m; \u03c0/d = {kit.fmt(kz)} rad/m)")
     kit.legend_below(fig)
     stem = f"{kit.slug(scene_name)}_dispersion" if scene_name else "dispersion"
     path = kit.save(fig, out_dir, stem)

@@ -49,9 +49,11 @@ from references.registry import BUILTIN, resolve
 
 __all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "SOLVER_STYLE", "UNKNOWN_STYLE",
            "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
-           "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors", "new_figure", "suptitle",
-           "legend_below", "log_tick_text", "log_axes", "tick_labels", "overlapping", "thin_ticks", "texts",
-           "finish", "save", "si", "fmt", "fmt_t", "sentence"]
+           "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors",
+           "new_figure", "suptitle", "legend_below", "log_tick_text", "log_decade_text", "log_axes",
+           "tick_labels", "overlapping", "thin_ticks", "texts", "finish", "save", "si", "fmt", "fmt_t",
+           "sentence"]
+
 SIZE = (7.0, 4.5)        # inches
 SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
 DPI = 120
@@ -184,6 +186,19 @@ def log_tick_text(v, _pos=None):
 _SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076\u2077\u2078\u2079")
 
 
+def log_decade_text(v, _pos=None):
+    """``10^k`` (Unicode superscripts, ``a x 10^k`` off the decades): the
+    tick labels of a log axis spanning two decades or more, as matplotlib's
+    default draws them but without mathtext, whose parser was a sixth of a
+    figure's draw (``python benchmarks/bench_figures.py``)."""
+    if not np.isfinite(v) or v <= 0:
+        return ""
+    e = math.floor(math.log10(v) + 1e-9)
+    m = v / 10.0 ** e
+    power = "10" + str(e).translate(_SUPERSCRIPT)
+    return power if abs(m - 1.0) < 1e-6 else f"{m:g}\u00d7{power}"
+
+
 #: Minor ticks (unlabelled, a faint grid) of log axes at these multiples of
 #: each decade; None: matplotlib's 2, 3, ..., 9. Each minor tick is a Tick
 #: object that the constrained layout visits on every draw:
@@ -193,8 +208,10 @@ MINOR_SUBS = (2.0, 5.0)
 
 def log_axes(ax, x=True, y=True):
     """Log scales with the figures' grid and no minor tick labels; an axis
-    spanning under two decades gets major ticks at 1, 2, 5 x 10^k. Call after
-    the data are plotted (the span is read from the limits)."""
+    spanning under two decades gets major ticks at 1, 2, 5 x 10^k
+    (:func:`log_tick_text`), a wider one ``10^k`` (:func:`log_decade_text`);
+    no label is mathtext. Call after the data are plotted (the span is read
+    from the limits)."""
     from matplotlib import ticker
 
     for on, axis, set_scale, lim in ((x, ax.xaxis, ax.set_xscale, ax.get_xlim),
@@ -209,6 +226,8 @@ def log_axes(ax, x=True, y=True):
         if lo > 0 and math.log10(hi / lo) < 2:
             axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
             axis.set_major_formatter(ticker.FuncFormatter(log_tick_text))
+        else:
+            axis.set_major_formatter(ticker.FuncFormatter(log_decade_text))
     ax.grid(which="major", alpha=0.3)
     ax.grid(which="minor", alpha=0.1)
 

@@ -50,8 +50,7 @@ def _growth(plot, out_dir):
     for meth, th in d["boundary"].items():
         color, _ = F.solver_style(meth)
         ax.axvline(th, color=color, ls=":", lw=1.0, label=f"{meth} boundary {th:.3g}")
-    ax.set_yscale("log")
-    ax.grid(which="major", alpha=0.3)
+    _log_axes(ax, x=False)
     ax.set_xlabel("omega_max h")
     ax.set_ylabel("growth factor per step")
     F.legend_below(fig)
