@@ -31,6 +31,7 @@ LONG_CHAIN = 10          # chains with more masses get a space-time image
 _ZOOM_PERIODS = 3        # the zoom panel shows this many slowest periods
 PX_PER_PERIOD = 8        # a space-time image needs this many pixels per period of the fastest excited mode
 
+
 def _check_trajectory(model, t, y):
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)

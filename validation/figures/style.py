@@ -202,7 +202,7 @@ def log_decade_text(v, _pos=None):
 #: Minor ticks (unlabelled, a faint grid) of log axes at these multiples of
 #: each decade; None: matplotlib's 2, 3, ..., 9. Each minor tick is a Tick
 #: object that the constrained layout visits on every draw:
-#: ``python benchmarks/bench_figures.py`` measures what they cost.
+#: ``python benchmarks/bench_figures.py --minor-ticks`` measures what they cost.
 MINOR_SUBS = (2.0, 5.0)
 
 
