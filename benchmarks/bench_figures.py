@@ -1,61 +1,138 @@
-"""What a figure costs to draw, per figure kind, and what the log axes' minor
-ticks cost.
+"""What a figure costs to draw, per figure kind; optionally against another commit.
 
 Draws every figure kind of ``tests/test_figure_layout.py`` (its synthetic
-inputs, shaped like the shipped scenes') with the log axes' minor ticks at
-2 and 5 of each decade (``validation.figures.MINOR_SUBS``, the default) and at
-matplotlib's 2..9, alternating the two settings round by round so machine
-drift hits both alike. Prints, per kind, the median seconds per call of its
-builder (one or more figures, PNG written) under each setting and their
-ratio, then the median ratio over kinds and the total. Run::
+inputs, shaped like the shipped scenes') and prints, per kind, the median
+over rounds of the CPU seconds (``time.process_time``) and the wall seconds
+of its builder (one or more figures, PNG written), with the load average
+before and after. Each kind is drawn once first (imports, fonts, caches).
 
-    python benchmarks/bench_figures.py [--rounds 5]
+``--against REV`` draws the same kinds with the code of commit ``REV``
+(``git archive`` into a temporary directory) in a second process, rounds
+alternating between the two trees so machine drift hits both alike, and
+prints both medians and their ratio. CPU seconds are the figure to read on
+a shared machine; wall seconds include what the neighbours take.
+``--minor-ticks`` instead compares the log axes' minor ticks at 2 and 5 of
+each decade (``validation.figures.style.MINOR_SUBS``, the default) with
+matplotlib's 2..9 in this tree. Run::
+
+    python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks]
 """
 from __future__ import annotations
 
 import argparse
+import datetime
+import json
+import os
 import statistics
+import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tests"))
+
+#: One round in a child process: every kind once (warm), then ``rounds`` timed
+#: draws of each; prints ``{kind: [[cpu, wall], ...]}`` as JSON.
+_CHILD = r"""
+import json, sys, tempfile, time
+from pathlib import Path
+root, rounds, minor = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+sys.path[:0] = [str(root), str(root / "tests")]
+import test_figure_layout as layout
+if minor != "default":
+    from validation.figures import style
+    style.MINOR_SUBS = None if minor == "2..9" else (2.0, 5.0)
+out = {}
+with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
+    tmp = Path(tmp)
+    if sys.argv[4] == "warm":
+        for build in layout.BUILDERS.values():
+            build(tmp)
+    for _ in range(rounds):
+        for kind, build in layout.BUILDERS.items():
+            c0, w0 = time.process_time(), time.perf_counter()
+            build(tmp)
+            out.setdefault(kind, []).append([time.process_time() - c0, time.perf_counter() - w0])
+print(json.dumps(out))
+"""
+
+
+def _child(root: Path, minor: str = "default", rounds: int = 1, warm: bool = True) -> dict:
+    env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(root), str(rounds), minor, "warm" if warm else "cold"],
+                         cwd=root, env=env, capture_output=True, text=True, check=False)
+    if res.returncode != 0:
+        raise SystemExit(f"the figure builds of {root} failed:\n{res.stderr[-2000:]}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def _export(rev: str, dest: Path) -> Path:
+    """The tree of commit ``rev`` (``git archive``) under ``dest``."""
+    data = subprocess.run(["git", "-C", str(REPO), "archive", rev], capture_output=True, check=True).stdout
+    tar = dest / "tree.tar"
+    tar.write_bytes(data)
+    with tarfile.open(tar) as tf:
+        tf.extractall(dest / "tree", filter="data")
+    return dest / "tree"
+
+
+def _merge(into: dict, part: dict) -> None:
+    for kind, rows in part.items():
+        into.setdefault(kind, []).extend(rows)
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=5)
+    group = ap.add_mutually_exclusive_group()
+    group.add_argument("--against", metavar="REV", help="compare with the figures of commit REV")
+    group.add_argument("--minor-ticks", action="store_true", help="compare minor ticks at 2,5 with 2..9")
     args = ap.parse_args(argv)
-    import test_figure_layout as layout  # the synthetic inputs of every figure kind
-
-    from validation import figures
-
-    settings = {"2,5": (2.0, 5.0), "2..9": None}
-    times = {(k, s): [] for k in layout.BUILDERS for s in settings}
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True, check=False).stdout.strip() or "?"
+    print(f"# {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, tree {REPO} (HEAD {head}), "
+          f"{args.rounds} rounds, load average before {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
-        out = Path(tmp)
-        for kind, build in layout.BUILDERS.items():  # warm: imports, fonts, caches
-            build(out)
-        for _ in range(args.rounds):
-            for name, subs in settings.items():
-                figures.MINOR_SUBS = subs
-                for kind, build in layout.BUILDERS.items():
-                    t0 = time.perf_counter()
-                    build(out)
-                    times[(kind, name)].append(time.perf_counter() - t0)
-    print(f"{'figure kind':28s} {'2,5 (s)':>9s} {'2..9 (s)':>9s} {'ratio':>6s}")
-    ratios, tot = [], {s: 0.0 for s in settings}
-    for kind in layout.BUILDERS:
-        a, b = (statistics.median(times[(kind, s)]) for s in settings)
-        tot["2,5"] += a
-        tot["2..9"] += b
-        ratios.append(b / a)
-        print(f"{kind:28s} {a:9.3f} {b:9.3f} {b / a:6.2f}")
-    print(f"median ratio 2..9 / 2,5 over {len(ratios)} kinds: {statistics.median(ratios):.2f}; "
-          f"sum of medians {tot['2,5']:.2f} s vs {tot['2..9']:.2f} s ({args.rounds} rounds)")
+        if args.against:
+            sides = {args.against: (_export(args.against, Path(tmp)), "default"), "this tree": (REPO, "default")}
+        elif args.minor_ticks:
+            sides = {"minor 2..9": (REPO, "2..9"), "minor 2,5": (REPO, "2,5")}
+        else:
+            sides = {"this tree": (REPO, "default")}
+        times = {name: {} for name in sides}
+        if len(sides) == 1:  # one process: warm once, then the rounds
+            _merge(times["this tree"], _child(REPO, rounds=args.rounds))
+        else:
+            for r in range(args.rounds):  # alternate the sides, each round in a fresh process
+                for name, (root, minor) in (sides.items() if r % 2 == 0 else reversed(sides.items())):
+                    _merge(times[name], _child(root, minor))
+    names = list(sides)
+    kinds = list(times[names[-1]])
+    cols = "".join(f" {n[:16] + ' cpu':>21s} {'wall':>7s}" for n in names)
+    print(f"{'figure kind':24s}{cols}" + (f" {'cpu ratio':>9s}" if len(names) == 2 else ""))
+    total = {n: [0.0, 0.0] for n in names}
+    for kind in kinds:
+        line = f"{kind:24s}"
+        med = {}
+        for n in names:
+            rows = times[n].get(kind)
+            if not rows:
+                line += f" {'-':>21s} {'-':>7s}"
+                continue
+            med[n] = (statistics.median(r[0] for r in rows), statistics.median(r[1] for r in rows))
+            total[n][0] += med[n][0]
+            total[n][1] += med[n][1]
+            line += f" {med[n][0]:21.3f} {med[n][1]:7.3f}"
+        if len(names) == 2 and len(med) == 2:
+            line += f" {med[names[1]][0] / med[names[0]][0]:9.2f}"
+        print(line)
+    line = f"{'sum of medians':24s}" + "".join(f" {total[n][0]:21.2f} {total[n][1]:7.2f}" for n in names)
+    if len(names) == 2:
+        line += f" {total[names[1]][0] / total[names[0]][0]:9.2f}"
+    print(line)
+    print(f"# load average after {os.getloadavg()[0]:.2f}; {time.strftime('%H:%M', time.gmtime())} UTC")
     return 0
 
 

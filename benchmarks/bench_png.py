@@ -1,7 +1,7 @@
 """What writing a figure's PNG costs: colour quantization and zlib settings.
 
 Renders every figure kind of ``tests/test_figure_layout.py`` once (the
-canvas ``validation.figures._save`` would store), then stores each canvas as
+canvas ``validation.figures.style.save`` would store), then stores each canvas as
 a 256-colour palette PNG with median-cut or fast-octree quantization and
 with PNG's ``optimize`` search or zlib level 6. Prints, per setting, the
 median milliseconds per figure over rounds, the mean file size, and the
@@ -27,28 +27,27 @@ sys.path.insert(0, str(REPO / "tests"))
 
 
 def _canvases():
-    """The RGB canvases of every figure kind, as ``validation.figures._save`` draws them."""
+    """The RGB canvases of every figure kind, as ``validation.figures.style.save`` draws them
+    (caught by its ``SAVE_HOOK`` after the final draw)."""
     from PIL import Image
 
     import test_figure_layout as layout
-    from validation import figures
+    from validation.figures import style
 
-    out, original = [], figures._save
+    out, original = [], style.SAVE_HOOK
 
-    def capture(fig, out_dir, stem):
-        figures._finish(fig)
+    def capture(fig, path):
         w, h = fig.canvas.get_width_height()
         out.append(Image.frombuffer("RGBA", (w, h), bytes(fig.canvas.buffer_rgba()), "raw", "RGBA", 0, 1)
                    .convert("RGB"))
-        return Path(out_dir) / f"{stem}.png"
 
-    figures._save = capture
+    style.SAVE_HOOK = capture
     try:
         with tempfile.TemporaryDirectory(prefix="rk4h-bench-png-") as tmp:
             for build in layout.BUILDERS.values():
                 build(Path(tmp))
     finally:
-        figures._save = original
+        style.SAVE_HOOK = original
     return out
 
 

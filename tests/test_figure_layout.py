@@ -2,7 +2,7 @@
 
 Each kind is built once from small synthetic data shaped like the shipped
 scenes' (or a short exact / RK4 trajectory), rendered by the figure code
-itself (Agg, through ``figures._save``) and inspected with matplotlib's
+itself (Agg, through ``figures.save``) and inspected with matplotlib's
 bounding boxes:
 
 * ``legend``: no legend box contains a drawn data point (the vertices of the
@@ -35,6 +35,7 @@ import validation.stability as S
 from references.exact import modal_solution
 from validation import draw as D
 from validation import figures
+from validation.execute import modal_content
 
 MIN_PT = 8.0
 
@@ -186,7 +187,7 @@ def _grid_network(n=13):
 
 def _state(out, name, run, title="RK4"):
     model, t, y = run
-    return figures.scene_figures(out, name, model, t, y, title=f"{name}: {title}")
+    return figures.scene_figures(out, name, model, t, y, title=f"{name}: {title}", modal=modal_content(model, t, y))
 
 
 BUILDERS = {
@@ -244,12 +245,12 @@ def built(tmp_path_factory):
     def get(kind):
         if kind not in cache:
             seen = []
-            saved = figures._SAVE_HOOK
-            figures._SAVE_HOOK = lambda fig, path: seen.append((fig, path))
+            saved = figures.style.SAVE_HOOK
+            figures.style.SAVE_HOOK = lambda fig, path: seen.append((fig, path))
             try:
                 out = BUILDERS[kind](tmp_path_factory.mktemp(kind))
             finally:
-                figures._SAVE_HOOK = saved
+                figures.style.SAVE_HOOK = saved
             by_path = {p.name: s for p, s in out}
             cache[kind] = [(fig, path, by_path.get(path.name)) for fig, path in seen]
             assert cache[kind], f"{kind}: no figure drawn"
@@ -441,7 +442,7 @@ def test_error_axis_is_relative_or_says_its_units(built, tmp_path, monkeypatch):
     (fig, _, _), = built("convergence")  # points without error_rel: absolute, mixed units said
     assert "m/s" in fig.axes[0].get_ylabel() and "in its unit" in fig.axes[0].get_ylabel()
     seen = []
-    monkeypatch.setattr(figures, "_SAVE_HOOK", lambda f, p: seen.append(f))
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda f, p: seen.append(f))
     points, fits = _conv_inputs()
     figures.convergence(tmp_path, "c", points.assign(error_rel=points["error_max"] / 0.005), fits)
     assert seen[0].axes[0].get_ylabel().startswith("relative error")
@@ -504,7 +505,7 @@ def test_scene_methods_are_drawn_in_their_registry_styles(built):
     ax = fig.axes[0]
     colours = {line.get_label().split(":")[0]: line.get_color() for line in ax.get_lines()
                if ":" in line.get_label()}
-    assert figures._UNKNOWN_STYLE[0] not in colours.values(), colours
+    assert figures.UNKNOWN_STYLE[0] not in colours.values(), colours
     assert len(set(colours.values())) == len(colours), colours
     guides = sorted(line.get_gid() for line in ax.get_lines() if (line.get_gid() or "").startswith("guide"))
     assert guides == ["guide_slope_1", "guide_slope_2", "guide_slope_3", "guide_slope_4"]

@@ -1,8 +1,8 @@
-"""The report's figures (validation/figures.py): files, sizes, what is drawn.
+"""The report's figures (validation/figures/): files, sizes, what is drawn.
 
 Inputs are realistic but short: real RK4 trajectories (rk4core.solve) and the
 modal exact solution of the seed's models. Each figure is inspected just
-before it is written through ``figures._SAVE_HOOK``.
+before it is written through ``figures.style.SAVE_HOOK``.
 """
 import math
 
@@ -15,6 +15,7 @@ import pytest
 import rk4core
 from references.exact import modal_solution
 from validation import figures
+from validation.execute import modal_content
 
 PX = (round(figures.SIZE[1] * figures.DPI), round(figures.SIZE[0] * figures.DPI))  # (rows, cols)
 PX_TALL = (round(figures.SIZE_TALL[1] * figures.DPI), round(figures.SIZE_TALL[0] * figures.DPI))
@@ -33,7 +34,7 @@ def no_open_figures():
 def captured(monkeypatch):
     """List of (Figure, path) of every figure saved during the test."""
     seen = []
-    monkeypatch.setattr(figures, "_SAVE_HOOK", lambda fig, path: seen.append((fig, path)))
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append((fig, path)))
     return seen
 
 
@@ -50,6 +51,12 @@ def check_sentence(s):
 
 def labelled_lines(ax):
     return [ln for ln in ax.get_lines() if not ln.get_label().startswith("_")]
+
+
+def scene_figures(out_dir, scene_name, model, t, y, **kw):
+    """``figures.scene_figures`` as the pipeline calls it: with the modal
+    content execute records for the trajectory."""
+    return figures.scene_figures(out_dir, scene_name, model, t, y, modal=modal_content(model, t, y), **kw)
 
 
 def rk4_run(name, params, x, v=None, t_end=3.0, h=0.01):
@@ -94,7 +101,7 @@ SCENES = {
 def test_scene_figures_writes_the_set_of_its_model_kind(kind, tmp_path, captured):
     name, params, x0, v0, suffixes, n_lines = SCENES[kind]
     model, t, y = rk4_run(name, params, x0, v0)
-    out = figures.scene_figures(tmp_path, f"My-Scene {kind}", model, t, y, title=f"my scene ({kind})")
+    out = scene_figures(tmp_path, f"My-Scene {kind}", model, t, y, title=f"my scene ({kind})")
     stem = "my_scene_" + kind.replace(" ", "_") + "_"
     assert {p.name for p, _ in out} == {f"{stem}{s}.png" for s in suffixes}
     for path, sentence in out:
@@ -129,7 +136,7 @@ def test_figures_come_from_the_drawing_not_the_name(tmp_path, captured):
     params = {"dim": 2, "masses": [0.5], "positions": list(X0), "anchors": [c for a in anchors for c in a],
               "springs": [[0, 1, 10.0], [0, 2, 20.0, 0.4], [0, 3, 30.0]]}
     model, t, y = rk4_run("network", params, [0.01, -0.02], t_end=1.0)
-    out = figures.scene_figures(tmp_path, "w", _renamed(model, "chain"), t, y, title="web")
+    out = scene_figures(tmp_path, "w", _renamed(model, "chain"), t, y, title="web")
     assert {p.name for p, _ in out} == {"w_displacement.png", "w_velocity.png", "w_springs.png",
                                         "w_trajectory.png"}
     fig = dict((p.name, f) for f, p in captured)["w_springs.png"]
@@ -148,7 +155,7 @@ def test_figures_come_from_the_drawing_not_the_name(tmp_path, captured):
 
 def test_several_points_give_one_path_panel_each_titled_by_its_reference(tmp_path, captured):
     model, t, y = rk4_run("network", WEB, [0.02, 0.0, -0.01, 0.015], t_end=1.0)
-    figures.scene_figures(tmp_path, "web", _renamed(model, "triangle"), t, y, title="web")
+    scene_figures(tmp_path, "web", _renamed(model, "triangle"), t, y, title="web")
     (fig, path), = captured
     assert path.name == "web_paths.png"
     panels = [a for a in fig.axes if a.get_lines()]
@@ -163,16 +170,16 @@ def test_sentences_quote_the_drawing(tmp_path, monkeypatch):
     d = dataclasses.replace(model.drawing(), caption="a custom reading hint",
                             extra={"thesis": "Fig 9.99", "rest_note": "a custom rest note"})
     monkeypatch.setattr(model, "drawing", lambda: d)
-    sentences = {p.name: s for p, s in figures.scene_figures(tmp_path, "q", model, t, y, title="q")}
+    sentences = {p.name: s for p, s in scene_figures(tmp_path, "q", model, t, y, title="q")}
     assert all("(Fig 9.99)" in s for s in sentences.values())
     assert "a custom reading hint" in sentences["q_trajectory.png"]
     assert "a custom rest note" in sentences["q_springs.png"]
     shipped_model = rk4core.make_model("planar4", {"m": 0.815, "k": 41.5, "l": 0.01})
-    shipped = {p.name: s for p, s in figures.scene_figures(tmp_path, "p", shipped_model, t, y, title="p")}
+    shipped = {p.name: s for p, s in scene_figures(tmp_path, "p", shipped_model, t, y, title="p")}
     # a model does not know whether a scene reproduces a thesis figure: the scene says so
     assert not any("(thesis" in s for s in shipped.values())
     assert "erratum 3: not length - l^2" in shipped["p_springs.png"]
-    labelled = {p.name: s for p, s in figures.scene_figures(tmp_path, "p", shipped_model, t, y, title="p",
+    labelled = {p.name: s for p, s in scene_figures(tmp_path, "p", shipped_model, t, y, title="p",
                                                                thesis="thesis Figs 4.12-4.14")}
     assert all("(thesis Figs 4.12-4.14)" in s for s in labelled.values())
 
@@ -188,13 +195,13 @@ def test_a_drawing_that_does_not_fit_the_model_is_refused(change, field, tmp_pat
     d = dataclasses.replace(model.drawing(), **change)
     monkeypatch.setattr(model, "drawing", lambda: d)
     with pytest.raises(ValueError, match=f"`drawing\\(\\).{field}`"):
-        figures.scene_figures(tmp_path, "bad", model, t, y, title="bad")
+        scene_figures(tmp_path, "bad", model, t, y, title="bad")
     assert list(tmp_path.iterdir()) == []
 
 
 def test_chain_time_series_panels_show_whole_run_then_first_periods(tmp_path, captured):
     model, t, y = rk4_run("chain", CASE1, [0.005, 0.0], t_end=20.0)
-    figures.scene_figures(tmp_path, "case1", model, t, y, title="case 1")
+    scene_figures(tmp_path, "case1", model, t, y, title="case 1")
     fig = dict((p.name, f) for f, p in captured)["case1_displacement.png"]
     top, zoom = fig.axes[:2]
     assert top.get_xlim() == (0.0, 20.0)
@@ -208,7 +215,7 @@ def test_chain_time_series_panels_show_whole_run_then_first_periods(tmp_path, ca
 def test_planar4_spring_elongation_is_length_minus_l(tmp_path, captured):
     x0, y0, l = 0.005, 0.03, 0.01
     model, t, y = rk4_run("planar4", {"m": 0.815, "k": 41.5, "l": l}, [x0, y0], t_end=1.0)
-    figures.scene_figures(tmp_path, "p4", model, t, y, title="planar4")
+    scene_figures(tmp_path, "p4", model, t, y, title="planar4")
     fig = dict((p.name, f) for f, p in captured)["p4_springs.png"]
     ax = fig.axes[0]
     assert "(mm)" in ax.get_ylabel()
@@ -223,7 +230,7 @@ def test_lissajous_is_drawn_with_equal_axes(tmp_path, captured):
     model = rk4core.make_model("oscillator2d", {"m": 0.815, "kx": 4 * 41.5, "ky": 41.5})
     t = np.linspace(0.0, 2.0, 401)
     y = modal_solution(model, model.state([0.0, 1.0], [7.0, 0.0]))(t)
-    figures.scene_figures(tmp_path, "liss", model, t, y, title="lissajous")
+    scene_figures(tmp_path, "liss", model, t, y, title="lissajous")
     fig = dict((p.name, f) for f, p in captured)["liss_trajectory.png"]
     ax = fig.axes[0]
     assert ax.get_aspect() == 1.0
@@ -238,7 +245,7 @@ def test_scene_figures_draw_a_blown_up_run_with_a_gap(tmp_path, captured):
     y = y.copy()
     y[:, t.size // 2:] = np.nan
     y[0, -1] = np.inf
-    out = figures.scene_figures(tmp_path, "boom", model, t, y, title="blown up")
+    out = scene_figures(tmp_path, "boom", model, t, y, title="blown up")
     assert len(out) == 2
     fig = dict((p.name, f) for f, p in captured)["boom_displacement.png"]
     assert "(mm)" in fig.axes[0].get_ylabel()  # the scale comes from the finite part
@@ -249,7 +256,7 @@ def test_scene_figures_refuses_mismatched_trajectory(bad, tmp_path):
     model, t, y = rk4_run("chain", CASE1, [0.005, 0.0], t_end=0.1)
     y = y[:, :-1] if bad == "short_y" else y[:2]
     with pytest.raises(ValueError, match="`y`"):
-        figures.scene_figures(tmp_path, "x", model, t, y, title="x")
+        scene_figures(tmp_path, "x", model, t, y, title="x")
     assert list(tmp_path.iterdir()) == []
 
 

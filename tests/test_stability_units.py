@@ -301,7 +301,7 @@ def saved(monkeypatch):
     from validation import figures
 
     seen = []
-    monkeypatch.setattr(figures, "_SAVE_HOOK", lambda fig, path: seen.append((fig, path)))
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append((fig, path)))
     return seen
 
 

@@ -57,7 +57,7 @@ def _draw(job, out_dir, scenes_by_name) -> list:
         model = scenes_by_name[name].build_model()
         thesis = d.get("thesis")
         return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"],
-                               thesis=f"thesis {thesis}" if thesis else None)
+                               thesis=f"thesis {thesis}" if thesis else None, modal=d.get("modal"))
     if job.kind == "stability":
         from . import stability
 
@@ -131,8 +131,8 @@ def sweep_figure(out_dir, base, param, quantity, ylabel, logy, curves):
     ``"sweep"``: the sentence names the points and the quantity's range."""
     from . import figures as f
 
-    fig = f._new_figure(f.SIZE)
-    f._suptitle(fig, f"{base}: {quantity} against {param}")
+    fig = f.new_figure(f.SIZE)
+    f.suptitle(fig, f"{base}: {quantity} against {param}")
     ax = fig.subplots()
     xs_all, ys_all, seen = [], [], {}
     for label, pts in curves.items():
@@ -141,20 +141,20 @@ def sweep_figure(out_dir, base, param, quantity, ylabel, logy, curves):
         ys_all += list(y)
         solver = label.split(",")[0]
         color, marker = f.solver_style(solver)
-        ls = f._LINESTYLES[seen.get(solver, 0) % len(f._LINESTYLES)]  # a solver's settings told apart
+        ls = f.LINESTYLES[seen.get(solver, 0) % len(f.LINESTYLES)]  # a solver's settings told apart
         seen[solver] = seen.get(solver, 0) + 1
         ax.plot(x, y, marker=marker, color=color if color != "#7f7f7f" else None, lw=1.2, ms=4, ls=ls, label=label)
     xs, ys = np.array(xs_all), np.array(ys_all)
     log_x = bool(xs.size and np.all(xs > 0) and xs.max() / xs.min() > 10)
     log_y = bool(logy and all(np.all(np.array(p)[:, 1] > 0) for p in curves.values()))
     if log_x or log_y:
-        f._log_axes(ax, x=log_x, y=log_y)
+        f.log_axes(ax, x=log_x, y=log_y)
     ax.grid(True, which="major", alpha=0.3)
     ax.set_xlabel(param)
     ax.set_ylabel(ylabel)
     if len(curves) <= 12:  # more would crush the axes; the sentence says so
-        f._legend_below(fig)
-    path = f._save(fig, out_dir, f"{f.slug(base)}_sweep_{f.slug(param)}_{f.slug(quantity)}")
+        f.legend_below(fig)
+    path = f.save(fig, out_dir, f"{f.slug(base)}_sweep_{f.slug(param)}_{f.slug(quantity)}")
     fin = ys[np.isfinite(ys)]
     sentence = (f"{base}: {quantity} over {len(set(xs_all))} values of {param} ({xs.min():g} to {xs.max():g}), "
                 f"{len(curves)} curve(s), values {fin.min():.3g} to {fin.max():.3g}"

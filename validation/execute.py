@@ -30,7 +30,8 @@ from . import metrics
 from .plan import FIGURE_POINTS, RunSpec
 from .records import RunRecord, failed_record
 
-__all__ = ["execute", "problem", "grid", "REPEAT_BELOW_S", "MODAL_MODES", "modal_energies",
+__all__ = ["execute", "problem", "grid", "REPEAT_BELOW_S", "MODAL_MODES", "modal_energies", "modal_content",
+           "recorded_modal", "MAX_MODAL_DOF",
            "convergence_horizon", "NoTruth", "truth_problem"]
 
 #: Runs longer than this (s) are timed once (the median of repeats guards the short runs,
@@ -38,6 +39,10 @@ __all__ = ["execute", "problem", "grid", "REPEAT_BELOW_S", "MODAL_MODES", "modal
 REPEAT_BELOW_S = 0.1
 #: The lowest linear modes followed by the modal-energy output.
 MODAL_MODES = 4
+#: The modal content of a drawn trajectory (a dense eigenproblem) only up to this many degrees of freedom.
+MAX_MODAL_DOF = 500
+#: The dominant mode's share over a drawn run is read at most at this many output times.
+_SHARE_POINTS = 4000
 
 _PROBLEMS: dict = {}
 
@@ -198,10 +203,13 @@ def _truth_spec(scene, spec, quick):
                          values={"truth_kind": truth.kind if truth is not None else "", "scale": math.nan,
                                  "no_truth": reason})
     y = np.asarray(truth.y, float)
-    arrays = {"t": t, "y": y} if "trajectory" in spec.keep else {}
     values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))}
     if "agreement_rel" in truth.extra:  # any ODE: two references that agree (references.ode_truth)
         values |= {"agreement_rel": float(truth.extra["agreement_rel"]), "truth_note": _first_line(truth.message)}
+    arrays = {}
+    if "trajectory" in spec.keep:
+        arrays = {"t": t, "y": y}
+        _record_modal(model, t, y, values, arrays)
     return RunRecord(spec.key, values=values, arrays=arrays)
 
 
@@ -268,8 +276,11 @@ def _figure_spec(scene, spec, quick):
     t = grid(scene, model, spec)
     run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
     status = _status(run)
-    arrays = {"t": np.asarray(run.t, float), "y": np.asarray(run.y, float)} if status == "ok" else {}
-    return RunRecord(spec.key, status=status, message=_first_line(run.message), arrays=arrays)
+    values, arrays = {}, {}
+    if status == "ok":
+        arrays = {"t": np.asarray(run.t, float), "y": np.asarray(run.y, float)}
+        _record_modal(model, arrays["t"], arrays["y"], values, arrays)
+    return RunRecord(spec.key, status=status, message=_first_line(run.message), values=values, arrays=arrays)
 
 
 def _order_spec(scene, spec, quick):
@@ -293,9 +304,96 @@ def modal_energies(model, y, omega, phi):
     ``E_k = (adot_k^2 + omega_k^2 a_k^2) / 2`` with modal coordinates
     ``a = phi^T M q`` (``phi`` mass-normalised)."""
     n = model.n_dof
-    Mphi = phi * model.mass[:, None]
+    Mphi = phi * np.asarray(model.mass, float)[:, None]
     a, adot = Mphi.T @ y[:n], Mphi.T @ y[n:]
     return 0.5 * (adot * adot + (omega[:, None] * a) ** 2)
+
+
+def modal_content(model, t, y) -> dict:
+    """The modal numbers a drawing of one trajectory quotes, from the model's
+    linearization (``model.modes()``, ``phi`` mass-normalised).
+
+    Parameters
+    ----------
+    model : rk4core.models.Model
+    t : ndarray, shape (m,)
+        Output times (s).
+    y : ndarray, shape (2 n_dof, m)
+        States ``[q, v]`` at ``t`` (SI units; NaN after a blow-up).
+
+    Returns
+    -------
+    dict
+        ``{}`` when the model has no usable linearization or more than
+        :data:`MAX_MODAL_DOF` degrees of freedom; else ``"omega"`` (the
+        modes' angular frequencies, rad/s, shape (modes,)) and, when there is
+        one mass per coordinate and the initial state is finite with positive
+        linear modal energy, ``"fraction0"`` (each mode's fraction of that
+        energy, :func:`modal_energies` of ``y[:, 0]``), ``"share_min"`` and
+        ``"share_t"``: the lowest share, along the run (finite states, at
+        most 4000 output times), of the modes of the initial state's dominant
+        frequency (the modes whose frequency equals, to 1e-9 relative, that of
+        the mode with the largest fraction) in the linear modal energy, and its
+        time (s); both NaN unless that frequency holds at least 99.9% of the
+        initial energy.
+    """
+    if model.first_order:  # dy/dt = f(t, y): no linearization, no modes
+        return {}
+    n = model.n_dof
+    if n > MAX_MODAL_DOF:
+        return {}
+    try:
+        omega, phi = model.modes()
+    except (NotImplementedError, ValueError, AttributeError, TypeError, np.linalg.LinAlgError):
+        return {}
+    omega, phi = np.asarray(omega, float), np.asarray(phi, float)
+    if omega.ndim != 1 or phi.shape != (n, omega.size) or not np.isfinite(omega).all():
+        return {}
+    out = {"omega": omega}
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    if np.asarray(model.mass).shape != (n,) or y.shape != (2 * n, t.size) or not np.isfinite(y[:, 0]).all():
+        return out
+    e0 = modal_energies(model, y[:, :1], omega, phi)[:, 0]
+    total = float(e0.sum())
+    if not (math.isfinite(total) and total > 0):
+        return out
+    frac = e0 / total
+    k = int(np.argmax(frac))
+    idx = np.flatnonzero(np.abs(omega - omega[k]) <= 1e-9 * max(1.0, float(omega[k])))
+    share_min = share_t = math.nan
+    if float(frac[idx].sum()) >= 0.999:
+        step = max(1, t.size // _SHARE_POINTS)
+        ts, ys = t[::step], y[:, ::step]
+        ok = np.isfinite(ys).all(axis=0)
+        if ok.any():
+            e = modal_energies(model, ys[:, ok], omega, phi)
+            tot = e.sum(axis=0)
+            share = np.where(tot > 0, e[idx].sum(axis=0) / np.where(tot > 0, tot, 1.0), 1.0)
+            i = int(np.argmin(share))
+            share_min, share_t = float(share[i]), float(ts[ok][i])
+    out.update(fraction0=frac, share_min=share_min, share_t=share_t)
+    return out
+
+
+def _record_modal(model, t, y, values, arrays) -> None:
+    """:func:`modal_content` of a kept trajectory into a record: arrays
+    ``modal_omega``, ``modal_fraction0``; values ``modal_share_min``,
+    ``modal_share_t``."""
+    content = modal_content(model, t, y)
+    for key in ("omega", "fraction0"):
+        if key in content:
+            arrays[f"modal_{key}"] = np.asarray(content[key], float)
+    for key in ("share_min", "share_t"):
+        if key in content:
+            values[f"modal_{key}"] = float(content[key])
+
+
+def recorded_modal(record) -> dict:
+    """The :func:`modal_content` a record holds (``{}`` when it holds none)."""
+    out = {key: record.arrays[f"modal_{key}"] for key in ("omega", "fraction0") if f"modal_{key}" in record.arrays}
+    out.update({key: record.values[f"modal_{key}"] for key in ("share_min", "share_t")
+                if f"modal_{key}" in record.values})
+    return out
 
 
 def _modal_spec(scene, spec, quick):

@@ -469,9 +469,12 @@ def _state_figure(scene, specs, records, res):
         title = (f"{scene.name}: {s.solver}, h = {s.setting:g} s" if s.purpose == "figure"
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
+            from .execute import recorded_modal
+
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
                                                                "title": title,
-                                                               "thesis": getattr(scene, "thesis_figures", "")}))
+                                                               "thesis": getattr(scene, "thesis_figures", ""),
+                                                               "modal": recorded_modal(rec)}))
         return
 
 

@@ -29,8 +29,8 @@ def _stem(plot) -> str:
 
 
 def _log_axes(ax, x=True, y=True):
-    """The figures' log axes (:func:`validation.figures._log_axes`)."""
-    F._log_axes(ax, x=x, y=y)
+    """The figures' log axes (:func:`validation.figures.style.log_axes`)."""
+    F.log_axes(ax, x=x, y=y)
 
 
 def _caption(text, kind):
@@ -39,8 +39,8 @@ def _caption(text, kind):
 
 def _growth(plot, out_dir):
     d = plot["data"]
-    fig = F._new_figure()
-    F._suptitle(fig, f"{plot['scene']}: growth per step of the fastest mode against omega h")
+    fig = F.new_figure()
+    F.suptitle(fig, f"{plot['scene']}: growth per step of the fastest mode against omega h")
     ax = fig.subplots()
     line = np.asarray(d["theta_line"], float)
     for meth, g in d["theory"].items():
@@ -52,12 +52,11 @@ def _growth(plot, out_dir):
     for meth, th in d["boundary"].items():
         color, _ = F.solver_style(meth)
         ax.axvline(th, color=color, ls=":", lw=1.0, label=f"{meth} boundary {th:.3g}")
-    ax.set_yscale("log")
-    ax.grid(which="major", alpha=0.3)
+    _log_axes(ax, x=False)
     ax.set_xlabel("omega_max h")
     ax.set_ylabel("growth factor per step")
-    F._legend_below(fig)
-    path = F._save(fig, out_dir, _stem(plot))
+    F.legend_below(fig)
+    path = F.save(fig, out_dir, _stem(plot))
     facts = []
     for meth, g in d["theory"].items():
         g = np.asarray(g, float)
@@ -73,14 +72,14 @@ def _growth(plot, out_dir):
         if ok.any():
             bits.append(f"measured within {100 * np.max(np.abs(meas[ok] / th[ok] - 1)):.2g}% of theory")
         facts.append(", ".join(bits))
-    return path, _caption(F._sentence(f"{plot['scene']}", *facts), "growth")
+    return path, _caption(F.sentence(f"{plot['scene']}", *facts), "growth")
 
 
 def _drift(plot, out_dir):
     d = plot["data"]
-    fig = F._new_figure()
+    fig = F.new_figure()
     meth = d["method"]
-    F._suptitle(fig, f"{plot['scene']}: {meth} energy loss and phase lag per step against theta = omega h")
+    F.suptitle(fig, f"{plot['scene']}: {meth} energy loss and phase lag per step against theta = omega h")
     ax_e, ax_p = fig.subplots(1, 2)
     color, marker = F.solver_style(meth)
     line = d["theta_line"]
@@ -106,10 +105,10 @@ def _drift(plot, out_dir):
         if ok.any():
             facts.append(f"measured {what} within {100 * np.max(np.abs(meas[ok] / th[ok] - 1)):.2g}% of theory "
                          f"at theta {np.min(np.asarray(d['theta'])[ok]):.3g}-{np.max(np.asarray(d['theta'])[ok]):.3g}")
-    F._legend_below(fig)
-    path = F._save(fig, out_dir, _stem(plot))
+    F.legend_below(fig)
+    path = F.save(fig, out_dir, _stem(plot))
     facts.append(f"leading terms {a_e:.4g} theta^{p_e} (loss) and {a_p:.4g} theta^{p_p} (lag)")
-    return path, _caption(F._sentence(f"{plot['scene']}: {meth}", *facts), "drift")
+    return path, _caption(F.sentence(f"{plot['scene']}: {meth}", *facts), "drift")
 
 
 def _long_energy(plot, out_dir):
@@ -121,9 +120,9 @@ def _long_energy(plot, out_dir):
 
 def _roundoff(plot, out_dir):
     d = plot["data"]
-    fig = F._new_figure()
+    fig = F.new_figure()
     meth = d["method"]
-    F._suptitle(fig, f"{plot['scene']}: {meth} error after one slow period against the step (round-off floor)")
+    F.suptitle(fig, f"{plot['scene']}: {meth} error after one slow period against the step (round-off floor)")
     ax = fig.subplots()
     color, marker = F.solver_style(meth)
     h, err = np.asarray(d["h"], float), np.asarray(d["error"], float)
@@ -143,8 +142,8 @@ def _roundoff(plot, out_dir):
     _log_axes(ax)
     ax.set_xlabel("step size h (s)")
     ax.set_ylabel("max |q - q_exact| / max |q0| (relative)")
-    F._legend_below(fig)
-    path = F._save(fig, out_dir, _stem(plot))
+    F.legend_below(fig)
+    path = F.save(fig, out_dir, _stem(plot))
     facts = [f"smallest error {err[i]:.2g} at h = {d['h_best']:.3g} s"]
     if ok.any():
         facts.append(f"error {err[j]:.2g} at the largest step h = {h[j]:.3g} s")
@@ -152,7 +151,7 @@ def _roundoff(plot, out_dir):
         if small.any():
             k = int(np.argmin(np.where(small, h, np.inf)))
             facts.append(f"and {err[k]:.2g} at the smallest, h = {h[k]:.3g} s (round-off)")
-    return path, _caption(F._sentence(f"{plot['scene']}: {meth}", *facts), "roundoff")
+    return path, _caption(F.sentence(f"{plot['scene']}: {meth}", *facts), "roundoff")
 
 
 def _fold(x, ratio, tol=1e-9):
@@ -169,18 +168,18 @@ def _fold(x, ratio, tol=1e-9):
 
 def _cost(plot, out_dir):
     d = plot["data"]
-    fig = F._new_figure()
+    fig = F.new_figure()
     what = "spring" if d["what"] == "ratio" else "mass"
     x = np.asarray(d["x"], float)
     mirrored = _fold(x, d["stiffness_ratio"]) if d["what"] != "ratio" else np.zeros(x.shape, bool)
     folded = bool(mirrored.any())
-    F._suptitle(fig, f"{plot['scene']}: cost of reaching error {d['target_error']:g} (relative, one slow period) "
+    F.suptitle(fig, f"{plot['scene']}: cost of reaching error {d['target_error']:g} (relative, one slow period) "
                      f"against the {what} ratio")
     ax_n, ax_t = fig.subplots(1, 2, sharex=True)
     xd = np.where(mirrored, 1.0 / x, x)
     main = ~mirrored
     facts = []
-    for solver in F._in_palette_order(list(d["nfev"])):
+    for solver in F.in_palette_order(list(d["nfev"])):
         color, marker = F.solver_style(solver)
         n, w = np.asarray(d["nfev"][solver], float), np.asarray(d["wall_s"][solver], float)
         meth = BUILTIN.get(solver)
@@ -197,14 +196,14 @@ def _cost(plot, out_dir):
         _log_axes(ax)
         ax.set_xlabel("mass ratio max(mu, 1/mu)" if folded else d["xlabel"])
         ax.set_ylabel(yl)
-    F._legend_below(fig, title=("hollow: mu < 1 drawn at 1/mu (masses swapped: the same omega_max/omega_min)"
+    F.legend_below(fig, title=("hollow: mu < 1 drawn at 1/mu (masses swapped: the same omega_max/omega_min)"
                                 if folded else None))
-    path = F._save(fig, out_dir, _stem(plot))
+    path = F.save(fig, out_dir, _stem(plot))
     r = np.asarray(d["stiffness_ratio"], float)
     # the stiffest point, the one the study's finding and the limits table quote
     k = stiffest_index(x, r)
     status = d.get("status", {})
-    for solver in F._in_palette_order(list(d["nfev"])):
+    for solver in F.in_palette_order(list(d["nfev"])):
         st = status[solver][k] if solver in status else ("ok" if math.isfinite(d["nfev"][solver][k]) else "not reached")
         facts.append(cost_at_point(solver, float(d["nfev"][solver][k]), st))
     name = SWEEP_NAMES.get(d["what"], f"{what} ratio")
@@ -215,14 +214,14 @@ def _cost(plot, out_dir):
     if folded:
         parts.append(f"{int(mirrored.sum())} point(s) mu < 1 folded onto 1/mu, where the same {FREQUENCY_RATIO} gives "
                      f"the same system")
-    return path, _caption(F._sentence(head, *parts), "cost")
+    return path, _caption(F.sentence(head, *parts), "cost")
 
 
 def _large_n(plot, out_dir):
     d = plot["data"]
     fits = d["fits"]
-    fig = F._new_figure()
-    F._suptitle(fig, f"{plot['scene']}: cost per step and memory against chain length N")
+    fig = F.new_figure()
+    F.suptitle(fig, f"{plot['scene']}: cost per step and memory against chain length N")
     ax_t, ax_b = fig.subplots(1, 2, sharex=True)
     N = np.asarray(d["n"], float)
     meth = d["method"]
@@ -239,8 +238,8 @@ def _large_n(plot, out_dir):
         ax.set_xlabel("N masses")
     ax_t.set_ylabel("wall time per step (s)")
     ax_b.set_ylabel("peak bytes (tracemalloc)")
-    F._legend_below(fig)
-    path = F._save(fig, out_dir, _stem(plot))
+    F.legend_below(fig)
+    path = F.save(fig, out_dir, _stem(plot))
     return path, _caption(
         f"{plot['scene']}: N = {N.min():g} to {N.max():g}; fitted slopes {meth} time {fits['time']:.2f}, "
         f"cvode-bdf time {fits['cvode_time']:.2f}, {meth} memory {fits['bytes']:.2f}.", "large_n")
@@ -249,8 +248,8 @@ def _large_n(plot, out_dir):
 def _amplitude(plot, out_dir):
     d = plot["data"]
     a, err = np.asarray(d["a_over_l"], float), np.asarray(d["error"], float)
-    fig = F._new_figure()
-    F._suptitle(fig, f"{plot['scene']}: error of the linearized model against amplitude")
+    fig = F.new_figure()
+    F.suptitle(fig, f"{plot['scene']}: error of the linearized model against amplitude")
     ax = fig.subplots()
     color, marker = F.solver_style(d["method"])
     ax.plot(a, err, "-", color=color, marker=marker, ms=5, lw=1.2,
@@ -262,14 +261,14 @@ def _amplitude(plot, out_dir):
     _log_axes(ax)
     ax.set_xlabel("initial amplitude / l")
     ax.set_ylabel("max |q_nl - q_lin| / r0 over 5 periods (relative)")
-    F._legend_below(fig)
-    path = F._save(fig, out_dir, _stem(plot))
+    F.legend_below(fig)
+    path = F.save(fig, out_dir, _stem(plot))
     facts = [f"measured slope {d['slope']:.2f}"]
     for level in (1e-2, 1e-4):
         below = sel & (err <= level)
         if below.any():
             facts.append(f"error <= {level:g} up to a/l = {a[below].max():.3g}")
-    return path, _caption(F._sentence(f"{plot['scene']}: a/l = {a.min():.3g} to {a.max():.3g}", *facts), "amplitude")
+    return path, _caption(F.sentence(f"{plot['scene']}: a/l = {a.min():.3g} to {a.max():.3g}", *facts), "amplitude")
 
 
 KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "roundoff": _roundoff, "cost": _cost,

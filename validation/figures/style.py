@@ -1,0 +1,379 @@
+"""The figures' style kit: sizes, fonts, solver colours, the figure canvas,
+titles, legends, log axes, the final draw with its house rules, the PNG
+writer and the number formats every figure's text uses.
+
+Every figure of the report (:mod:`validation.figures.scene`,
+:mod:`validation.figures.measurement`, :mod:`validation.stability.plots`,
+:mod:`validation.draw`) is drawn with these functions, so one style holds
+everywhere.
+
+Conventions
+-----------
+* Rendering is by matplotlib's Agg canvas on :class:`matplotlib.figure.Figure`
+  objects created without pyplot, so no figure is ever registered with pyplot
+  (nothing to close, nothing left open, no display needed) and the caller's
+  pyplot backend is left alone.
+* Layout: a figure is laid out once by matplotlib's constrained layout
+  engine when it is drawn (:func:`finish`); the legend sits outside the axes,
+  below them (:func:`legend_below`, never over data).
+* One colour and marker per solver across all figures (:data:`SOLVER_STYLE`);
+  the exact/reference solution is black.
+* Sizes: :data:`SIZE` (7 x 4.5 in) at :data:`DPI` (120), i.e. 840 x 540 px;
+  the dispersion figure is :data:`SIZE_TALL` (7 x 6 in, 840 x 720 px); a
+  figure whose key needs more than :data:`LEGEND_ROWS` rows grows by them.
+* File names are lowercase with underscores and start with the scene name made
+  so (:func:`slug`): ``thesis-2dof-case1`` -> ``thesis_2dof_case1_displacement.png``.
+* Units are SI; small quantities get an SI prefix on the axis label (mm, mm/s,
+  mrad; :func:`si`) so tick labels stay plain numbers.
+* A title on every figure (:func:`suptitle`), no text under :data:`FONT_MIN`
+  (8 pt), log axes by :func:`log_axes` (no minor tick labels; 1-2-5 ticks on
+  short spans), and :func:`save` thins any axis whose tick labels still
+  overlap after drawing.
+* Tests and benchmarks set :data:`SAVE_HOOK` (and :data:`MINOR_SUBS`) on this
+  module, where the functions read them.
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+import textwrap
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from PIL import Image
+
+from references.registry import BUILTIN, resolve
+
+__all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "SOLVER_STYLE", "UNKNOWN_STYLE",
+           "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
+           "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors",
+           "new_figure", "suptitle", "legend_below", "log_tick_text", "log_decade_text", "log_axes",
+           "tick_labels", "overlapping", "thin_ticks", "texts", "finish", "save", "si", "fmt", "fmt_t",
+           "sentence"]
+
+SIZE = (7.0, 4.5)        # inches
+SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
+DPI = 120
+FONT_MIN = 8.0           # pt: no text smaller, anywhere
+FONT_SMALL = 8.0         # pt: legends, panel titles, annotations
+FONT_TITLE = 10.0        # pt: figure titles
+
+#: colour and marker of each built-in method (``references.registry``), the
+#: same in every figure; a scene's own methods get theirs from the registry
+#: while :func:`scene_methods` is in effect.
+SOLVER_STYLE = {name: (m.style.color, m.style.marker) for name, m in BUILTIN.items()}
+SOLVER_STYLE.update({"exact": ("#000000", "."), "reference": ("#000000", ".")})
+#: the methods of the scene being drawn (set by :func:`scene_methods`)
+_LOCAL: dict = {}
+UNKNOWN_STYLE = ("#7f7f7f", "x")
+# Per-coordinate colours in state plots (mass 1 red, mass 2 blue as in the thesis).
+COORD_COLORS = ["#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd",
+                 "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"]
+LINESTYLES = ["-", "--", ":", "-."]
+GUIDE_STYLES = ["--", ":", "-.", (0, (5, 1, 1, 1))]
+
+# Set by tests to inspect each figure just before it is written (drawn, layout done).
+SAVE_HOOK = None
+
+
+# -- shared helpers -------------------------------------------------------------
+def slug(name: str) -> str:
+    """Lowercase file-name stem: runs of characters other than ``a-z0-9`` -> ``_``."""
+    s = re.sub(r"[^a-z0-9]+", "_", str(name).lower()).strip("_")
+    if not s:
+        raise ValueError(f"`scene_name` must contain a letter or digit, got {name!r}")
+    return s
+
+
+@contextlib.contextmanager
+def scene_methods(local):
+    """Draw with the styles and orders of a scene's own methods (name ->
+    ``references.registry.Method``) besides the built-ins."""
+    global _LOCAL
+    saved, _LOCAL = _LOCAL, dict(local or {})
+    try:
+        yield
+    finally:
+        _LOCAL = saved
+
+
+def all_styles() -> dict:
+    return {**SOLVER_STYLE, **{n: (m.style.color, m.style.marker) for n, m in _LOCAL.items()}}
+
+
+def solver_style(label: str):
+    """``(colour, marker)`` of the solver ``label`` names (its longest known prefix)."""
+    return all_styles().get(solver_of(label), UNKNOWN_STYLE)
+
+
+def solver_of(label: str) -> str:
+    lab = str(label).lower()
+    for name in sorted(all_styles(), key=len, reverse=True):
+        if lab == name or lab.startswith(name + " ") or lab.startswith(name + ","):
+            return name
+    return lab
+
+
+def method_of(solver):
+    """The registry method (``references.registry.Method``) ``solver`` names:
+    a built-in or one of the drawn scene's own; ValueError when unknown."""
+    return resolve(solver, _LOCAL)
+
+
+def order_of(solver):
+    """Expected order of ``solver`` (built-in or the drawn scene's), None if unknown."""
+    try:
+        return method_of(solver).order
+    except ValueError:
+        return None
+
+
+def new_figure(size=SIZE, **kw) -> Figure:
+    fig = Figure(figsize=size, dpi=DPI, layout="constrained", **kw)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def suptitle(fig, text):
+    fig.suptitle("\n".join(textwrap.wrap(str(text), 90)) or None, fontsize=FONT_TITLE)
+
+
+LEGEND_ROWS = 5  # legend rows below the axes that fit a figure of its nominal height
+
+
+def legend_below(fig, handles=None, labels=None, *, ncol=None, title=None, width=None):
+    """The figure's legend below its axes (``outside lower center``, so it
+    never covers data), :data:`FONT_SMALL`, as many columns as fit the width."""
+    if handles is None:
+        handles, labels = [], []
+        for ax in fig.axes:
+            for h, lab in zip(*ax.get_legend_handles_labels()):
+                if lab not in labels:
+                    handles.append(h)
+                    labels.append(lab)
+    if not handles:
+        return None
+    if ncol is None:
+        longest = max(len(str(lab)) for lab in labels)
+        # ~0.62 em per character at 8 pt, plus the handle and the gap (~4 em)
+        per_col = (longest * 0.62 + 4.0) * FONT_SMALL / 72.0
+        avail = (width or fig.get_size_inches()[0]) - 0.3
+        ncol = max(1, min(len(handles), int(avail // per_col)))
+    rows = -(-len(handles) // ncol)
+    if rows > LEGEND_ROWS:  # a tall key would squeeze the axes: the figure grows by its extra rows
+        w, h = fig.get_size_inches()
+        fig.set_size_inches(w, h + (rows - LEGEND_ROWS) * 1.45 * FONT_SMALL / 72.0)
+    return fig.legend(handles, labels, loc="outside lower center", ncol=ncol, fontsize=FONT_SMALL,
+                      frameon=False, title=title, title_fontsize=FONT_SMALL if title else None)
+
+
+def log_tick_text(v, _pos=None):
+    """Plain numbers from 1e-3 to 1e6, ``a x 10^b`` outside."""
+    if not np.isfinite(v) or v <= 0:
+        return ""
+    if 1e-3 <= v < 1e6:
+        return f"{v:g}"
+    e = math.floor(math.log10(v) + 1e-9)
+    m = v / 10.0 ** e
+    # Unicode superscripts, not mathtext: parsing ``$10^{-6}$`` was a tenth of a figure's draw
+    power = "10" + str(e).translate(_SUPERSCRIPT)
+    return power if abs(m - 1.0) < 1e-6 else f"{m:g}\u00d7{power}"
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075\u2076\u2077\u2078\u2079")
+
+
+def log_decade_text(v, _pos=None):
+    """``10^k`` (Unicode superscripts, ``a x 10^k`` off the decades): the
+    tick labels of a log axis spanning two decades or more, as matplotlib's
+    default draws them but without mathtext, whose parser was a sixth of a
+    figure's draw (``python benchmarks/bench_figures.py``)."""
+    if not np.isfinite(v) or v <= 0:
+        return ""
+    e = math.floor(math.log10(v) + 1e-9)
+    m = v / 10.0 ** e
+    power = "10" + str(e).translate(_SUPERSCRIPT)
+    return power if abs(m - 1.0) < 1e-6 else f"{m:g}\u00d7{power}"
+
+
+#: Minor ticks (unlabelled, a faint grid) of log axes at these multiples of
+#: each decade; None: matplotlib's 2, 3, ..., 9. Each minor tick is a Tick
+#: object that the constrained layout visits on every draw:
+#: ``python benchmarks/bench_figures.py --minor-ticks`` measures what they cost.
+MINOR_SUBS = (2.0, 5.0)
+
+
+def log_axes(ax, x=True, y=True):
+    """Log scales with the figures' grid and no minor tick labels; an axis
+    spanning under two decades gets major ticks at 1, 2, 5 x 10^k
+    (:func:`log_tick_text`), a wider one ``10^k`` (:func:`log_decade_text`);
+    no label is mathtext. Call after the data are plotted (the span is read
+    from the limits)."""
+    from matplotlib import ticker
+
+    for on, axis, set_scale, lim in ((x, ax.xaxis, ax.set_xscale, ax.get_xlim),
+                                     (y, ax.yaxis, ax.set_yscale, ax.get_ylim)):
+        if not on:
+            continue
+        set_scale("log")
+        lo, hi = sorted(lim())
+        axis.set_minor_formatter(ticker.NullFormatter())
+        if MINOR_SUBS is not None:
+            axis.set_minor_locator(ticker.LogLocator(base=10, subs=MINOR_SUBS, numticks=100))
+        if lo > 0 and math.log10(hi / lo) < 2:
+            axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            axis.set_major_formatter(ticker.FuncFormatter(log_tick_text))
+        else:
+            axis.set_major_formatter(ticker.FuncFormatter(log_decade_text))
+    ax.grid(which="major", alpha=0.3)
+    ax.grid(which="minor", alpha=0.1)
+
+
+def tick_labels(ax, axis, renderer):
+    """Window extents of ``axis``'s visible, non-empty tick labels (major and
+    minor) whose tick lies inside the axes."""
+    box = ax.get_window_extent(renderer)
+    lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
+    out = []
+    for lab in axis.get_ticklabels(minor=False) + axis.get_ticklabels(minor=True):
+        if not lab.get_visible() or not lab.get_text().strip():
+            continue
+        e = lab.get_window_extent(renderer)
+        c = (e.x0 + e.x1) / 2 if axis is ax.xaxis else (e.y0 + e.y1) / 2
+        if lo - 1.0 <= c <= hi + 1.0:
+            out.append(e)
+    return out
+
+
+def overlapping(extents, pad=0.5) -> bool:
+    """True when two of the boxes overlap by more than ``pad`` pixels."""
+    for i, a in enumerate(extents):
+        for b in extents[i + 1:]:
+            if min(a.x1, b.x1) - max(a.x0, b.x0) > pad and min(a.y1, b.y1) - max(a.y0, b.y0) > pad:
+                return True
+    return False
+
+
+def thin_ticks(ax, axis, n_labels):
+    """Fewer tick labels on ``axis``: first none on minor ticks, then about
+    half the major ones."""
+    from matplotlib import ticker
+
+    if not isinstance(axis.get_minor_formatter(), ticker.NullFormatter) and axis.get_ticklabels(minor=True):
+        axis.set_minor_formatter(ticker.NullFormatter())
+        return
+    n = max(2, n_labels // 2)
+    if axis.get_scale() == "log":
+        axis.set_major_locator(ticker.LogLocator(base=10, numticks=n + 1))
+        axis.set_major_formatter(ticker.FuncFormatter(log_tick_text))
+    elif axis.get_scale() == "linear":
+        axis.set_major_locator(ticker.MaxNLocator(nbins=n))
+
+
+def texts(fig):
+    """The figure's texts but tick labels: titles, axis labels, annotations,
+    legends. (``fig.findobj(Text)`` would also build every axis' ticks before
+    the draw does, a third of a figure's time; tick labels take rcParams'
+    sizes, which are above :data:`FONT_MIN`.)"""
+    out = list(fig.texts)
+    if fig._suptitle is not None:
+        out.append(fig._suptitle)
+    legends = list(fig.legends)
+    for ax in fig.axes:
+        out += [*ax.texts, ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+        if ax.get_legend() is not None:
+            legends.append(ax.get_legend())
+    for leg in legends:
+        out += [*leg.get_texts(), leg.get_title()]
+    return out
+
+
+def finish(fig):
+    """Draw ``fig`` (layout included) with the house rules enforced: no text
+    under :data:`FONT_MIN`, white background, and axes whose tick labels
+    overlap thinned until they do not (at most three redraws)."""
+    fig.patch.set_facecolor("white")
+    fig.patch.set_alpha(1.0)
+    for t in texts(fig):
+        if t.get_fontsize() < FONT_MIN:
+            t.set_fontsize(FONT_MIN)
+    fig.canvas.draw()
+    for _ in range(3):
+        renderer = fig.canvas.get_renderer()
+        crowded = []
+        for ax in fig.axes:
+            if not ax.get_visible():
+                continue
+            for axis in (ax.xaxis, ax.yaxis):
+                ext = tick_labels(ax, axis, renderer)
+                if overlapping(ext):
+                    crowded.append((ax, axis, len(ext)))
+        if not crowded:
+            return
+        for ax, axis, n in crowded:
+            thin_ticks(ax, axis, n)
+        fig.canvas.draw()
+
+
+def save(fig, out_dir, stem) -> Path:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{stem}.png"
+    finish(fig)
+    if SAVE_HOOK is not None:
+        SAVE_HOOK(fig, path)
+    # Fixed canvas (no bbox_inches), so the pixel size is size * DPI. The canvas
+    # drawn by finish is stored as a 256-colour palette PNG: a third of the
+    # bytes, and plots have few colours.
+    w, h = fig.canvas.get_width_height()
+    rgba = Image.frombuffer("RGBA", (w, h), bytes(fig.canvas.buffer_rgba()), "raw", "RGBA", 0, 1)
+    # Fast octree: a quarter of median cut's bytes less, a smaller colour error and
+    # a fifth of its time (with zlib level 6 instead of PNG's optimize search).
+    pal = rgba.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    pal.save(path, format="PNG", compress_level=6)
+    return path
+
+
+def si(values, unit):
+    """``(factor, label_unit)``: the SI prefix that puts max |values| in [1, 1000)."""
+    a = np.asarray(values, dtype=float)
+    a = a[np.isfinite(a)]
+    amax = float(np.max(np.abs(a))) if a.size else 0.0
+    if not amax > 0.0:
+        return 1.0, unit
+    exp3 = min(0, max(-9, 3 * math.floor(math.log10(amax) / 3)))
+    prefix = {0: "", -3: "m", -6: "\u00b5", -9: "n"}[exp3]
+    return 10.0 ** (-exp3), prefix + unit
+
+
+def fmt(x) -> str:
+    return f"{x:.3g}"
+
+
+def fmt_t(x) -> str:
+    """A time in s: four significant digits, whole seconds from 1000 s, no exponent below 1e6."""
+    return f"{x:.4g}" if abs(x) < 1000 else (f"{x:.0f}" if abs(x) < 1e6 else f"{x:.3g}")
+
+
+def sentence(head, *tails):
+    """``head`` with ``": tail; tail"`` for the non-empty tails, ended by a full stop."""
+    tail = "; ".join(t for t in tails if t)
+    return f"{head}: {tail}." if tail else f"{head}."
+
+
+def in_palette_order(solvers):
+    """Solvers in the order of :data:`SOLVER_STYLE` (then the scene's own
+    methods, then unknown ones), so legends list them the same way in every figure."""
+    known = list(all_styles())
+    return sorted(solvers, key=lambda s: (known.index(s) if s in known else len(known), str(s)))
+
+
+def plt_colors(n):
+    """``n`` distinct colours of matplotlib's default cycle (repeated if needed)."""
+    import matplotlib
+
+    cycle = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
+    return [cycle[i % len(cycle)] for i in range(n)]
