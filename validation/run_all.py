@@ -324,10 +324,10 @@ def _main(argv, sig, prog="run_all.py") -> int:
             sys.stdout.flush()
 
     report = runner.execute(runner.RunOptions.from_namespace(args), progress=Progress, notify=notify, guard=sig)
-    return _print_report(report, args)
+    return _print_report(report)
 
 
-def _print_report(report, args) -> int:
+def _print_report(report) -> int:
     """Print what the run did (stdout) or why it stopped (stderr); returns
     its exit status."""
     if report.message is not None:
