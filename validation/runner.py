@@ -562,15 +562,15 @@ def _run_into(target: Path, scenes, options, repeats: int, scope: str, guard, pr
     stats = engine.PlanStats()
     progress, swapped, pools = None, False, None
     completed = report.completed
-    if options.workers is not None:
-        workers, report.workers_why = options.workers, "as asked"
+    if options.workers is not None or options.scheduler:
+        workers, report.workers_why = options.workers or 1, "as asked"
         if workers > 1 and not options.scheduler:
             # the workers start (and import) while this process plans
             pools = engine.LocalPools(workers).warm()
     try:
         try:
             jobs = plan_all(scenes, quick=options.quick, figures=figures, repeats=repeats)
-            if options.workers is None:
+            if options.workers is None and not options.scheduler:
                 workers, report.workers_why = choose_workers(
                     jobs, quick=options.quick, figures=figures, done=store.keys() if store.found else ())
                 if workers > 1 and not options.scheduler:
