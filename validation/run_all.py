@@ -34,8 +34,9 @@ which scenes had finished.
 The work is a plan (:mod:`validation.plan`): one record per spec, executed
 on ``--workers`` local processes (default: as many as the plan's estimated
 work repays, at most the cores this process may use, see
-:func:`validation.workers.choose_workers`) or on a Dask cluster (``--scheduler``); the timed runs come last, one per
-worker (``--exclusive-timing``: one at a time, the other workers idle; see
+:func:`validation.workers.choose_workers`) or on a Dask cluster
+(``--scheduler``); the timed runs come last, one per worker
+(``--exclusive-timing``: one at a time, the other workers idle; see
 :mod:`validation.engine`). Each record is written to ``.<DIR>.records``
 beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted
 or failed run, ``--resume`` reruns only the specs that have no usable record

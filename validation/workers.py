@@ -81,7 +81,8 @@ def spec_seconds_function(quick: bool = False):
             except Exception:  # noqa: BLE001
                 kind = "reference"
             step, dof = STEP_SECONDS["heyoka"] if spec.solver == "heyoka" else STEP_SECONDS.get(kind, (step, dof))
-        return SPEC_SECONDS + steps * (step + dof * model.n_dof) + 1e3 * truth * STEP_SECONDS["compiled"][1] * model.n_dof
+        quad = 1e3 * truth * STEP_SECONDS["compiled"][1] * model.n_dof
+        return SPEC_SECONDS + steps * (step + dof * model.n_dof) + quad
 
     return seconds
 
