@@ -515,6 +515,98 @@ def _output_points(t_eval, t0, step, n):
     return idx, theta, on_grid
 
 
+class _StepHook:
+    """What a run keeps of each step, beyond the state (:func:`_drive`).
+
+    The driver calls, for step ``i`` from ``(t_i, y_i)``:
+    ``first_stage(i)`` before it (a :class:`_Once` when ``f(t_i, y_i)`` was
+    already evaluated, else None); ``taken(i, y_i, k)`` once the stages ``k``
+    are computed, before the growth test; ``accepted(i, t_i, y_i, y_new, k)``
+    once ``y_new`` passed it, returning ``(extra, stop)``: the calls of
+    ``fun`` it made itself and whether a terminal event ends the run."""
+
+    def first_stage(self, i):
+        return None
+
+    def taken(self, i, y_i, k):
+        pass
+
+    def accepted(self, i, t, y_i, y_new, k):
+        return 0, False
+
+
+class _GridOutput(_StepHook):
+    """Every grid state into ``ys`` (row ``i + 1`` after step ``i``)."""
+
+    __slots__ = ("ys",)
+
+    def __init__(self, ys):
+        self.ys = ys
+
+    def accepted(self, i, t, y_i, y_new, k):
+        self.ys[i + 1] = y_new
+        return 0, False
+
+
+class _PointOutput(_StepHook):
+    """The ``t_eval`` points of each step into ``ys`` (:func:`_emit`)."""
+
+    def __init__(self, ys, ptr, idx, theta, step, fun, t0, t1, n, tab):
+        self.ys, self.ptr, self.idx, self.theta = ys, ptr, idx, theta
+        self.step, self.fun, self.t0, self.t1, self.n, self.tab = step, fun, t0, t1, n, tab
+
+    def accepted(self, i, t, y_i, y_new, k):
+        self.ptr, extra = _emit(self.ys, self.ptr, self.idx, self.theta, i + 1, y_new, y_i, self.step, self.fun,
+                                self.t0, self.t1, self.n, k, self.tab)
+        return extra, False
+
+
+def _drive(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max, hook):
+    """The stepping loop of :func:`solve`: ``n`` fixed steps of ``tab`` from
+    ``(t0, y)``, each tested against the growth ``bound``; ``hook``
+    (:class:`_StepHook`) keeps the output, dense-output slopes and events.
+
+    Returns ``(nfev, n_done, status, reason, message, t_fail)``: the calls of
+    ``fun`` (the hook's own included), the steps accepted, and ``status`` 0
+    (all done), 1 (a terminal event, the hook's ``stop``) or -1 (the state
+    left the bound at ``t_fail``; ``reason`` and ``message`` say how)."""
+    k = np.empty((tab.n_stages, y.shape[0]), dtype=y.dtype)
+    nfev = 0
+    reuse = False  # from the second step on, a FSAL method reuses its last stage
+    status, reason, t_fail = 0, "ok", None
+    message = MESSAGES[0]
+    n_done = n
+    # A blow-up is reported through status/message, so the floating-point
+    # warnings on the way to it (overflow, inf - inf, division by a zero length)
+    # are not raised, even under -W error.
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for i in range(n):
+            t = grid_time(t0, t1, step, i, n)
+            once = hook.first_stage(i)
+            if once is None:
+                y_new = rk_step(fun, t, y, step, tab, k, t_max=t_max, reuse=reuse)
+                nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
+            else:
+                y_new = rk_step(once, t, y, step, tab, k, t_max=t_max, reuse=reuse)
+                nfev += once.calls
+            reuse = tab.fsal
+            hook.taken(i, y, k)
+            past, pending = past_bound(y_new, bound, pending)
+            if past:
+                status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
+                reason, message = unstable_message(y_new, bound, t_fail, i, n, step, scale_from)
+                n_done = i
+                break
+            extra, stop = hook.accepted(i, t, y, y_new, k)
+            nfev += extra
+            y = y_new
+            if stop:
+                status, reason, message = 1, "event", MESSAGES[1]
+                n_done = i + 1
+                break
+    return nfev, n_done, status, reason, message, t_fail
+
+
 def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events=None, vectorized=False,
           args=None, *, h=None, n_steps=None, max_growth=1e8, y_scale=None, max_steps=MAX_STEPS_INFINITE,
           **options) -> FixedStepResult:
@@ -754,44 +846,22 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
                            f"h = {step:.6g}); t_span's end is infinite")
         return res
 
-    k = np.empty((tab.n_stages, n_comp), dtype=dtype)
     grid_out = t_eval is None
     if grid_out:
         ys = np.empty((n + 1, n_comp), dtype=dtype)
         ys[0] = y
+        hook = _GridOutput(ys)
     else:
         # Index of the step each output time falls in, and its position in it.
         idx, theta, on_grid = _output_points(t_eval, t0, step, n)
         dense = "grid" if on_grid.all() else "hermite"
         ys = np.empty((t_eval.shape[0], n_comp), dtype=dtype)
         out_ptr, _ = _emit(ys, 0, idx, theta, 0, y, None, step, fun, t0, t1, n, None, tab)
-    nfev = 0
-    reuse = False  # from the second step on, a FSAL method reuses its last stage
-    status, reason, t_fail = 0, "ok", None
-    message = MESSAGES[0]
-    # A blow-up is reported through status/message, so the floating-point
-    # warnings on the way to it (overflow, inf - inf, division by a zero length)
-    # are not raised, even under -W error.
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for i in range(n):
-            t = grid_time(t0, t1, step, i, n)
-            y_new = rk_step(fun, t, y, step, tab, k, t_max=t_max, reuse=reuse)
-            nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
-            reuse = tab.fsal
-            past, pending = past_bound(y_new, bound, pending)
-            if past:
-                status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
-                reason, message = unstable_message(y_new, bound, t_fail, i, n, step, scale_from)
-                n_done = i
-                break
-            if grid_out:
-                ys[i + 1] = y_new
-            else:
-                out_ptr, extra = _emit(ys, out_ptr, idx, theta, i + 1, y_new, y, step, fun, t0, t1, n, k, tab)
-                nfev += extra
-            y = y_new
-        else:
-            n_done = n
+        hook = _PointOutput(ys, out_ptr, idx, theta, step, fun, t0, t1, n, tab)
+    nfev, n_done, status, reason, message, t_fail = _drive(fun, tab, t0, t1, n, step, y, bound, pending,
+                                                          scale_from, t_max, hook)
+    if not grid_out:
+        out_ptr = hook.ptr
     if grid_out:
         t_out = grid_times(t0, t1, step, np.arange(n_done + 1), n)
         y_out = ys[: n_done + 1].T.copy()
@@ -836,7 +906,6 @@ def _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max,
     ys[0] = y
     fs = np.empty((n + 1, n_comp), dtype=dtype)  # f(t_i, y_i), where have[i]
     have = bytearray(n + 1)
-    k = np.empty((tab.n_stages, n_comp), dtype=dtype)
     s0 = tab.start_stage if not tab.partitioned else None  # k[s0] is f(t_i, y_i) (classical)
     nfev = 0
     kept = None  # (t_i, y_i, f) for step i's first stage
@@ -867,62 +936,56 @@ def _solve_rich(fun, tab, t0, t1, n, step, y, bound, pending, scale_from, t_max,
 
         return interp
 
-    status, reason, t_fail = 0, "ok", None
-    message = MESSAGES[0]
-    t_stop = y_stop = None
-    reuse = False
-    g = ev.values(t0, y) if ev is not None else None
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        for i in range(n):
-            t = grid_time(t0, t1, step, i, n)
+    stop = {}
+
+    class Rich(_StepHook):
+        def first_stage(self, i):
+            nonlocal kept
             if kept is None:
-                y_new = rk_step(fun, t, y, step, tab, k, t_max=t_max, reuse=reuse)
-                nfev += tab.nfev_per_step if reuse else tab.nfev_first_step
-            else:
-                once = _Once(fun, *kept)
-                kept = None
-                y_new = rk_step(once, t, y, step, tab, k, t_max=t_max, reuse=reuse)
-                nfev += once.calls
-            reuse = tab.fsal
+                return None
+            once, kept = _Once(fun, *kept), None
+            return once
+
+        def taken(self, i, y_i, k):
             if not have[i]:
                 if s0 is not None:
                     fs[i] = k[s0]
                     have[i] = 1
                 else:
-                    f0 = start_slope(tab, y, k)
+                    f0 = start_slope(tab, y_i, k)
                     if f0 is not None:
                         fs[i] = f0
                         have[i] = 1
-            past, pending = past_bound(y_new, bound, pending)
-            if past:
-                status, t_fail = -1, grid_time(t0, t1, step, i + 1, n)
-                reason, message = unstable_message(y_new, bound, t_fail, i, n, step, scale_from)
-                n_done = i
-                break
+
+        def accepted(self, i, t, y_i, y_new, k):
+            nonlocal g
             ys[i + 1] = y_new
             if tab.fsal:
                 fs[i + 1] = end_slope(tab, y_new, k)
                 have[i + 1] = 1
-            y = y_new
-            if ev is not None:
-                t_new = grid_time(t0, t1, step, i + 1, n)
-                g_new = ev.values(t_new, y_new)
-                active = ev.active(g, g_new, t)
-                if active.size:
-                    if not have[i]:
-                        slope(i, ys[i])
-                    if not have[i + 1]:
-                        slope(i + 1, y_new, keep=True)
-                    stop = ev.handle(active, local(i), t, t_new)
-                    if stop is not None:
-                        t_stop, y_stop = stop
-                        status, reason, message = 1, "event", MESSAGES[1]
-                        n_done = i + 1
-                        break
-                g = g_new
-        else:
-            n_done = n
+            if ev is None:
+                return 0, False
+            t_new = grid_time(t0, t1, step, i + 1, n)
+            g_new = ev.values(t_new, y_new)
+            active = ev.active(g, g_new, t)
+            if active.size:
+                if not have[i]:
+                    slope(i, ys[i])
+                if not have[i + 1]:
+                    slope(i + 1, y_new, keep=True)
+                hit = ev.handle(active, local(i), t, t_new)
+                if hit is not None:
+                    stop["at"] = hit
+                    return 0, True
+            g = g_new
+            return 0, False
 
+    g = ev.values(t0, y) if ev is not None else None
+    steps_nfev, n_done, status, reason, message, t_fail = _drive(fun, tab, t0, t1, n, step, y, bound, pending,
+                                                                 scale_from, t_max, Rich())
+    nfev += steps_nfev  # slope() counted its own calls
+    t_stop, y_stop = stop.get("at", (None, None))
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         # Segments of the dense output: the steps done; a terminal event at the
         # start of its step ends the run on that grid point.
         n_seg = n_done

@@ -32,9 +32,11 @@ report; leftovers of killed runs are cleaned at the next start. SIGINT
 which scenes had finished.
 
 The work is a plan (:mod:`validation.plan`): one record per spec, executed
-on ``--workers`` local processes (default: every core this process may use)
-or on a Dask cluster (``--scheduler``); the timed runs come last, one per
-worker (``--exclusive-timing``: one at a time, the other workers idle; see
+on ``--workers`` local processes (default: as many as the plan's estimated
+work repays, at most the cores this process may use, see
+:func:`validation.workers.choose_workers`) or on a Dask cluster
+(``--scheduler``); the timed runs come last, one per worker
+(``--exclusive-timing``: one at a time, the other workers idle; see
 :mod:`validation.engine`). Each record is written to ``.<DIR>.records``
 beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted
 or failed run, ``--resume`` reruns only the specs that have no usable record
@@ -51,6 +53,10 @@ lists them first); 2 bad input (one line on stderr naming the file and the
 field, or the flag, or an ``--out`` it must not replace); 3 the environment
 refused (lock held, not writable, disk full, mount point, name too long: one
 line); 130 interrupted by SIGINT, 143 by SIGTERM.
+
+This module is the command line: options, progress, signals, exit status;
+the run itself is :func:`validation.runner.execute`, which returns a
+:class:`validation.runner.RunReport` that :func:`main` prints.
 """
 from __future__ import annotations
 
@@ -75,7 +81,6 @@ except KeyboardInterrupt:  # SIGINT while the early handler was being installed
     raise SystemExit(130) from None
 
 import argparse
-import errno
 import sys
 import time
 from pathlib import Path
@@ -88,12 +93,9 @@ if __name__ == "__main__" and __package__ in (None, ""):
 
 __all__ = ["main", "run", "Interrupted", "exit_process"]
 
-#: The default --out: ``reports`` in the working directory (in a checkout
-#: run from its root, the committed report).
-DEFAULT_OUT = Path("reports")
-REPEATS_FULL, REPEATS_QUICK = 3, 1
-#: Largest --repeats (each timed run is repeated this often at most).
-MAX_REPEATS = 100
+from validation.runner import (  # noqa: E402,F401 - the pipeline, re-exported
+    DEFAULT_OUT, MAX_REPEATS, REPEATS_FULL, REPEATS_QUICK, Interrupted, _crossover_job, run)
+
 
 
 class _Parser(argparse.ArgumentParser):
@@ -154,8 +156,8 @@ def _parser(prog="run_all.py"):
                    help="let a --quick or --scene run replace a full report in --out")
     p.add_argument("--no-figures", action="store_true", help="tables and index.md only")
     p.add_argument("--workers", type=_int_at_least(1, 1024), default=None, metavar="N",
-                   help="local worker processes (default: $RK4H_WORKERS, else the cores this process may "
-                        "use; 1: no pool)")
+                   help="local worker processes (default: $RK4H_WORKERS, else as many as the plan's "
+                        "estimated work repays, at most the cores this process may use; 1: no pool)")
     p.add_argument("--exclusive-timing", action="store_true",
                    help="time each run alone, the other workers idle (slower; for a machine where parallel "
                         "runs disturb each other's timings)")
@@ -233,335 +235,6 @@ class Progress:
             self.stream.flush()
 
 
-def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
-    from rk4core.validate import boolean
-
-    from validation.scenes import Scene
-
-    if isinstance(scenes, (str, bytes, Path)) or not hasattr(scenes, "__iter__"):
-        raise ValueError(f"`scenes` must be a list of Scene objects, got {scenes!r}")
-    scenes = list(scenes)
-    for i, s in enumerate(scenes):
-        if not isinstance(s, Scene):
-            raise ValueError(f"`scenes[{i}]` must be a Scene (validation.scenes.load_scene), got {s!r}")
-    if not isinstance(out_dir, (str, Path)) or not Path(out_dir).is_dir():
-        raise ValueError(f"`out_dir` must be an existing directory, got {out_dir!r}")
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
-        raise ValueError(f"`repeats` must be an integer from 1 to {MAX_REPEATS}, got {repeats!r}")
-    boolean("quick", quick)
-    boolean("figures", figures)
-    if progress is not None and not callable(progress):
-        raise ValueError(f"`progress` must be callable or None, got {progress!r}")
-    return scenes
-
-
-def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, progress=None, workers=1,
-        scheduler=None, store=None, stats=None, exclusive_timing=False, pools=None):
-    """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
-
-    The pipeline (``validation.plan`` -> ``validation.engine`` ->
-    ``validation.measure`` -> ``validation.draw`` / ``validation.report``):
-    every scene's plan is executed (records), then tables, checks and figures
-    are computed from the records alone.
-
-    Parameters
-    ----------
-    scenes : list of validation.scenes.Scene
-    out_dir : str or Path
-        An existing directory; tables, figures and ``index.md`` are written
-        straight into it (:func:`main` passes a fresh temporary directory).
-    quick : bool
-        Quick mode (the stability study's ``*_quick`` settings).
-    repeats : int >= 1
-        Timing repeats per run (median).
-    figures : bool
-        Draw the figures.
-    progress : callable(str) or None
-        Called once per spec of the plan.
-    workers : int >= 1
-        Local processes (1: this process).
-    scheduler : str or None
-        A Dask scheduler's address.
-    store : validation.records.RecordStore or None
-        Records to resume from and to write.
-    stats : validation.engine.PlanStats or None
-        Filled with the counts of planned, resumed and executed specs.
-    exclusive_timing : bool
-        Time each run alone, the other workers idle (default: the timed runs
-        run one per worker after the untimed work; see ``validation.engine``).
-    pools : validation.engine.LocalPools or None
-        Worker processes started by the caller, who closes them (``workers``
-        is then their number); default: started here when ``workers > 1``
-        and stopped at the end.
-
-    Returns ``(results, failures)``. A fault inside a scene, solver or figure
-    is a failure line (and a ``failed`` row where a row exists), never an
-    exception; only ``KeyboardInterrupt`` (and :class:`Interrupted`) escape.
-    Bad arguments raise ``ValueError`` naming the argument. The names of the
-    scenes whose records are complete are kept in ``run.completed``.
-    """
-    scenes = _check_run_args(scenes, out_dir, quick, repeats, figures, progress)
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ValueError(f"`workers` must be an integer >= 1, got {workers!r}")
-    if not isinstance(exclusive_timing, bool):
-        raise ValueError(f"`exclusive_timing` must be True or False, got {exclusive_timing!r}")
-    from validation import engine, interrupt, plan
-
-    t0 = time.perf_counter()
-    run.completed = []
-    user_progress = progress
-    broken = {}
-    for scene in scenes:  # a scene whose model cannot be built is one failure line, not one per run
-        try:
-            scene.build_model()
-        except Exception as e:  # noqa: BLE001
-            from validation.atomic import is_environment_error
-
-            if is_environment_error(e) or interrupt.pending():
-                raise
-            broken[scene.name] = f"{scene.name}: the scene raised {type(e).__name__}: " \
-                                 f"{str(e).splitlines()[0] if str(e) else ''}"
-    jobs = plan.plan_all([s for s in scenes if s.name not in broken], quick=quick, figures=figures,
-                         repeats=repeats)
-    keys_of = {}
-    for scene, spec in jobs:
-        keys_of.setdefault(scene.name, set()).add(spec.key)
-    finished = set()
-
-    def progress(message):
-        # A signal whose exception was swallowed (raised inside a ctypes
-        # callback, e.g. numba's compiler notifying its object cache) is
-        # recorded: it stops the run at the next work unit.
-        if interrupt.pending():
-            raise Interrupted(interrupt.pending())
-        if user_progress is not None:
-            user_progress(message)
-
-    def completed(records):
-        for scene in scenes:
-            if scene.name not in finished and keys_of.get(scene.name, set()) <= records.keys():
-                finished.add(scene.name)
-                run.completed.append(scene.name)
-
-    records = {}
-
-    def tick(message):
-        completed(records)
-        progress(message)
-
-    def grow(extra):  # confirmation runs planned after the plan: a scene is complete with them
-        for scene, spec in extra:
-            keys_of.setdefault(scene.name, set()).add(spec.key)
-            if scene.name in finished:
-                finished.discard(scene.name)
-                run.completed.remove(scene.name)
-        extend = getattr(user_progress, "extend", None)
-        if callable(extend):
-            extend(len(extra))
-
-    own = pools is None
-    if own:
-        pools = engine.LocalPools(workers) if workers > 1 else None
-    try:
-        return _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records,
-                    tick, completed, t0, broken, exclusive_timing, grow)
-    finally:
-        if own and pools is not None:
-            pools.close()
-
-
-def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
-         completed, t0, broken, exclusive_timing=False, grow=None):
-    from validation import atomic, budget, confirm, draw, engine, interrupt, measure, report
-
-    t_run = time.perf_counter()
-    stats = stats if stats is not None else engine.PlanStats()
-    records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
-                              store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
-                              records=records, pools=pools, exclusive_timing=exclusive_timing)
-    # Confirmation runs of the trust table (validation.confirm): planned from the records, in rounds.
-    unplanned = {}
-    for _ in range(confirm.MAX_ROUNDS):
-        extra = []
-        for scene in scenes:
-            if scene.name in broken or scene.name in unplanned:
-                continue
-            try:
-                extra += [(scene, s) for s in confirm.next_specs(scene, [s for sc, s in jobs if sc is scene],
-                                                                 records)]
-            except Exception as e:  # noqa: BLE001 - one scene's fault is its failure line
-                if atomic.is_environment_error(e) or interrupt.pending():
-                    raise
-                unplanned[scene.name] = (f"{scene.name}: the confirmation runs could not be planned: "
-                                         f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}")
-        if not extra:
-            break
-        if grow is not None:
-            grow(extra)
-        jobs = jobs + extra
-        more = engine.PlanStats()
-        engine.run_plan(extra, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
-                        store=store, progress=tick, cost=budget.spec_cost_function(), stats=more,
-                        records=records, pools=pools, exclusive_timing=exclusive_timing)
-        if stats is not None:
-            stats.planned += more.planned
-            stats.resumed += more.resumed
-            stats.executed += more.executed
-    completed(records)
-    t_measure = time.perf_counter()
-    results, tables, failures, findings = [], {}, [], []
-    for scene in scenes:
-        specs = [s for sc, s in jobs if sc is scene]
-        if scene.name in broken:
-            r = measure.SceneTables(scene.name)
-            r.check("scene", False, broken[scene.name])
-            results.append(r)
-            continue
-        try:
-            r = measure.measure(scene, specs, records, quick=quick, figures=figures)
-        except Exception as e:  # noqa: BLE001 - one scene's fault does not stop the run
-            if interrupt.pending():
-                raise Interrupted(interrupt.pending()) from e
-            if atomic.is_environment_error(e):
-                raise
-            r = measure.SceneTables(scene.name)
-            r.check("scene", False, f"{scene.name}: the scene raised {type(e).__name__}: "
-                                    f"{str(e).splitlines()[0] if str(e) else ''}")
-        if scene.name in unplanned:
-            r.check("confirmation runs planned", False, unplanned[scene.name])
-        results.append(r)
-    figure_jobs = draw.sweep_jobs(scenes, results) if figures else []
-    by_name = {s.name: s for s in scenes}
-    for r in results:
-        for name, rows in r.tables.items():
-            tables.setdefault(name, []).extend(rows)
-    from validation import timing_context
-
-    load = timing_context.load_context(
-        stats.load_before, stats.load_after, executed_timed=stats.timed_executed,
-        resumed_timed=stats.timed_resumed,
-        where="of the machine running run_all.py, not of the Dask workers" if scheduler else "")
-    if tables.get("cheapest"):
-        tables["cheapest"] = timing_context.gate_time_verdicts(tables["cheapest"], load)
-    extra = []
-    if figures and tables.get("cheapest"):
-        try:
-            extra.append(_crossover_job(tables["cheapest"]))
-        except Exception as e:  # noqa: BLE001
-            if atomic.is_environment_error(e) or interrupt.pending():
-                raise
-            findings.append(f"(crossover figure not drawn: {type(e).__name__}: {e})")
-    t_draw = time.perf_counter()
-    if figures:
-        _draw_all(results, figure_jobs, out_dir, by_name, pools, extra=extra)
-    t_write = time.perf_counter()
-    for r in results:
-        failures += r.failures
-        findings += r.findings
-    findings = timing_context.findings(load) + report.summarize(tables) + findings
-    from validation import outputs
-
-    files, file_failures = outputs.write_files(out_dir, results)  # e.g. the trajectory output's netCDF
-    findings += [str(sentence) for _, sentence in files]
-    failures += file_failures
-    front = list(dict.fromkeys(k for s in scenes for k in (getattr(s, "sweep", None) or {})))
-    paths = report.write_tables(out_dir, tables, front=front)
-    report.write_index(out_dir, results=results, tables=tables, table_paths=paths,
-                       failures=failures, findings=findings, mode="quick" if quick else "full",
-                       repeats=repeats, seconds=time.perf_counter() - t0, n_scenes=len(scenes),
-                       timing=getattr(stats, "timing", None), load=load,
-                       stability_methods={s.name: (s.stability or {}).get("method") for s in scenes
-                                          if (s.stability or {}).get("method")})
-    if stats is not None:
-        stats.phases = {"plan": t_run - t0, "runs": t_measure - t_run, "measure": t_draw - t_measure,
-                        "figures": t_write - t_draw, "write": time.perf_counter() - t_write}
-    return results, failures
-
-
-def _true(x) -> bool:
-    """A ``confirmed`` cell: True, or its CSV spelling."""
-    return str(x).strip().lower() == "true"  # bool, numpy.bool_ or the CSV's text
-
-
-#: Relative drawing cost of a figure job by kind (a state job draws two or
-#: three figures; ``python benchmarks/bench_figures.py`` gives each kind's time).
-_DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
-
-
-def _crossover_job(cheapest):
-    """The all-scenes crossover grid (a figure job), from the trust table's
-    rows: each cell shows the RHS-call verdict (deterministic), a solver only
-    where its winning run was measured and met the target (``confirmed`` /
-    ``alt_confirmed``); ``tie`` and ``unmeasured`` cells name no solver."""
-    import pandas as pd
-
-    from validation import measure
-
-    rows = []
-    for r in pd.DataFrame(cheapest).to_dict("records"):
-        v = r["verdict_rhs"]
-        if v == r["method"] and _true(r.get("confirmed")):
-            solver, rhs = v, r["rhs"]
-        elif v == r["alternative"] and v and _true(r.get("alt_confirmed")):
-            solver, rhs = v, r["alt_rhs"]
-        else:
-            solver, rhs = "", float("nan")
-        rows.append({"scene": r["scene"], "target_error": r["target_error"], "solver": solver, "rhs": rhs,
-                     "cell": "" if solver else (v if v in ("tie", "unmeasured") else "unmeasured")})
-    res = measure.SceneTables("all scenes")
-    res.figures.append(measure.FigureJob("all scenes", "crossover", {"rows": rows}))
-    return res
-
-
-def _draw_all(results, sweep_jobs, out_dir, by_name, pools, extra=()):
-    """Draw every figure job of ``results``, of ``sweep_jobs`` and of
-    ``extra`` (on the worker processes when there are any); a plotting fault
-    is a failed check of its scene. The sweeps' and ``extra``'s results are
-    appended to ``results``."""
-    from validation import atomic, interrupt, measure
-    from validation.draw import draw_job
-
-    sweeps = {}
-    for job in sweep_jobs:
-        sweeps.setdefault(job.scene, measure.SceneTables(f"sweep {job.scene}"))
-    work = ([(r, j) for r in results for j in r.figures] + [(sweeps[j.scene], j) for j in sweep_jobs]
-            + [(r, j) for r in extra for j in r.figures])
-    # Every job gets its scene: state figures build the model from it, all draw its own methods' styles.
-    items = [(j, out_dir, by_name.get(j.scene)) for _, j in work]
-    if pools is not None and len(items) > 1:
-        outs = pools.map(draw_job, items, cost=[_DRAW_COST.get(j.kind, 1.0) for _, j in work])
-    else:
-        outs = []
-        for item in items:
-            try:
-                outs.append(draw_job(*item))
-            except Exception as e:  # noqa: BLE001
-                if atomic.is_environment_error(e) or interrupt.pending():
-                    raise
-                outs.append(e)
-    for (r, job), out in zip(work, outs):
-        if isinstance(out, BaseException):
-            if atomic.is_environment_error(out):
-                raise out
-            r.check(f"{job.kind} figure", False, f"{job.scene}: the {job.kind} figure failed: "
-                                                  f"{type(out).__name__}: {str(out).splitlines()[0] if str(out) else ''}")
-        else:
-            r.drawn.extend(out)
-    results.extend(sweeps.values())
-    results.extend(extra)
-
-
-run.completed = []
-
-
-class Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM arrived; ``signum`` says which."""
-
-    def __init__(self, signum):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
 class _Signals:
     """SIGINT/SIGTERM raise :class:`Interrupted`, except inside ``critical()``
     sections, where they are held until the section ends."""
@@ -611,11 +284,6 @@ class _Signals:
             raise Interrupted(signum)
 
 
-def _fail(message) -> int:
-    sys.stderr.write(f"run_all: {message}\n")
-    return 2
-
-
 def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
     """The command line (see the module docstring); returns the exit status.
 
@@ -644,221 +312,48 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
             return 128 + signum
 
 
-def _scope(args) -> str:
-    """What the run covers: ``full`` (every shipped scene), ``quick`` or ``subset``."""
-    return "subset" if args.scene else ("quick" if args.quick else "full")
-
-
-def _environment(message) -> int:
-    sys.stderr.write(f"run_all: {message}\n")
-    return 3
-
-
-def _check_name_length(target: Path) -> None:
-    """The temporary names beside ``target`` must fit the filesystem's limit."""
-    from validation import atomic
-
-    longest = max(len(os.fsencode(f".{target.name}.kept-{'0' * 12}")),
-                  len(os.fsencode(f".{target.name}.records-aside-{'0' * 16}-999")))
-    probe = target.parent
-    while not probe.exists() and probe != probe.parent:
-        probe = probe.parent
-    try:
-        limit = os.pathconf(probe, "PC_NAME_MAX")
-    except (OSError, ValueError):
-        limit = 255
-    if longest > limit:
-        raise atomic.EnvironmentRefused(errno.ENAMETOOLONG, f"--out {target}: its name ({len(target.name)} "
-                                        f"characters) leaves no room for the temporary names beside it "
-                                        f"(limit {limit} bytes); choose a shorter name")
-
-
 def _main(argv, sig, prog="run_all.py") -> int:
+    from validation import runner
+
     args = _parser(prog).parse_args(argv)
-    from validation import atomic, budget
-    from validation.scenes import SceneError, load_scenes
 
-    try:
-        scenes = load_scenes(args.scene or None, quick=args.quick, allow_code=True if args.allow_code else None)
-        if args.max_output_points is not None:
-            scenes = [s if s.max_output_points is not None else _with_max_points(s, args.max_output_points)
-                      for s in scenes]
-        for s in scenes:
-            budget.check(s, max_steps=args.max_steps, max_truth_steps=args.max_truth_steps)
-    except SceneError as e:
-        sys.stderr.write(f"{e}\n")
-        return 2
-    if args.scheduler:
-        if args.exclusive_timing:
-            return _fail("--exclusive-timing applies to local workers; on a Dask cluster start one worker "
-                         "with --resources timing=1 --nthreads 1, alone on its machine")
-        try:
-            _check_scheduler(args.scheduler)
-        except _BadInput as e:
-            return _fail(str(e))
-    if args.workers is None and os.environ.get("RK4H_WORKERS"):
-        try:
-            args.workers = _int_at_least(1, 1024)(os.environ["RK4H_WORKERS"])
-        except argparse.ArgumentTypeError as e:
-            return _fail(f"RK4H_WORKERS: {e}")
-    if not scenes:
-        return _fail("no scenes to run" + (" (none is marked quick = true)" if args.quick else ""))
-    repeats = args.repeats if args.repeats is not None else (REPEATS_QUICK if args.quick else REPEATS_FULL)
-    scope = _scope(args)
-    target = Path(os.path.abspath(args.out))
-    try:
-        _check_name_length(target)
-        if target.is_symlink() and target.is_dir():
-            target = target.resolve()
-        atomic.check_target(target, scope=scope, n_scenes=len(scenes), replace=args.replace)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        with atomic.Lock(target):
-            for line in atomic.recover(target):
-                sys.stderr.write(f"run_all: {line}\n")
-            # checked again under the lock: another run may have written meanwhile
-            atomic.check_target(target, scope=scope, n_scenes=len(scenes), replace=args.replace)
-            return _run_into(target, scenes, args, repeats, scope, sig)
-    except atomic.TargetRefused as e:
-        return _fail(str(e))
-    except OSError as e:
-        if isinstance(e, atomic.EnvironmentRefused) or e.errno in atomic.ENVIRONMENT_ERRNOS:
-            where = f" ({e.filename})" if getattr(e, "filename", None) else ""
-            text = e.strerror if isinstance(e.strerror, str) and not isinstance(e, atomic.EnvironmentRefused) \
-                else (e.strerror or str(e))
-            note = f"; {e.records_note}" if getattr(e, "records_note", None) else ""
-            return _environment(f"the environment refused: {text}{where}; {args.out} left unchanged{note}")
-        raise
+    def notify(line, err=False):
+        if err:
+            sys.stderr.write(f"{line}\n")
+        else:
+            print(line)
+            sys.stdout.flush()
+
+    report = runner.execute(runner.RunOptions.from_namespace(args), progress=Progress, notify=notify, guard=sig)
+    return _print_report(report)
 
 
-def _run_into(target: Path, scenes, args, repeats: int, scope: str, sig) -> int:
-    """Run ``scenes`` into a fresh directory beside ``target`` and swap it in
-    (the caller holds the lock)."""
-    import shutil
-
-    from validation import atomic, engine, records
-    from validation.plan import plan_all
-
-    figures = not args.no_figures
-    store = records.RecordStore(target, resume=args.resume, fresh=args.fresh)
-    if store.moved_aside is not None:
-        aside, n = store.moved_aside
-        sys.stderr.write(f"run_all: --fresh: moved {n} record(s) of an earlier run aside to {aside}\n")
-    elif store.found:
-        print(f"resuming from {store.found} record(s) of an earlier run in {store.path}")
-    tmp = atomic.fresh_dir(target)
-    workers = args.workers or engine.default_workers()
-    stats = engine.PlanStats()
-    progress, swapped = None, False
-    run.completed = []
-    # the workers start (and import) while this process plans
-    pools = engine.LocalPools(workers).warm() if workers > 1 and not args.scheduler else None
-    try:
-        try:
-            total = len(plan_all(scenes, quick=args.quick, figures=figures, repeats=repeats))
-            progress = Progress(total)
-            _, failures = run(scenes, tmp, quick=args.quick, repeats=repeats, figures=figures,
-                              progress=progress, workers=workers, scheduler=args.scheduler, store=store,
-                              stats=stats, exclusive_timing=args.exclusive_timing, pools=pools)
-            progress.close()
-            sig.hold()  # the swap is not interrupted half-way
-            atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
-            swapped = True
-            if not store.remove():
-                sys.stderr.write(f"run_all: {store.path} kept: it holds files this tool did not write\n")
-        finally:
-            sig.held = True  # cleanup is not interrupted either
-            if pools is not None:
-                pools.close(kill=not swapped)
-            if not swapped:
-                shutil.rmtree(tmp, ignore_errors=True)
-                # the records of a run that stopped (interrupt, crash, environment) stay
-                # for --resume; an empty store goes
-                _keep_records(store, sys.exc_info()[1])
-        sig.release()
-    except KeyboardInterrupt as e:
-        if progress is not None:
-            progress.close()
-        signum = getattr(e, "signum", signal.SIGINT)
-        done = run.completed
-        names = ", ".join(done) or "none"
-        state = (f"the report was written to {target}" if swapped
-                 else f"{args.out} left unchanged")
-        kept = "" if swapped or not store.keys() else (
-            f"; {stats.executed + stats.resumed} of {stats.planned} runs are recorded in {store.path}: "
-            f"rerun with --resume to run only the rest")
-        sys.stderr.write(f"run_all: interrupted ({signal.Signals(signum).name}); scenes completed "
-                         f"({len(done)} of {len(scenes)}): {names}; {state}{kept}\n")
-        return 128 + signum
-    except engine.SchedulerLost as e:
-        if progress is not None:
-            progress.close()
-        try:
-            recorded = len(store.keys())
-        except OSError:  # removed: it held nothing
-            recorded = 0
-        kept = "" if not recorded else (f"; {recorded} of {stats.planned} runs are recorded: rerun with "
-                                        f"--resume to run only the rest")
-        return _environment(f"{e.strerror}; {args.out} left unchanged{kept}")
-    finally:
-        sig.held, sig.pending = False, None
-    if atomic.swap_into_place.kept is not None:
-        sys.stderr.write(f"run_all: the previous report was not removed ({atomic.swap_into_place.why}); it "
-                         f"was kept aside as {atomic.swap_into_place.kept}\n")
-    phases = ", ".join(f"{k} {v:.1f} s" for k, v in getattr(stats, "phases", {}).items())
-    print(f"{stats.planned} runs planned, {stats.resumed} resumed, {stats.executed} executed "
-          f"({'Dask at ' + args.scheduler if args.scheduler else f'{workers} worker(s)'}); {phases}")
-    if store.found:
-        a = stats.audit
-        print(f"records: {stats.resumed} resumed, {a['mismatch'] + a['stale']} rerun ({a['mismatch']} digest "
+def _print_report(report) -> int:
+    """Print what the run did (stdout) or why it stopped (stderr); returns
+    its exit status."""
+    if report.message is not None:
+        sys.stderr.write(f"{report.message}\n")
+        return report.status
+    if report.kept_aside is not None:
+        kept, why = report.kept_aside
+        sys.stderr.write(f"run_all: the previous report was not removed ({why}); it was kept aside as {kept}\n")
+    phases = ", ".join(f"{k} {v:.1f} s" for k, v in report.phases.items())
+    where = f"Dask at {report.scheduler}" if report.scheduler else f"{report.workers} worker(s)"
+    if report.workers_why and not report.scheduler and report.workers_why != "as asked":
+        where += f": {report.workers_why}"
+    print(f"{report.planned} runs planned, {report.resumed} resumed, {report.executed} executed ({where}); "
+          f"{phases}")
+    if report.records_found:
+        a = report.audit
+        print(f"records: {report.resumed} resumed, {a['mismatch'] + a['stale']} rerun ({a['mismatch']} digest "
               f"mismatch, {a['stale']} stale: made by other code or libraries)"
               + (f", {a['unused']} unused (no planned run)" if a["unused"] else ""))
-    print(f"report written to {target} ({len(scenes)} scene(s)); "
-          f"{'all expectations held' if not failures else f'{len(failures)} expectation(s) failed'}")
-    for f in failures:
+    n = len(report.failures)
+    print(f"report written to {report.out} ({len(report.scenes)} scene(s)); "
+          f"{'all expectations held' if not n else f'{n} expectation(s) failed'}")
+    for f in report.failures:
         print(f"FAILED: {f}")
-    return 1 if failures else 0
-
-
-def _keep_records(store, exc) -> None:
-    """After a run that did not swap its report in: remove the store if it
-    holds no record; else keep it and, for an error other than an interrupt
-    (whose line says so itself), say where (appended to an ``OSError``'s
-    line by :func:`main`, else one line on stderr)."""
-    n = len(store.keys())
-    if not n:
-        store.remove()
-        return
-    if exc is None or isinstance(exc, KeyboardInterrupt):
-        return
-    note = f"{n} record(s) kept in {store.path}: rerun with --resume to use them"
-    if isinstance(exc, OSError):
-        exc.records_note = note
-    else:
-        sys.stderr.write(f"run_all: {note}\n")
-
-
-def _check_scheduler(address):
-    """A Dask scheduler address: ``tcp://host:port`` (or ``host:port``)."""
-    import re
-
-    if not re.fullmatch(r"(tcp|tls|inproc|ws|wss)://[^\s/]+|[^\s/:]+:\d+", address):
-        raise _BadInput(f"--scheduler: must be an address like tcp://127.0.0.1:8786, got {address!r}")
-    from validation import engine
-
-    try:
-        engine.scheduler_timeout()
-    except ValueError as e:
-        raise _BadInput(str(e)) from None
-
-
-class _BadInput(ValueError):
-    pass
-
-
-def _with_max_points(scene, max_points):
-    import dataclasses
-
-    return dataclasses.replace(scene, max_output_points=max_points)
+    return report.status
 
 
 def exit_process(code: int):
