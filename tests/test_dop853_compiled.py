@@ -119,3 +119,56 @@ def test_integrate_compiled_runs_the_compiled_loop_only_for_dop853():
     assert other.solver == "rk4" and "implementation" not in other.extra
     with pytest.raises(ValueError, match="rtol"):
         integrate_compiled("dop853", model, y0, t, 2.0)
+
+
+def test_a_loop_that_cannot_be_built_falls_back_to_scipy(monkeypatch):
+    import rk4core.fast.dop853 as fd
+
+    def broken(kern):
+        raise RuntimeError("no compiler here")
+
+    monkeypatch.setattr(fd, "dop853_loop", broken)
+    model, y0, t = _problem("thesis_2dof_case1", 2.0)
+    atol = absolute_tolerance(model, y0, 1e-8)
+    run = run_dop853_compiled(model, y0, t, 1e-8, atol)
+    plain = run_dop853(model, y0, t, 1e-8, atol)
+    assert run.extra["implementation"] == "scipy" and "no compiler here" in run.extra["compiled_error"]
+    assert run.ok and np.array_equal(run.y, plain.y) and (run.n_steps, run.nfev) == (plain.n_steps, plain.nfev)
+
+
+def test_a_confirmation_run_of_dop853_runs_the_compiled_loop_and_its_row_says_so(tmp_path):
+    from _scenes import one_mass
+    from validation import confirm
+    from validation.execute import execute
+    from validation.plan import RunSpec, scene_digest
+
+    path = tmp_path / "dop.toml"
+    path.write_text(one_mass("dop-confirm", t_end=4.0))
+    scene = load_scene(path)
+    dig = scene_digest(scene)
+    specs = [RunSpec(scene.name, dig, purpose, solver="dop853", setting=1e-10, grid="scene", repeats=1)
+             for purpose in ("run", confirm.PURPOSE)]
+    recs = {s.key: execute(scene, s) for s in specs}
+    run_rec, conf_rec = (recs[s.key] for s in specs)
+    assert run_rec.status == conf_rec.status == "ok"
+    assert run_rec.values["implementation"] == "" and conf_rec.values["implementation"] == "compiled"
+    assert (conf_rec.values["nfev"], conf_rec.values["n_steps"]) == (run_rec.values["nfev"], run_rec.values["n_steps"])
+    assert abs(conf_rec.values["error_rel"] - run_rec.values["error_rel"]) <= 1e-3 * run_rec.values["error_rel"]
+    rows = confirm.rows_of(specs, recs)
+    assert [r["implementation"] for r in rows] == ["", "compiled"]
+
+
+def test_the_trust_note_names_a_compiled_alternative():
+    import math
+
+    from references.registry import BUILTIN
+    from validation import trust
+
+    rk4 = [dict(solver="rk4", setting=h, error_rel=1e3 * h**4, nfev=4 * round(100 / h), n_steps=round(100 / h),
+                wall_s=1e-3, wall_min=1e-3, wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0)
+           for h in (0.1, 0.05, 0.025, 0.0125)]
+    alt = dict(solver="dop853", setting=1e-12, error_rel=4e-13, nfev=5000, n_steps=400, wall_s=1e-3, wall_min=1e-3,
+               wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0)
+    notes = [trust.trust_rows("s", rk4, BUILTIN["rk4"], 100.0, math.inf, [1e-12],
+                              confirmations=[{**alt, "implementation": impl}])[0]["note"] for impl in ("", "compiled")]
+    assert "compiled loop" not in notes[0] and "dop853 setting 1e-12 reached 4e-13 (its compiled loop" in notes[1]
