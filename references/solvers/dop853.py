@@ -248,7 +248,7 @@ def run_dop853_compiled(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, 
     note = f" (rtol {rtol:.3g} clipped to scipy's floor {RTOL_MIN:.3g})" if rtol < RTOL_MIN else ""
     max_evals = EVALS_PER_STEP * int(max_steps) + 100
     y0 = np.ascontiguousarray(y0, dtype=float)
-    atol_c = np.ascontiguousarray(np.broadcast_to(np.asarray(atol, dtype=float), y0.shape))
+    atol_c = np.array(np.broadcast_to(np.asarray(atol, dtype=float), y0.shape))  # a writable C-ordered copy
     t_c = np.ascontiguousarray(t_eval, dtype=float)
     coef = coefficients()
     args = (fast_rhs.fp, fast_rhs.ip, fast_rhs.mass, np.zeros(kern.work_size))
