@@ -43,6 +43,8 @@ __all__ = ["dop853_loop", "coefficients", "STATUS_TEXT", "OK", "TOO_SMALL_STEP",
 
 #: Return codes of the compiled loop.
 OK, TOO_SMALL_STEP, STEP_CAP, EVAL_CAP, NONFINITE_STEP, NONFINITE_STATE = 0, 1, 2, 3, 4, 5
+#: The loop of each force kernel structure used in this process, by ``kern.key()``.
+_LOOPS: dict = {}
 #: scipy's message for :data:`TOO_SMALL_STEP` (``OdeSolver.TOO_SMALL_STEP``).
 STATUS_TEXT = {TOO_SMALL_STEP: "Required step size is less than spacing between numbers."}
 
@@ -86,8 +88,8 @@ def dop853_loop(kern):
     (:mod:`rk4core.fast._dop853_loop`, compiled once per machine) on the
     right-hand side of force kernel ``kern`` (compiled per model structure
     with the loop's signature, or loaded from the private on-disk cache)."""
-    key = ("dop853",) + (kern.key(),)
-    fn = codegen._KERNELS.get(key)
+    key = kern.key()
+    fn = _LOOPS.get(key)
     if fn is None:
         from ._dop853_loop import RHS_SIG, dop853
 
@@ -97,5 +99,5 @@ def dop853_loop(kern):
         def fn(*args):
             return dop853(f, *args)
 
-        codegen._KERNELS[key] = fn
+        _LOOPS[key] = fn
     return fn
