@@ -1,7 +1,7 @@
 """scipy's DOP853 stepping compiled with numba on a model's compiled right-hand side.
 
 :func:`dop853_loop` returns, for one force kernel (one model *structure*,
-:mod:`rk4core.models.compiled`), a numba function that runs the whole
+:mod:`rk4core.models.compiled`), a function that runs the whole
 ``scipy.integrate.DOP853`` loop -- steps, rejections, output times inside a
 step -- without returning to Python. It is the loop of
 ``scipy.integrate._ivp.rk.RungeKutta._step_impl`` and ``DOP853`` (scipy
@@ -13,8 +13,12 @@ step -- without returning to Python. It is the loop of
 * stage ``s`` is ``y + (sum_j K_j a_sj) h`` and the new state
   ``y + h sum_j K_j b_j``; scipy forms these sums with BLAS (``np.dot``),
   whose summation order is the library's: here they are summed left to
-  right, so the states differ from scipy's by round-off of the sums
-  (a few ulps per step), not by method;
+  right, so the states differ from scipy's by round-off of the sums, not
+  by method. The error estimate is a sum that cancels, so this round-off
+  reaches the step sizes amplified (up to 1e-7 relative where the estimate
+  is far below 1) and, on a problem sensitive to round-off, can flip an
+  accept/reject decision over a long run (docs/performance.md, "DOP853 for
+  untimed work"), as scipy's own results move when ``y0`` moves one ulp;
 * error norm ``|h| |e5|^2 / sqrt((|e5|^2 + 0.01 |e3|^2) n)`` with ``e5``,
   ``e3`` divided by ``atol + max(|y|, |y_new|) rtol``; accepted when below
   1; step factor ``min(10, 0.9 err^(-1/8))`` (at most 1 after a rejection),
