@@ -11,6 +11,9 @@ A scene's ``python`` and ``command`` methods
 ``dop853``
     scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
     (``rk4core.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
+    :func:`integrate_compiled` runs the same method as one compiled loop
+    (:mod:`rk4core.fast.dop853`), equal to scipy's to round-off, for untimed
+    work (the trust table's confirmation runs); timed rows keep scipy's.
 ``cvode-adams``, ``cvode-bdf``
     SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
     DOP853), analytic Jacobian, banded for chains; ``setting`` is ``rtol``.
