@@ -7,7 +7,10 @@ target, it runs at that step (on the output grid,
 :func:`validation.trust.on_grid`) and its measured ``error_rel`` must be at
 most the target. Where no run of any other method reaches a target, the
 scene's adaptive references run at tighter tolerances, ten times tighter per
-round, down to each one's floor (:data:`RTOL_FLOOR`).
+round, down to each one's floor (:data:`RTOL_FLOOR`). A reference with a
+compiled loop runs it there (DOP853: :mod:`rk4core.fast.dop853`, scipy's
+method to round-off, about 100x faster than scipy's Python stepping); its
+row says so (``implementation``) and the trust table's note names it.
 
 These runs are specs of the plan (purpose ``confirm``: a timed run over the
 scene's output grid, executed like a ``run`` spec, kept out of the accuracy
@@ -63,7 +66,9 @@ def rtol_floor(solver: str) -> float:
 def rows_of(specs, records) -> list[dict]:
     """Rows shaped like ``work_precision`` rows (``solver``, ``setting``,
     ``error_rel``, ``nfev``, ``n_steps``, ``taylor_order``, ``status``,
-    ``wall_s``, ``wall_min``, ``wall_max``, ``compile_s``) of the ``run`` or
+    ``wall_s``, ``wall_min``, ``wall_max``, ``compile_s``, and ``implementation``:
+    ``"compiled"`` for a reference's confirmation run on its compiled loop,
+    :func:`references.solvers.integrate_compiled`) of the ``run`` or
     ``confirm`` specs among ``specs`` that have a record; a record without
     values (the execution raised) is a row with status ``failed``."""
     out = []
@@ -82,7 +87,7 @@ def rows_of(specs, records) -> list[dict]:
         out.append({**row, "error_rel": v["error_rel"], "error_max": v["error_max"], "nfev": v["nfev"],
                     "n_steps": v["n_steps"], "taylor_order": v.get("taylor_order", 0), "status": rec.status,
                     "wall_s": wall, "wall_min": tm.get("wall_min", wall), "wall_max": tm.get("wall_max", wall),
-                    "compile_s": tm.get("compile_s", 0.0)})
+                    "compile_s": tm.get("compile_s", 0.0), "implementation": v.get("implementation", "")})
     return out
 
 

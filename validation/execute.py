@@ -162,13 +162,15 @@ def _first_line(text) -> str:
     return str(text).splitlines()[0] if text else ""
 
 
-def _timed(solver, model, y0, t, setting, repeats):
-    """The first run, and the wall times of up to ``repeats`` runs."""
-    from references.solvers import integrate
+def _timed(solver, model, y0, t, setting, repeats, compiled=False):
+    """The first run, and the wall times of up to ``repeats`` runs;
+    ``compiled``: through :func:`references.solvers.integrate_compiled`
+    (a reference's compiled loop, for confirmation runs)."""
+    from references.solvers import integrate, integrate_compiled
 
     walls, first = [], None
     for _ in range(max(1, repeats)):
-        run = integrate(solver, model, y0, t, setting)
+        run = (integrate_compiled if compiled else integrate)(solver, model, y0, t, setting)
         first = first or run
         walls.append(run.wall_s)
         if _status(run) != "ok" or run.wall_s > REPEAT_BELOW_S:
@@ -218,7 +220,9 @@ def _run_spec(scene, spec, quick):
     t = grid(scene, model, spec)
     truth, reason = _truth_or_reason(model, y0, t)
     method = scene.method(spec.solver)
-    run, walls = _timed(method, model, y0, t, spec.setting, spec.repeats)
+    # a reference's confirmation run steps a compiled loop (same method, round-off apart)
+    compiled = spec.purpose == "confirm" and method.kind is Kind.REFERENCE
+    run, walls = _timed(method, model, y0, t, spec.setting, spec.repeats, compiled)
     status = _status(run)
     if reason:  # the run is measured (energy, cost), its errors are not: NaN and the reason
         e_max = e_final = scale = math.nan
@@ -232,7 +236,8 @@ def _run_spec(scene, spec, quick):
               "energy_drift_max": metrics.energy_drift_max(model, run.y),
               "drift_per_time": metrics.drift_per_time(model, t, run.y) if ok else math.nan,
               "theory_drift_per_time": math.nan, "nfev": int(run.nfev), "n_steps": int(run.n_steps),
-              "taylor_order": int(run.taylor_order or 0), "duration": float(t[-1] - t[0])}
+              "taylor_order": int(run.taylor_order or 0), "duration": float(t[-1] - t[0]),
+              "implementation": str(run.extra.get("implementation", ""))}
     if method.kind is Kind.TABLEAU and model.linear and ok:
         from references.exact import modal_solution
 

@@ -490,6 +490,8 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
                    alt_confirmed_error_rel=alt["error_rel"], alt_confirmed=True)
         reached = (f"{alt['solver']} {setting_name(alt['solver'])} {alt['setting']:g} reached "
                    f"{alt['error_rel']:.2g}")
+        if alt.get("implementation") == "compiled":
+            reached += " (its compiled loop, a confirmation run; the scene's runs time scipy's)"
         if got is None:
             why = (f"{name} predicted h = {h:.3g} s ({source}), not confirmed by a run" if math.isfinite(h)
                    else f"{name}: {source}")

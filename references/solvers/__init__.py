@@ -11,6 +11,9 @@ A scene's ``python`` and ``command`` methods
 ``dop853``
     scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
     (``rk4core.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
+    :func:`integrate_compiled` runs the same method as one compiled loop
+    (:mod:`rk4core.fast.dop853`), equal to scipy's to round-off, for untimed
+    work (the trust table's confirmation runs); timed rows keep scipy's.
 ``cvode-adams``, ``cvode-bdf``
     SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
     DOP853), analytic Jacobian, banded for chains; ``setting`` is ``rtol``.
@@ -61,13 +64,14 @@ from rk4core.validate import check_model_y0, check_output_times, positive
 from ..registry import Kind, resolve
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
 from .cvode import DEFAULT_MAX_STEPS, run_cvode
-from .dop853 import run_dop853
+from .dop853 import run_dop853, run_dop853_compiled
 from .fixed import run_fixed
 from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
-__all__ = ["integrate", "check_setting", "check_model", "as_model", "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+__all__ = ["integrate", "integrate_compiled", "COMPILED_RUNNERS", "check_setting", "check_model", "as_model",
+           "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
            "SolverRun", "absolute_tolerance"]
 
 
@@ -207,4 +211,29 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
     if runner is None:
         raise ValueError(f"solver: no adapter runs the reference {method.name!r} (adapter {method.adapter!r}; "
                          f"adapters: {', '.join(sorted(REFERENCE_RUNNERS))})")
+    return runner(model, y0, t, setting, atol, int(max_steps))
+
+
+#: Reference adapters with a compiled loop for untimed work (:func:`integrate_compiled`).
+COMPILED_RUNNERS = {"dop853": run_dop853_compiled}
+
+
+def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
+                       max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
+    """:func:`integrate` for untimed work (confirmation runs): a reference
+    with a compiled loop (:data:`COMPILED_RUNNERS`: DOP853 stepped by
+    :func:`references.solvers.dop853.run_dop853_compiled`, equal to scipy's
+    to round-off) runs it; every other solver, and a model without a
+    compiled right-hand side, runs as :func:`integrate` runs it.
+    ``run.extra["implementation"]`` is ``"compiled"`` where the compiled
+    loop ran. Same arguments, checks and result."""
+    method = resolve(solver)
+    model = as_model(model, y0)
+    runner = COMPILED_RUNNERS.get(method.adapter) if method.kind is Kind.REFERENCE else None
+    if runner is None:
+        return integrate(method, model, y0, t_eval, setting, atol=atol, max_steps=max_steps)
+    setting = check_setting(method, setting)
+    y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
+    if atol is None:
+        atol = absolute_tolerance(model, y0, setting)
     return runner(model, y0, t, setting, atol, int(max_steps))

@@ -48,7 +48,7 @@ from scipy.integrate import DOP853
 
 from .base import SolverRun, Status, compiled_rhs
 
-__all__ = ["run_dop853", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
+__all__ = ["run_dop853", "run_dop853_compiled", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
 
 #: scipy's floor on rtol (``scipy.integrate._ivp.rk``: ``100 * EPS``).
 RTOL_MIN = 100 * np.finfo(float).eps
@@ -217,3 +217,127 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
     extra["nfev_calls"] = calls[0]
     return SolverRun("dop853", rtol, t_eval, y, nfev, n_steps, wall, status=status, message=message,
                      atol=float(atol[0]), t_fail=t_fail, extra={**extra, "atol_state": atol})
+
+
+def run_dop853_compiled(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray,
+                        max_steps: int = DEFAULT_MAX_STEPS, *, name: str = "dop853") -> SolverRun:
+    """:func:`run_dop853` with scipy's DOP853 loop compiled
+    (:mod:`rk4core.fast.dop853`): the same method, step size control, first
+    step, dense output, caps, statuses and messages, with the stage sums
+    taken left to right instead of by BLAS, so states, errors and step
+    counts equal scipy's to round-off (``tests/test_dop853_compiled.py``).
+    For untimed work (confirmation runs): a user runs scipy's, which
+    :func:`run_dop853` times. A model without a compiled right-hand side
+    runs :func:`run_dop853`, as does one whose loop fails to compile
+    (``extra["compiled_error"]`` says why). ``extra["implementation"]`` says which ran;
+    ``compile_s`` is the first call's (compile or cache load) time, kept out
+    of ``wall_s``; ``name`` is the run's ``solver``."""
+    fast_rhs = compiled_rhs(model)
+    if fast_rhs is None:
+        run = run_dop853(model, y0, t_eval, rtol, atol, max_steps)
+        run.solver = name
+        run.extra["implementation"] = "scipy"
+        return run
+    from rk4core.fast import force_kernel
+    from rk4core.fast.dop853 import STATUS_TEXT, coefficients, dop853_loop
+
+    kern = force_kernel(model)
+    m, n2 = t_eval.shape[0], y0.shape[0]
+    rtol_used = max(rtol, RTOL_MIN)
+    extra = {"rtol_used": rtol_used, "max_steps": int(max_steps), "rhs": "compiled", "implementation": "compiled"}
+    note = f" (rtol {rtol:.3g} clipped to scipy's floor {RTOL_MIN:.3g})" if rtol < RTOL_MIN else ""
+    max_evals = EVALS_PER_STEP * int(max_steps) + 100
+    y0 = np.ascontiguousarray(y0, dtype=float)
+    atol_c = np.array(np.broadcast_to(np.asarray(atol, dtype=float), y0.shape))  # a writable C-ordered copy
+    t_c = np.ascontiguousarray(t_eval, dtype=float)
+    coef = coefficients()
+    args = (fast_rhs.fp, fast_rhs.ip, fast_rhs.mass, np.zeros(kern.work_size))
+    ys = np.full((m, n2), np.nan)
+    ys[0] = y0
+    counts = np.zeros(4, dtype=np.int64)
+    info = np.full(4, np.nan)
+    t0, t1 = float(t_c[0]), float(t_c[-1])
+    start = time.perf_counter()
+    try:
+        loop = dop853_loop(kern)
+        with np.errstate(all="ignore"):  # compile (or load) now: max_steps = 0 ends after one evaluation
+            loop(*args, np.full(4, np.nan), y0, t_c, 1.0, rtol_used, atol_c, *coef, 0, 100, ys.copy(),
+                 np.zeros(4, dtype=np.int64))
+    except Exception as exc:  # noqa: BLE001 - no compiled loop: scipy's, said in extra
+        run = run_dop853(model, y0, t_eval, rtol, atol, max_steps)
+        run.solver = name
+        run.extra["implementation"] = "scipy"
+        run.extra["compiled_error"] = f"{type(exc).__name__}: {exc}"
+        return run
+    compile_s = time.perf_counter() - start
+    status, message, t_fail, n_steps, nfev = Status.OK, "", None, 0, 0
+    start = time.perf_counter()
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            f0 = np.asarray(model.rhs(t0, y0), dtype=float)
+            if not np.all(np.isfinite(f0)):
+                raise _Stop(Status.UNSTABLE, f"dop853: the right-hand side is not finite at the initial "
+                                             f"state (t = {t0:.6g}); no step taken")
+            bad = []
+            calls = [0]
+
+            def fun(t, yy):
+                calls[0] += 1
+                f, nonfinite = fast_rhs.checked(yy)
+                if nonfinite and not bad:
+                    bad.append(float(t))
+                return f
+
+            h = first_step(fun, t0, y0, t1, f0, rtol_used, atol_c)
+            nfev = calls[0]
+            if not (math.isfinite(h) and h > 0.0):
+                raise _Stop(Status.UNSTABLE if bad else Status.FAILED,
+                            f"dop853: no usable first step (computed h = {h!r} s at t = {t0:.6g})")
+            extra["first_step"] = h
+            counts[1], counts[3] = nfev, int(bool(bad))
+            if bad:
+                info[1] = bad[0]
+            code = int(loop(*args, info, y0, t_c, h, rtol_used, atol_c, *coef, int(max_steps), int(max_evals), ys,
+                            counts))
+            n_steps, nfev, k, is_bad = int(counts[0]), int(counts[1]), int(counts[2]), bool(counts[3])
+            t_end = float(info[0])
+            if code == 0:
+                pass
+            elif code == 1:
+                t_fail = t_end
+                if is_bad:
+                    status = Status.UNSTABLE
+                    message = (f"dop853: the right-hand side became non-finite at t = {float(info[1]):.6g} "
+                               f"(a state where the force is undefined?); scipy: {STATUS_TEXT[1]}")
+                else:
+                    status, message = Status.FAILED, f"dop853: {STATUS_TEXT[1]}"
+            elif code == 5:
+                status, t_fail = Status.UNSTABLE, t_end
+                message = f"dop853: state became non-finite at t = {t_fail:.6g}"
+            else:
+                t_fail = t_end
+                if code == 2:
+                    message = f"dop853: step cap max_steps = {max_steps} reached at t = {t_end:.6g}"
+                elif code == 3:
+                    message = (f"dop853: step cap reached ({max_evals} right-hand-side evaluations, "
+                               f"max_steps = {max_steps})")
+                else:
+                    message = (f"dop853: the step size became non-finite (right-hand side asked "
+                               f"for at t = {float(info[2])!r})")
+                status = Status.UNSTABLE if is_bad and "step cap" not in message else Status.FAILED
+    except _Stop as stop:
+        status, message, t_fail, k = stop.status, stop.message, t0, 1
+    except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
+        status, message, t_fail, k = Status.FAILED, f"dop853: {type(exc).__name__}: {exc}", t0, 1
+    wall = time.perf_counter() - start
+    y = ys.T.copy()
+    if status is Status.OK:
+        message = "dop853: reached the end of the interval" + note
+    else:
+        if t_fail is not None and f"{t_fail:.6g}" not in message:
+            message += f" (last step ended at t = {t_fail:.6g})"
+        message += note
+        y[:, k:] = np.nan
+    extra["nfev_calls"] = nfev
+    return SolverRun(name, rtol, t_eval, y, nfev, n_steps, wall, compile_s=compile_s, status=status,
+                     message=message, atol=float(atol_c[0]), t_fail=t_fail, extra={**extra, "atol_state": atol})
