@@ -30,7 +30,7 @@ A32 = 1.0
 B0 = B3 = 1.0 / 6.0
 B1 = B2 = 1.0 / 3.0
 
-__all__ = ["rk4_two_mass", "rk4_chain", "rk4_network", "compile_all"]
+__all__ = ["rk4_two_mass", "rk4_chain", "rk4_network", "compile_all", "compile_network"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -220,5 +220,9 @@ def compile_all() -> None:
     """Compile (or load from numba's cache) both loops: one call each."""
     rk4_two_mass(1.0, 1.0, 1.0, 1.0, 1.0, np.zeros(4), 0.01, 1)
     rk4_chain(np.ones(3), np.ones(4), np.zeros(6), 0.01, 1)
+
+
+def compile_network() -> None:
+    """Compile (or load from numba's cache) :func:`rk4_network`: one call."""
     rk4_network(np.array([0.0, 0.0]), np.array([1.0, 0.0]), np.array([0]), np.array([1]), np.ones(1), np.ones(1),
                 np.ones(2), np.zeros(4), 0.01, 1)

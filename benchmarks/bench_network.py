@@ -110,7 +110,7 @@ def main(argv=None) -> int:
         return 2
     print(f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} on {os.cpu_count()} CPUs")
     start = time.perf_counter()
-    _tight.compile_all()
+    _tight.compile_network()
     m_web, y_web = web()
     m_lat, y_lat = lattice()
     for m, y in ((m_web, y_web), (m_lat, y_lat)):

@@ -75,3 +75,21 @@ def test_work_array_holds_forces_positions_and_sums():
     model, _ = _random_network(2, 7, 3, 1)
     kern = model.force_kernel()
     assert kern.work_size == (kern.n_springs + 2 * (kern.n_masses + kern.n_anchors)) * kern.dim
+
+
+def test_benchmark_prints_ratios_and_bit_identity():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_network.py"), "--repeats", "1"],
+                          capture_output=True, text=True, timeout=600, cwd=root)
+    assert proc.returncode == 0, proc.stderr
+    rows = [line for line in proc.stdout.splitlines() if "per spring-step" in line]
+    assert [r.split()[0] for r in rows] == ["network_web", "lattice"]
+    assert all("ratio" in r and r.endswith("bit-identical True") for r in rows), proc.stdout
+    bad = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_network.py"), "--repeats", "0"],
+                         capture_output=True, text=True, timeout=600, cwd=root)
+    assert bad.returncode == 2
+    assert bad.stderr.strip().splitlines() == ["bench_network: `--repeats` must be >= 1, got 0"]
