@@ -12,6 +12,10 @@ order, so their final states must equal the generated loops' bit for bit
 * new state ``y + (h b_0) k_0 + (h b_1) k_1 + (h b_2) k_2 + (h b_3) k_3``,
   summed left to right.
 
+``rk4_network`` does the arithmetic of the generated loop of a planar
+``network`` of harmonic springs (its fused slope: positions, one pass over
+the edge list, the ``b`` ends after) in the same order.
+
 Nothing else: no output rows, no instability test, only the final state.
 Compiled with ``error_model="numpy"`` as the generated loops are.
 """
@@ -26,7 +30,7 @@ A32 = 1.0
 B0 = B3 = 1.0 / 6.0
 B1 = B2 = 1.0 / 3.0
 
-__all__ = ["rk4_two_mass", "rk4_chain", "compile_all"]
+__all__ = ["rk4_two_mass", "rk4_chain", "rk4_network", "compile_all", "compile_network"]
 
 
 @njit(cache=True, error_model="numpy")
@@ -138,7 +142,87 @@ def rk4_chain(mass, k, y_start, step, n):
     return y
 
 
+@njit(inline="always", error_model="numpy")
+def _network_slope(X, A, ea, eb, k, rest, mass, s, out, P, g, F, N, D):
+    """``out = dy/dt`` at ``s`` for a network of harmonic springs (exact
+    geometry, ``N`` coordinates, ``D`` per node): node positions ``P`` (mass
+    ``X + u``, anchor ``A``), one pass over the edge list (``F = k r / L d``
+    added to the ``a`` end), the ``b`` ends after, then ``v`` and ``g / m``."""
+    for i in range(N):
+        P[i] = X[i] + s[i]
+        g[i] = 0.0
+    for j in range(A.shape[0]):
+        P[N + j] = A[j]
+        g[N + j] = 0.0
+    for e in range(ea.shape[0]):
+        a = ea[e] * D
+        b = eb[e] * D
+        d0 = P[b] - P[a]
+        d1 = P[b + 1] - P[a + 1]
+        L = np.sqrt(d0 * d0 + d1 * d1)
+        tL = k[e] * (L - rest[e]) / L
+        f0 = tL * d0
+        f1 = tL * d1
+        F[2 * e] = f0
+        F[2 * e + 1] = f1
+        g[a] = g[a] + f0
+        g[a + 1] = g[a + 1] + f1
+    for e in range(ea.shape[0]):
+        b = eb[e] * D
+        g[b] = g[b] + -F[2 * e]
+        g[b + 1] = g[b + 1] + -F[2 * e + 1]
+    for i in range(N):
+        out[i] = s[N + i]
+        out[N + i] = g[i] / mass[i]
+
+
+@njit(cache=True, error_model="numpy")
+def rk4_network(X, A, ea, eb, k, rest, mass, y_start, step, n):
+    """``n`` RK4 steps of a planar network of harmonic springs (``X``: the
+    masses' reference positions flat, ``A`` the anchors' flat, ``ea``/``eb``
+    the node indices of each spring's ends, masses first), in stage arrays;
+    returns the final state ``[u, v]``."""
+    N = X.shape[0]
+    dim = 2 * N
+    y = y_start.copy()
+    s = np.empty(dim)
+    k0 = np.empty(dim)
+    k1 = np.empty(dim)
+    k2 = np.empty(dim)
+    k3 = np.empty(dim)
+    P = np.empty(N + A.shape[0])
+    g = np.empty(N + A.shape[0])
+    F = np.empty(2 * ea.shape[0])
+    h10 = step * A10
+    h21 = step * A21
+    h32 = step * A32
+    hb0 = step * B0
+    hb1 = step * B1
+    hb2 = step * B2
+    hb3 = step * B3
+    for _ in range(n):
+        _network_slope(X, A, ea, eb, k, rest, mass, y, k0, P, g, F, N, 2)
+        for p in range(dim):
+            s[p] = y[p] + h10 * k0[p]
+        _network_slope(X, A, ea, eb, k, rest, mass, s, k1, P, g, F, N, 2)
+        for p in range(dim):
+            s[p] = y[p] + h21 * k1[p]
+        _network_slope(X, A, ea, eb, k, rest, mass, s, k2, P, g, F, N, 2)
+        for p in range(dim):
+            s[p] = y[p] + h32 * k2[p]
+        _network_slope(X, A, ea, eb, k, rest, mass, s, k3, P, g, F, N, 2)
+        for p in range(dim):
+            y[p] = y[p] + hb0 * k0[p] + hb1 * k1[p] + hb2 * k2[p] + hb3 * k3[p]
+    return y
+
+
 def compile_all() -> None:
     """Compile (or load from numba's cache) both loops: one call each."""
     rk4_two_mass(1.0, 1.0, 1.0, 1.0, 1.0, np.zeros(4), 0.01, 1)
     rk4_chain(np.ones(3), np.ones(4), np.zeros(6), 0.01, 1)
+
+
+def compile_network() -> None:
+    """Compile (or load from numba's cache) :func:`rk4_network`: one call."""
+    rk4_network(np.array([0.0, 0.0]), np.array([1.0, 0.0]), np.array([0]), np.array([1]), np.ones(1), np.ones(1),
+                np.ones(2), np.zeros(4), 0.01, 1)

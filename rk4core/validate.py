@@ -120,6 +120,10 @@ def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
     are refused whatever the container (list, tuple, ndarray); complex values
     are refused unless ``allow_complex``.
     """
+    if type(y0) is np.ndarray and y0.dtype == np.float64 and y0.ndim == 1 and y0.size:
+        y = y0.copy()  # the common case, checked whole; a bad entry: the general path's message
+        if np.isfinite(y).all():
+            return y
     kind = "real or complex numbers" if allow_complex else "real numbers"
     if isinstance(y0, (str, bytes)):
         raise ValueError(f"`y0` must be a 1-D array of {kind}, got the string {_short(y0)}")
@@ -282,6 +286,10 @@ def check_t_eval(t_eval, t0, t1):
 def check_output_times(t_eval) -> np.ndarray:
     """Output times of a solver run: a finite, strictly increasing 1-D array of
     at least 2 times (the first is the initial time)."""
+    if type(t_eval) is np.ndarray and t_eval.dtype == np.float64 and t_eval.ndim == 1 and 2 <= t_eval.size <= 64:
+        v = t_eval.tolist()  # a few times: compared as Python floats (the same comparisons), no ufunc calls
+        if all(map(math.isfinite, v)) and all(a < b for a, b in zip(v, v[1:])):
+            return t_eval.copy()
     try:
         t = np.array(t_eval, dtype=float)
     except (TypeError, ValueError):

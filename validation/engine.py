@@ -248,6 +248,9 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
         own = pools is None
         pools = pools or LocalPools(workers)
         try:
+            from .warm import warm_pools
+
+            warm_pools(pools, todo)  # each numba loop compiled by one worker, not by every worker
             _pool(stages, quick, pools, done, stats, exclusive_timing)
         finally:
             if own:

@@ -176,13 +176,16 @@ def _rhs_lines(kern) -> list:
     out, r, n, w)`` wrapper (``out[r] = dy/dt``), as every generated module
     holding an array form starts. The slope and the wrapper are inlined at
     numba's level (a chain's fused slope must be, for speed); the force is a
-    call (inlining it at every stage multiplied a network's compile time)."""
+    call (inlining it at every stage multiplied a network's compile time),
+    and so is a slope whose kernel says ``inline_slope = False`` (a
+    network's, which holds its force: one call per stage, none per spring)."""
     return [
         "",
         "@njit(error_model=\"numpy\")",
         kern.array_source(),
         "",
-        "@njit(inline=\"always\", error_model=\"numpy\")",
+        "@njit(inline=\"always\", error_model=\"numpy\")" if getattr(kern, "inline_slope", True)
+        else "@njit(error_model=\"numpy\")",
         kern.slope_source(),
         "",
         "@njit(inline=\"always\", error_model=\"numpy\")",

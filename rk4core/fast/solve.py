@@ -11,6 +11,7 @@ same too.
 """
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -131,6 +132,74 @@ def compiled_rhs(model) -> CompiledRHS | None:
     return None if kern is None else CompiledRHS(model, kern)
 
 
+class _Prepared:
+    """What :func:`solve_model` needs of a (model, method) pair besides the
+    run's own arguments: the compiled loop it chooses and the kernel's
+    constant arrays (contiguous, never written by the loops)."""
+
+    __slots__ = ("tab", "loop", "unrolled", "fp", "ip", "mass", "work_size")
+
+    def __init__(self, model, kern, tab):
+        self.tab = tab  # kept: the cache key is id(tab)
+        self.unrolled = 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar()
+        self.loop = kernel(tab, kern) if self.unrolled else array_kernel(tab, kern)
+        self.fp = np.ascontiguousarray(kern.fp, dtype=float)
+        self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
+        self.mass = np.ascontiguousarray(model.mass, dtype=float)
+        self.work_size = kern.work_size
+
+
+#: At most this many methods' loops are kept on one model object.
+_PREPARED_PER_MODEL = 16
+
+
+def _prepared(model, kern, tab) -> _Prepared:
+    """``model``'s :class:`_Prepared` for ``tab``, built once per model object
+    and method object (models are not changed after construction)."""
+    store = model.__dict__.get("_fast_prepared") if hasattr(model, "__dict__") else None
+    if store is not None:
+        prep = store.get(id(tab))
+        if prep is not None and prep.tab is tab:
+            return prep
+    prep = _Prepared(model, kern, tab)
+    if hasattr(model, "__dict__"):
+        store = model.__dict__.setdefault("_fast_prepared", {})
+        if len(store) >= _PREPARED_PER_MODEL:
+            store.clear()
+        store[id(tab)] = prep
+    return prep
+
+
+def solve_checked(model, t_eval, y0, h, method, bound) -> FixedStepResult | None:
+    """:func:`solve_model` with ``t_eval``, ``h`` and a ``y_scale``, for
+    arguments a caller has already checked; None when ``model`` has no
+    compiled force.
+
+    The caller guarantees (``references.solvers.run_fixed`` does): ``y0`` a
+    finite float64 array of length ``2 n_dof`` (copied: the loop works on
+    the copy); ``t_eval`` a finite, strictly increasing float64 array of at
+    least 2 times (s; ``t_span = (t_eval[0], t_eval[-1])``); ``h > 0``
+    finite (s); ``method`` a :class:`~rk4core.methods.Tableau`; ``bound``
+    the growth bounds ``min(max_growth * y_scale, DBL_MAX)`` of
+    :func:`rk4core.solver.growth_bound` for finite scales ``y_scale > 0``
+    (a float64 array the loop may not keep). The step count and the output
+    size are checked as :func:`solve_model` checks them (same errors). The
+    numbers are those of ``solve_model(..., max_growth=max_growth,
+    y_scale=y_scale)``, bit for bit.
+    """
+    kern = force_kernel(model)
+    if kern is None:
+        return None
+    t0, t1 = float(t_eval[0]), float(t_eval[-1])
+    y = y0.copy()
+    n = check_step_args(t0, t1, h, None, step_count)
+    step = (t1 - t0) / n
+    check_output_size("t_eval", f"<{t_eval.shape[0]} times>", t_eval.shape[0], y.shape[0])
+    idx, theta, dense = _output_points(t0, step, n, t_eval, 1)
+    return _finish(_prepared(model, kern, method), method, y, t0, t1, step, n, idx, theta, dense, t_eval,
+                   bound, 0.0, "given")
+
+
 def _output_points(t0, step, n, t_eval, record_every):
     """Step index and fraction inside the step of every output point (as
     ``rk4core.solve``), and how they are produced (``"grid"``/``"hermite"``)."""
@@ -139,6 +208,8 @@ def _output_points(t0, step, n, t_eval, record_every):
         if idx[-1] != n:
             idx = np.append(idx, np.int64(n))
         return idx, np.zeros(idx.shape[0]), "grid"
+    if t_eval.shape[0] <= 32:
+        return _output_points_few(t0, step, n, t_eval)
     s = (t_eval - t0) / step
     # np.minimum/np.maximum: np.clip's numbers, without its Python wrapper
     idx = np.minimum(np.maximum(np.floor(s + 1e-9).astype(np.int64), 0), n)
@@ -146,6 +217,24 @@ def _output_points(t0, step, n, t_eval, record_every):
     on_grid = np.abs(theta) <= 1e-9 * np.maximum(1.0, np.abs(s))
     theta[on_grid] = 0.0
     return idx, np.ascontiguousarray(theta), "grid" if on_grid.all() else "hermite"
+
+
+def _output_points_few(t0, step, n, t_eval):
+    """:func:`_output_points` for a few ``t_eval`` points, as Python floats:
+    the same IEEE operations one by one (bit for bit), without a dozen
+    ufunc calls."""
+    idx, theta, grid = [], [], True
+    for t in t_eval.tolist():
+        s = (t - t0) / step
+        i = min(max(math.floor(s + 1e-9), 0), n)
+        th = s - i
+        if abs(th) <= 1e-9 * max(1.0, abs(s)):
+            th = 0.0
+        else:
+            grid = False
+        idx.append(i)
+        theta.append(th)
+    return np.array(idx, dtype=np.int64), np.array(theta, dtype=np.float64), "grid" if grid else "hermite"
 
 
 def _record_every(value, t_eval) -> int:
@@ -212,8 +301,6 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     if kern is None:
         raise ValueError(f"`model` must have a compiled force (a model defined by a potential, a network or "
                          f"a chain; see rk4core.fast.supports) for the fast path, got {type(model).__name__}")
-    fp, ip = np.ascontiguousarray(kern.fp, dtype=float), np.ascontiguousarray(kern.ip, dtype=np.int64)
-    mass = np.ascontiguousarray(model.mass, dtype=float)
     t0, t1 = check_t_span(t_span)
     y = check_model_y0(model, y0)
     max_growth = check_max_growth(max_growth)
@@ -230,24 +317,29 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     else:
         check_output_size("h" if h is not None else "n_steps", h if h is not None else n_steps, rows, y.shape[0])
     idx, theta, dense = _output_points(t0, step, n, t_eval, every)
-    ys = np.empty((idx.shape[0], y.shape[0]))
     bound, pending = growth_bound(y, max_growth, y_scale)
+    prep = _prepared(model, kern, tab)
+    return _finish(prep, tab, y, t0, t1, step, n, idx, theta, dense, t_eval, bound, pending,
+                   "given" if y_scale is not None else "initial")
+
+
+def _finish(prep, tab, y, t0, t1, step, n, idx, theta, dense, t_eval, bound, pending, scale_from):
+    """Run ``prep``'s loop on checked arguments; the result of :func:`solve_model`."""
+    ys = np.empty((idx.shape[0], y.shape[0]))
     y_fail = np.empty(y.shape[0])
-    if y.shape[0] <= MAX_UNROLLED_DIM and kern.has_scalar():
-        loop = kernel(tab, kern)
-        n_done, n_out, status, n_extra = loop(fp, ip, mass, y, t0, step, n, idx, theta, ys,
-                                              bound, pending, y_fail)
+    if prep.unrolled:
+        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, y, t0, step, n, idx, theta, ys,
+                                                   bound, pending, y_fail)
     else:
-        w = np.zeros(kern.work_size)
-        n_done, n_out, status, n_extra = array_kernel(tab, kern)(fp, ip, mass, w, y, t0, step, n, idx, theta, ys,
-                                                                 bound, pending, y_fail)
+        w = np.zeros(prep.work_size)
+        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, w, y, t0, step, n, idx, theta, ys,
+                                                   bound, pending, y_fail)
     n_done, n_out, status = int(n_done), int(n_out), int(status)
     message = "The solver successfully reached the end of the integration interval."
     t_fail, reason = None, "ok"
     if status != K.STATUS_OK:
         t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4core.solve
-        reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step,
-                                           "given" if y_scale is not None else "initial")
+        reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step, scale_from)
     # As rk4core.solve, the stages of the step that failed are counted.
     nfev = nfev_count(tab, n_done + (status != K.STATUS_OK)) + int(n_extra)
     if t_eval is None:
@@ -310,10 +402,7 @@ def _loop_of(model, method):
     kern = force_kernel(model)
     if kern is None:
         return None
-    tab = get_method(method)
-    if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
-        return kernel(tab, kern)
-    return array_kernel(tab, kern)
+    return _prepared(model, kern, get_method(method)).loop
 
 
 def compile_time() -> float | None:

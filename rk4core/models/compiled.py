@@ -199,6 +199,12 @@ class SpringKernel(ForceKernel):
     ``ip = [n, anchors, springs, a..., b...]``.
     """
 
+    #: The fused slope (the force in it) is inlined at every stage, as a
+    #: chain's: a call per stage cost a small network 1.3x its run time
+    #: (benchmarks/bench_network.py); the loop takes about twice as long to
+    #: compile, once per machine (numba's on-disk cache).
+    inline_slope = True
+
     def __init__(self, dim, X, A, a, b, k, alpha, beta, rest):
         self.dim = int(dim)
         self.n_masses, self.n_anchors, self.n_springs = X.shape[0], A.shape[0], k.shape[0]
@@ -207,7 +213,10 @@ class SpringKernel(ForceKernel):
         self.fp = np.concatenate([X.ravel(), A.ravel(), k, alpha, beta, rest]).astype(float)
         self.ip = np.concatenate([[self.n_masses, self.n_anchors, self.n_springs], a, b]).astype(np.int64)
         self.a, self.b = np.asarray(a), np.asarray(b)
-        self.work_size = max(1, self.n_springs * self.dim)
+        # w: the spring forces (springs x dim), then the node positions and
+        # the force sums of every node, anchors included (nodes x dim each):
+        # the fused slope's pass over the edge list has no branch on the ends
+        self.work_size = max(1, (self.n_springs + 2 * (self.n_masses + self.n_anchors)) * self.dim)
 
     def array_source(self) -> str:
         D = self.dim
@@ -248,6 +257,58 @@ class SpringKernel(ForceKernel):
               "        b = ip[3 + ns + s]",
               "        if b < nm:"]
         L += [f"            f[b * {D} + {c}] = f[b * {D} + {c}] + -w[s * {D} + {c}]" for c in range(D)]
+        return "\n".join(L) + "\n"
+
+    def slope_source(self) -> str:
+        """``dy/dt`` in one function, the force inlined: node positions
+        ``P`` (``X + u`` for the masses, ``A`` for the anchors) laid out
+        once per call, then one pass over the edge list with the tension of
+        the template and no branch (force sums ``g`` kept for every node,
+        the anchors' never read), the ``b`` ends after, then ``v`` and ``g /
+        m``. The numbers of the two-pass default bit for bit: each
+        coordinate's sum takes the same terms in the same order (``a`` ends
+        in spring order from 0.0, then ``b`` ends)."""
+        D = self.dim
+        t_lines, t_res = _tension_source(self.linear_springs)
+        L = [
+            "def slope(fp, ip, mass, y, out, w):",
+            "    n = y.shape[0] // 2",
+            "    nm, na, ns = ip[0], ip[1], ip[2]",
+            f"    oA = nm * {D}",
+            f"    ok = oA + na * {D}",
+            "    oal, obe, ore = ok + ns, ok + 2 * ns, ok + 3 * ns",
+            f"    oP = ns * {D}",
+            f"    og = oP + (nm + na) * {D}",
+            "    for i in range(n):",
+            "        w[oP + i] = fp[i] + y[i]",
+            "        w[og + i] = 0.0",
+            f"    for j in range(na * {D}):",
+            "        w[oP + n + j] = fp[oA + j]",
+            "        w[og + n + j] = 0.0",
+            "    for s in range(ns):",
+            "        a, b = ip[3 + s], ip[3 + ns + s]",
+        ]
+        L += [f"        _Fd{c} = w[oP + b * {D} + {c}] - w[oP + a * {D} + {c}]" for c in range(D)]
+        L.append("        _FL2 = _Fd0 * _Fd0")
+        if D == 2:
+            L.append("        _FL2 = _FL2 + _Fd1 * _Fd1")
+        L += [
+            "        _FL = math.sqrt(_FL2)",
+            "        _Fr = _FL - fp[ore + s]",
+            "        _Fk, _Fal, _Fbe = fp[ok + s], fp[oal + s], fp[obe + s]",
+        ]
+        L += ["        " + line for line in t_lines]
+        L += [f"        _FtL = {t_res} / _FL"]
+        for c in range(D):
+            L += [f"        _FF{c} = _FtL * _Fd{c}",
+                  f"        w[s * {D} + {c}] = _FF{c}",
+                  f"        w[og + a * {D} + {c}] = w[og + a * {D} + {c}] + _FF{c}"]
+        L += ["    for s in range(ns):",
+              "        b = ip[3 + ns + s]"]
+        L += [f"        w[og + b * {D} + {c}] = w[og + b * {D} + {c}] + -w[s * {D} + {c}]" for c in range(D)]
+        L += ["    for i in range(n):",
+              "        out[i] = y[n + i]",
+              "        out[n + i] = w[og + i] / mass[i]"]
         return "\n".join(L) + "\n"
 
     def scalar_lines(self, q, f):

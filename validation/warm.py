@@ -1,0 +1,112 @@
+"""Compile each numba loop of a plan once per machine, before the runs (issue 29).
+
+The compiled loops (:mod:`rk4core.fast`) are kept in numba's on-disk cache
+under ``RK4H_CACHE``; a loop missing there is compiled on its first call in a
+process. With several worker processes and a cold cache, every worker used
+to compile the same loops at the same time (each loop's compile time paid
+once per worker). :func:`warm_pools` instead hands each *distinct* loop the
+plan needs -- a fixed-step method on a force structure, or the compiled
+right-hand side DOP853 and CVODE call -- to one worker, the loops spread over
+all workers, and waits; the runs after it load the loops from the cache
+(about 0.2 s per process for all of them).
+
+Nothing here decides a result: a loop that fails to compile here is compiled
+(and fails, as a record) again in its run; a warm cache makes every job here
+a cache load. One-process runs (``--workers 1``) skip it: the one process
+compiles each loop once anyway.
+"""
+from __future__ import annotations
+
+import time
+
+__all__ = ["loop_jobs", "warm_one", "warm_pools"]
+
+#: Purposes whose runs call a solver of the registry (the loops prepared here).
+_SOLVER_PURPOSES = ("run", "confirm")
+_COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
+
+
+def _loop_key(scene, solver):
+    """What identifies the compiled code ``solver`` runs on ``scene``'s model
+    (None: nothing compiled ahead: no compiled force, heyoka, a command...)."""
+    from references.registry import Kind
+    from rk4core import fast
+    from rk4core.fast.codegen import MAX_UNROLLED_DIM, _cache_key
+
+    from .execute import problem
+
+    model, _ = problem(scene)
+    kern = fast.force_kernel(model)
+    if kern is None:
+        return None
+    method = scene.method(solver)
+    if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
+        if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
+            return ("scalar",) + _cache_key(method.tableau) + (kern.scalar_key(),)
+        return ("array",) + _cache_key(method.tableau) + (kern.key(),)
+    if method.name in _COMPILED_REFERENCES:
+        return ("rhs", kern.key())
+    return None
+
+
+def loop_jobs(jobs) -> list:
+    """``(scene, solver)`` pairs, one per distinct compiled loop the plan's
+    ``jobs`` (``(scene, spec)`` pairs) will run."""
+    seen, out = set(), []
+    for scene, spec in jobs:
+        solver = getattr(spec, "solver", "")
+        if getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
+            continue
+        try:
+            key = _loop_key(scene, solver)
+        except Exception:  # noqa: BLE001 - the run itself will report it
+            continue
+        if key is not None and key not in seen:
+            seen.add(key)
+            out.append((scene, solver))
+    return out
+
+
+def warm_one(scene, solver) -> float:
+    """In a worker: compile (or load) the loop ``solver`` runs on ``scene``'s
+    model; returns the seconds it took. Never raises."""
+    start = time.perf_counter()
+    try:
+        from references.registry import Kind
+        from references.solvers.base import compiled_rhs
+        from rk4core import fast
+
+        from .execute import problem
+
+        model, y0 = problem(scene)
+        method = scene.method(solver)
+        if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
+            fast.warm_up(model, method.tableau)
+        else:
+            rhs = compiled_rhs(model)
+            if rhs is not None:
+                rhs.checked(y0)  # compiles rhs_permuted, the one entry point of the references
+    except Exception:  # noqa: BLE001 - best effort: the run compiles it again and reports
+        pass
+    return time.perf_counter() - start
+
+
+def warm_pools(pools, jobs) -> int:
+    """Compile every distinct loop of ``jobs`` once, spread over the worker
+    processes of ``pools`` (:class:`validation.engine.LocalPools`, started
+    here), and wait for them; returns how many loops were handed out."""
+    from concurrent.futures import wait
+
+    pairs = loop_jobs(jobs)
+    if not pairs:
+        return 0
+    pools.start()
+    futures = []
+    for i, (scene, solver) in enumerate(pairs):
+        name = "lane" if i % pools.workers == 0 else "general"
+        futures.append((name, getattr(pools, name).submit(warm_one, scene, solver)))
+    wait([f for _, f in futures])
+    broken = {name for name, f in futures if f.exception() is not None}
+    for name in broken:  # a worker died compiling: its pool is replaced, the runs compile for themselves
+        pools.renew(name)
+    return len(pairs)
