@@ -52,17 +52,9 @@ PHASE_MIN_SHARE = 1e-6
 #: States kept by :func:`long_run` (evenly spaced in steps).
 LONG_SAMPLES = 20000
 
-#: The energy table's columns this module fills: name -> (unit, dtype, description).
-COLUMNS = {
-    "energy_growth_exponent": ("1", "float", "slope of log max_{s<=t} |E(s) - E0| against log t over "
-                                             "[energy_fit_t0, energy_fit_t1]: ~0 bounded, ~1 linear growth"),
-    "energy_fit_t0": ("s", "float", "start of the growth exponent's fit range (t_end / 100)"),
-    "energy_fit_t1": ("s", "float", "end of the growth exponent's fit range (t_end)"),
-    "phase_error_max": ("rad", "float", "largest phase error of a mode against the exact modal solution "
-                                        "(linear models; NaN otherwise)"),
-    "phase_growth_exponent": ("1", "float", "slope of log max |phase error| against log t, fitted as the "
-                                            "energy's (linear models; NaN otherwise)"),
-}
+#: The energy table's columns :func:`summary` fills (declared, with units, in
+#: :mod:`validation.columns`).
+COLUMNS = ("energy_growth_exponent", "energy_fit_t0", "energy_fit_t1", "phase_error_max", "phase_growth_exponent")
 
 
 def running_max(err) -> np.ndarray:
