@@ -81,7 +81,7 @@ def _long(periods):
     out = {}
     for tab in [RK4] + _symplectic():
         h = et.equal_cost_step(tab, H_RK4)
-        res, _ = et.long_run(m, y0, tab, h, t_end)
+        res, _ = et.long_run(m, y0, tab, h, t_end, et.dense_samples(m, t_end))
         assert res.success, tab.name
         assert abs(res.nfev - 4 * t_end / H_RK4) < 0.01 * res.nfev, (tab.name, res.nfev)  # equal cost
         out[tab.name] = (res, et.summary(m, y0, res.t, res.y))
