@@ -148,3 +148,31 @@ def test_no_error_and_nonlinear_model_give_nan():
     s = et.summary(m, m.state([0.1, 0.0]), t, np.tile(m.state([0.1, 0.0])[:, None], (1, 5)))
     assert math.isnan(s["energy_growth_exponent"])  # a constant state: no error to fit
     assert et.phase_errors(type("M", (), {"linear": False})(), None, t, None).shape == (0, 5)
+
+
+def test_energy_work_precision_rows_fall_with_the_step_at_each_method_s_order():
+    m, y0 = _chain((0.005, -0.002))
+    tabs = [RK4] + _symplectic()
+    rows = et.work_precision_rows("chain", m, y0, tabs, steps_per_period=(32, 64), horizons=(10,))
+    assert len(rows) == 2 * len(tabs) and all(r["status"] == "ok" for r in rows)
+    for tab in tabs:
+        a, b = [r for r in rows if r["solver"] == tab.name]
+        assert b["h"] == pytest.approx(a["h"] / 2) and b["nfev"] == pytest.approx(2 * a["nfev"], rel=0.01)
+        order = math.log2(a["energy_drift_max"] / b["energy_drift_max"])
+        # RK4 on a linear model: the loss per step ~ h^6, per unit time ~ h^5; a symplectic
+        # method's bounded error ~ h^p
+        expected = 5 if tab is RK4 else tab.order
+        assert abs(order - expected) < 0.3, (tab.name, order)
+
+
+def test_energy_study_cli_writes_table_and_figures_and_refuses_a_used_folder(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "e"
+    assert et.main(["thesis-2dof-case1", "--periods", "5", "--steps", "16", "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["energy_work_precision.csv", "thesis_2dof_case1_energy_growth.png",
+                     "thesis_2dof_case1_energy_work_precision.png"]
+    before = (out / "energy_work_precision.csv").read_bytes()
+    assert et.main(["thesis-2dof-case1", "--periods", "5", "--out", str(out)]) == 2
+    assert "--out" in capsys.readouterr().err and (out / "energy_work_precision.csv").read_bytes() == before
+    assert et.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
