@@ -22,6 +22,8 @@ SCENE = "thesis-2dof-case1"
     (["--horizon", "inf", "--energy-target", "1e-6"], "--horizon: must be a positive number of seconds"),
     (["--periods", "10", "--energy-target", "2"], "--energy-target: must be a number in (0, 1), got '2'"),
     ([], "--target: required"),
+    (["--target", "1e-6", "--periods", "10", "--energy-target", "1e-6"], "--target: not with --energy-target"),
+    (["--periods", "x", "--energy-target", "2"], "--energy-target: must be a number in (0, 1), got '2'"),
 ])
 def test_bad_input_is_one_line_exit_2(argv, says, capsys):
     assert advise.main([SCENE, *argv]) == 2

@@ -696,13 +696,20 @@ def _energy_main(args) -> int:
     if args.energy_target is None or (args.periods is None and args.horizon is None):
         print("advise: --energy-target: needs --periods N or --horizon T (and the other way round)", file=sys.stderr)
         return 2
+    if args.target is not None:
+        print("advise: --target: not with --energy-target (one question per call)", file=sys.stderr)
+        return 2
     args.energy_target = number("--energy-target", args.energy_target, 0, 1, "a number in (0, 1)")
+    if args.energy_target is None:
+        return 2
     if args.periods is not None:
         args.periods = number("--periods", args.periods, 0, math.inf, "a positive number")
-    if args.horizon is not None:
+        if args.periods is None:
+            return 2
+    else:
         args.horizon = number("--horizon", args.horizon, 0, math.inf, "a positive number of seconds")
-    if args.energy_target is None or (args.periods is None and args.horizon is None):
-        return 2
+        if args.horizon is None:
+            return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
     except SceneError as e:

@@ -39,7 +39,7 @@ import numpy as np
 
 __all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "LONG_SAMPLES", "COLUMNS", "running_max",
            "growth_exponent", "phase_errors", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
-           "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES"]
+           "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES"]
 
 #: Decades of time, ending at the run's end, over which a growth exponent is fitted.
 FIT_DECADES = 2.0
@@ -193,7 +193,10 @@ def equal_cost_step(tab, h_ref: float, ref_calls_per_step: int = 4) -> float:
 
 def slowest_period(model) -> float:
     """``2 pi / omega_min`` (s) of the model's (linearized) slowest nonzero mode."""
-    omega = np.asarray(model.modes()[0], float)
+    try:
+        omega = np.asarray(model.modes()[0], float)
+    except Exception as e:  # noqa: BLE001 - a model without (linearized) modes
+        raise ValueError(f"the model has no modes ({type(e).__name__}): a horizon in periods is undefined") from None
     omega = omega[omega > 0]
     if not omega.size:
         raise ValueError("the model has no oscillating mode: a horizon in periods is undefined")
@@ -205,16 +208,20 @@ def slowest_period(model) -> float:
 #: frequency, so its largest value between samples is at most ``1 - cos(pi /
 #: 8)``, 8 %, above the largest sampled one (for one harmonic).
 SAMPLES_PER_FAST_PERIOD = 16
-#: Cap on :func:`dense_samples` (rows of the kept trajectory).
+#: Cap on :func:`dense_samples`: kept state values (rows x state size; 128 MB
+#: of float64), 4e6 rows of a 2-DOF model.
+MAX_VALUES = 16_000_000
 MAX_SAMPLES = 4_000_000
 
 
 def dense_samples(model, t_end: float, per_period: int = SAMPLES_PER_FAST_PERIOD, cap: int = MAX_SAMPLES) -> int:
     """Samples for :func:`long_run` that resolve the fastest mode over ``t_end`` (s):
-    ``per_period`` per fastest period, at most ``cap`` (then the maximum of an
-    oscillating error is undersampled: the samples alias its oscillation)."""
+    ``per_period`` per fastest period, at most ``cap`` rows and
+    :data:`MAX_VALUES` values (beyond, the maximum of an oscillating error is
+    undersampled: the samples alias its oscillation)."""
     omega = np.asarray(model.modes()[0], float)
     T_fast = 2.0 * math.pi / float(omega.max())
+    cap = min(int(cap), MAX_VALUES // (2 * int(model.n_dof)))
     return int(min(cap, max(LONG_SAMPLES, math.ceil(t_end / T_fast * per_period))))
 
 
@@ -260,7 +267,7 @@ WP_SCENES = ("fput-alpha", "henon-heiles", "lattice100", "planar4-case1")
 
 
 def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16, 32, 64), horizons=WP_HORIZONS,
-                        full: bool = False, samples: int = 2000) -> list:
+                        full: bool = False) -> list:
     """Energy work-precision: max |E(t) - E0| / E_motion against RHS calls and wall time.
 
     Parameters
@@ -275,7 +282,8 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
         (``h = T_fast / n``); a run past a method's stability limit ends
         ``unstable`` and is listed so.
     horizons : sequence of float
-        Horizons in periods of the slowest mode; ``full`` adds 1e6.
+        Horizons in periods of the slowest mode; ``full`` adds 1e6. States
+        are kept as :func:`dense_samples` says (16 per fastest period).
 
     Returns
     -------
@@ -296,7 +304,7 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
         for tab in methods:
             for n in steps_per_period:
                 h = T_fast / n
-                res, wall = long_run(model, y0, tab, h, t_end, samples)
+                res, wall = long_run(model, y0, tab, h, t_end, dense_samples(model, t_end))
                 ok = bool(res.success)
                 with np.errstate(all="ignore"):
                     e = relative_energy_error(model, res.y)
