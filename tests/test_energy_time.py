@@ -13,6 +13,7 @@ import rk4core
 import rk4core.fast
 from rk4core.energy import relative_energy_error
 from rk4core.methods import METHODS, RK4
+from validation import energy_study
 from validation import energy_time as et
 from validation.metrics import rk4_energy_factor
 
@@ -168,11 +169,11 @@ def test_energy_work_precision_rows_fall_with_the_step_at_each_method_s_order():
 def test_energy_study_cli_writes_table_and_figures_and_refuses_a_used_folder(tmp_path, capsys):
     pytest.importorskip("matplotlib")
     out = tmp_path / "e"
-    assert et.main(["thesis-2dof-case1", "--periods", "5", "--steps", "16", "--out", str(out)]) == 0
+    assert energy_study.main(["thesis-2dof-case1", "--periods", "5", "--steps", "16", "--out", str(out)]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == ["energy_work_precision.csv", "thesis_2dof_case1_energy_growth.png",
                      "thesis_2dof_case1_energy_work_precision.png"]
     before = (out / "energy_work_precision.csv").read_bytes()
-    assert et.main(["thesis-2dof-case1", "--periods", "5", "--out", str(out)]) == 2
+    assert energy_study.main(["thesis-2dof-case1", "--periods", "5", "--out", str(out)]) == 2
     assert "--out" in capsys.readouterr().err and (out / "energy_work_precision.csv").read_bytes() == before
-    assert et.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
+    assert energy_study.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
