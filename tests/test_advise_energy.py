@@ -82,3 +82,11 @@ def test_1e5_periods_energy_target_1e6_on_the_2dof_chain(capsys):
     adv.method, adv.setting, adv.setting_name = out["method"], out["setting"], out["setting_name"]
     measured = _recheck(scene, adv)
     assert math.isfinite(measured) and measured <= 1e-6, (out["method"], out["setting"], measured)
+
+
+def test_horizon_in_seconds_or_periods_of_the_slowest_mode():
+    scene = load_scenes([SCENE])[0]
+    model, _ = problem(scene)
+    P = 2 * math.pi / float(np.min(model.modes()[0]))
+    assert advise_energy.horizon_seconds(model, periods=10) == pytest.approx((10 * P, 10))
+    assert advise_energy.horizon_seconds(model, horizon=5.0) == pytest.approx((5.0, 5.0 / P))
