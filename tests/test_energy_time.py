@@ -173,7 +173,16 @@ def test_energy_study_cli_writes_table_and_figures_and_refuses_a_used_folder(tmp
     names = sorted(p.name for p in out.iterdir())
     assert names == ["energy_work_precision.csv", "thesis_2dof_case1_energy_growth.png",
                      "thesis_2dof_case1_energy_work_precision.png"]
+    import csv
+
+    rows = list(csv.DictReader(open(out / "energy_work_precision.csv")))
+    solvers = {r["solver"] for r in rows}
+    assert {"rk4", "stormer-verlet", "heyoka"} <= solvers
+    heyoka = sorted((r for r in rows if r["solver"] == "heyoka"), key=lambda r: -float(r["rtol"]))
+    assert [float(r["rtol"]) for r in heyoka] == [1e-6, 1e-8, 1e-10, 1e-12] and all(r["status"] == "ok" for r in heyoka)
+    assert float(heyoka[-1]["energy_drift_max"]) < float(heyoka[0]["energy_drift_max"])
     before = (out / "energy_work_precision.csv").read_bytes()
     assert energy_study.main(["thesis-2dof-case1", "--periods", "5", "--out", str(out)]) == 2
     assert "--out" in capsys.readouterr().err and (out / "energy_work_precision.csv").read_bytes() == before
     assert energy_study.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
+    assert energy_study.main(["thesis-2dof-case1", "--references", "nope", "--out", str(tmp_path / "g")]) == 2

@@ -50,7 +50,7 @@ def energy_work_precision(out_dir, scene_name, rows) -> Path:
     scene_name : str
     rows : list of dict
         :func:`validation.energy_time.work_precision_rows` of one scene: one
-        line per (method, horizon), markers at its steps; rows that did not
+        line per (method, horizon), markers at its steps or rtols; rows that did not
         end ``ok`` are left out.
 
     Returns

@@ -52,6 +52,8 @@ def main(argv=None) -> int:
                    help="horizons in periods of the slowest mode (default 1e2 1e4)")
     p.add_argument("--full", action="store_true", help="add the 1e6-period horizon (long)")
     p.add_argument("--steps", nargs="+", default=["8", "16", "32", "64"], help="steps per fastest period")
+    p.add_argument("--references", nargs="*", default=["heyoka"],
+                   help="adaptive references also run at rtol 1e-6..1e-12 (default: heyoka; none: --references)")
     a = p.parse_args(argv)
     try:
         periods = [float(x) for x in a.periods]
@@ -60,6 +62,12 @@ def main(argv=None) -> int:
     except (ValueError, AssertionError):
         print(f"energy_study: --periods/--steps: must be positive numbers, got {a.periods} / {a.steps}",
               file=sys.stderr)
+        return 2
+    from references.registry import REFERENCES
+
+    bad = [r for r in a.references if r not in REFERENCES]
+    if bad:
+        print(f"energy_study: --references: must be among {list(REFERENCES)}, got {bad[0]!r}", file=sys.stderr)
         return 2
     out = pathlib.Path(a.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -84,7 +92,8 @@ def main(argv=None) -> int:
     for scene in scenes:
         model, y0 = problem(scene)
         methods = _methods(scene)
-        mine = work_precision_rows(scene.name, model, y0, methods, steps, periods, full=a.full)
+        mine = work_precision_rows(scene.name, model, y0, methods, steps, periods, full=a.full,
+                                   references=[r for r in a.references if r in scene.solvers])
         rows += mine
         energy_figures.energy_work_precision(out, scene.name, mine)
         T = max(periods + ([1e6] if a.full else [])) * slowest_period(model)

@@ -267,7 +267,7 @@ WP_SCENES = ("fput-alpha", "henon-heiles", "lattice100", "planar4-case1")
 
 
 def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16, 32, 64), horizons=WP_HORIZONS,
-                        full: bool = False) -> list:
+                        full: bool = False, references=(), rtols=(1e-6, 1e-8, 1e-10, 1e-12)) -> list:
     """Energy work-precision: max |E(t) - E0| / E_motion against RHS calls and wall time.
 
     Parameters
@@ -284,12 +284,15 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
     horizons : sequence of float
         Horizons in periods of the slowest mode; ``full`` adds 1e6. States
         are kept as :func:`dense_samples` says (16 per fastest period).
+    references : sequence of str
+        Adaptive references (``"heyoka"``, ...) run at each of ``rtols`` too,
+        on the same sampled grid (their ``h`` is NaN, ``rtol`` set).
 
     Returns
     -------
     list of dict
-        One row per (horizon, method, step): ``scene, solver, periods, t_end``
-        (s), ``h`` (s), ``energy_drift_max`` (1), ``energy_growth_exponent``,
+        One row per (horizon, method, step or rtol): ``scene, solver, periods,
+        t_end`` (s), ``h`` (s), ``rtol``, ``energy_drift_max`` (1), ``energy_growth_exponent``,
         ``nfev``, ``wall_s`` (s, one run, compile time apart), ``status``.
     """
     from rk4core.energy import relative_energy_error
@@ -309,8 +312,33 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
                 with np.errstate(all="ignore"):
                     e = relative_energy_error(model, res.y)
                 rows.append({"scene": scene_name, "solver": tab.name, "periods": float(periods), "t_end": t_end,
-                             "h": float(res.h), "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
+                             "h": float(res.h), "rtol": math.nan,
+                             "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
                              "energy_growth_exponent": growth_exponent(res.t, e)[0] if ok else math.nan,
                              "nfev": int(res.nfev), "wall_s": wall, "status": "ok" if ok else res.reason})
+        for name in references:
+            for rtol in rtols:
+                rows.append(_reference_row(scene_name, model, y0, name, rtol, periods, t_end))
     return rows
+
+
+def _reference_row(scene_name, model, y0, name, rtol, periods, t_end) -> dict:
+    """One adaptive reference's run for :func:`work_precision_rows` (``nfev``: its
+    RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it)."""
+    from references.solvers import integrate
+    from rk4core.energy import relative_energy_error
+
+    from .trust import rhs_calls
+
+    t = np.linspace(0.0, t_end, dense_samples(model, t_end))
+    r = integrate(name, model, y0, t, rtol)
+    status = getattr(r.status, "value", str(r.status))
+    ok = status == "ok"
+    with np.errstate(all="ignore"):
+        e = relative_energy_error(model, r.y)
+    return {"scene": scene_name, "solver": name, "periods": float(periods), "t_end": t_end, "h": math.nan,
+            "rtol": float(rtol), "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
+            "energy_growth_exponent": growth_exponent(t, e)[0] if ok else math.nan,
+            "nfev": int(rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})),
+            "wall_s": float(r.wall_s), "status": status}
 
