@@ -630,7 +630,10 @@ def _text(adv: Advice) -> str:
 _EXAMPLES = """examples:
   %(prog)s thesis-2dof-case1 --target 1e-6          which method and setting reach 1e-6 most cheaply
   %(prog)s planar4-case2 --target 1e-3 --json        the same as one JSON object
-  %(prog)s my.toml --target 1e-8 --allow-code        a scene of yours that names code (read it first)"""
+  %(prog)s my.toml --target 1e-8 --allow-code        a scene of yours that names code (read it first)
+  %(prog)s thesis-2dof-case1 --periods 1e5 --energy-target 1e-6
+                                                    the cheapest method keeping the energy within 1e-6
+                                                    over 1e5 periods, confirmed by a full-horizon run"""
 
 
 def main(argv=None, *, prog="advise.py") -> int:
@@ -644,7 +647,12 @@ def main(argv=None, *, prog="advise.py") -> int:
                                      epilog=_EXAMPLES,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", help="a scene file or a shipped scene's name")
-    parser.add_argument("--target", required=True, help="target relative error, e.g. 1e-6")
+    parser.add_argument("--target", help="target relative error, e.g. 1e-6 (required unless --energy-target)")
+    parser.add_argument("--energy-target", metavar="E",
+                        help="bound on max |E(t) - E0| / E_motion over the horizon (validation.advise_energy)")
+    horizon = parser.add_mutually_exclusive_group()
+    horizon.add_argument("--periods", metavar="N", help="horizon in periods of the slowest mode (--energy-target)")
+    horizon.add_argument("--horizon", metavar="T", help="horizon in s (--energy-target)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--allow-code", action="store_true",
                         help="run the programs and import the Python modules a scene not shipped with the "
@@ -652,6 +660,11 @@ def main(argv=None, *, prog="advise.py") -> int:
     args = parser.parse_args(argv)
     from validation.scenes import SceneError, load_scenes
 
+    if args.energy_target is not None or args.periods is not None or args.horizon is not None:
+        return _energy_main(args)
+    if args.target is None:
+        print("advise: --target: required (or --energy-target with --periods or --horizon)", file=sys.stderr)
+        return 2
     try:
         target = float(args.target)
     except ValueError:
@@ -670,6 +683,51 @@ def main(argv=None, *, prog="advise.py") -> int:
         adv = advise(scene, target)
         print(adv.to_json() if args.json else _text(adv) + f"\n  ({time.perf_counter() - t0:.1f} s)")
     return 0
+
+
+def _energy_main(args) -> int:
+    """The horizon-and-energy path (:mod:`validation.advise_energy`)."""
+    from validation.scenes import SceneError, load_scenes
+
+    def number(flag, text, lo, hi, what):
+        try:
+            x = float(text)
+        except (TypeError, ValueError):
+            x = math.nan
+        if not (math.isfinite(x) and lo < x < hi):
+            print(f"advise: {flag}: must be {what}, got {text!r}", file=sys.stderr)
+            return None
+        return x
+
+    if args.energy_target is None or (args.periods is None and args.horizon is None):
+        print("advise: --energy-target: needs --periods N or --horizon T (and the other way round)", file=sys.stderr)
+        return 2
+    if args.target is not None:
+        print("advise: --target: not with --energy-target (one question per call)", file=sys.stderr)
+        return 2
+    args.energy_target = number("--energy-target", args.energy_target, 0, 1, "a number in (0, 1)")
+    if args.energy_target is None:
+        return 2
+    if args.periods is not None:
+        args.periods = number("--periods", args.periods, 0, math.inf, "a positive number")
+        if args.periods is None:
+            return 2
+    else:
+        args.horizon = number("--horizon", args.horizon, 0, math.inf, "a positive number of seconds")
+        if args.horizon is None:
+            return 2
+    try:
+        scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
+    except SceneError as e:
+        print(str(e).splitlines()[0], file=sys.stderr)
+        return 2
+    from validation import advise_energy
+
+    try:
+        return advise_energy.run_cli(scenes[0], args, time.perf_counter())
+    except ValueError as e:  # a model without an oscillating mode: no horizon in periods
+        print(f"advise: {e}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

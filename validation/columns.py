@@ -128,6 +128,15 @@ _TABLES = {
         "theory_drift_per_time": _c("1/s", "float", "the same from the per-step factor |R(i omega h)|^2 of each "
                                                     "mode (NaN where no theory applies)"),
         "passed": _c("", "bool", "measured drift agrees with the theory (False where `checked` is False)"),
+        # validation.energy_time.summary
+        "energy_growth_exponent": _c("1", "float", "slope of log max_{s<=t} |E(s) - E0| against log t over "
+                                                   "[energy_fit_t0, energy_fit_t1]: ~0 bounded, ~1 linear growth"),
+        "energy_fit_t0": _c("s", "float", "start of the growth exponent's fit range (t_end / 100)"),
+        "energy_fit_t1": _c("s", "float", "end of the growth exponent's fit range (t_end)"),
+        "phase_error_max": _c("rad", "float", "largest |phase error| of an energetic mode against the exact "
+                                              "modal solution (linear models; NaN otherwise)"),
+        "phase_growth_exponent": _c("1", "float", "slope of log max |phase error| against log t, fitted as the "
+                                                  "energy's (linear models; NaN otherwise)"),
     },
     "cheapest": {
         "error_constant": _c("1", "float", "C of error_rel ~ C h^p fitted on the method's runs (s^-p)"),

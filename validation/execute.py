@@ -245,6 +245,10 @@ def _run_spec(scene, spec, quick):
         duration = values["duration"]
         values["theory_drift_per_time"] = metrics.drift_theory(
             method.tableau, ms.omega, ms.eta0, ms.deta0, duration / run.n_steps, run.n_steps, duration)
+    if ok:  # energy over time: growth law and phase error (validation.energy_time)
+        from . import energy_time
+
+        values.update(energy_time.summary(model, y0, t, run.y))
     arrays = {}
     if "energy" in spec.keep and ok:
         arrays["energy_t"] = t

@@ -16,7 +16,7 @@ import numpy as np
 
 
 
-from . import metrics, trust
+from . import energy_time, metrics, trust
 from .execute import problem
 from .plan import ORDER_TOL, TARGETS, RunSpec, under_test
 
@@ -205,7 +205,8 @@ def _energy_row(scene, spec, rec, row, res):
     ok = rec.status == "ok"
     out = {**row, "drift_per_time": v["drift_per_time"] if ok else math.nan,
            "theory_drift_per_time": v["theory_drift_per_time"],
-           "energy_drift_max": v["energy_drift_max"] if ok else math.nan, "passed": "", "status": rec.status}
+           "energy_drift_max": v["energy_drift_max"] if ok else math.nan, "passed": "", "status": rec.status,
+           **{k: v.get(k, math.nan) if ok else math.nan for k in energy_time.COLUMNS}}
     theory = v["theory_drift_per_time"]
     if ok and math.isfinite(theory):  # a tableau method on a linear model (validation.execute)
         measured, duration = v["drift_per_time"], v["duration"]

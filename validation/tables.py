@@ -25,7 +25,8 @@ _BUILTIN = {
     "work_precision": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "wall_s", "wall_min", "wall_max",
                        "compile_s", "nfev", "n_steps", "taylor_order", "status"],
     "energy": ["scene", "solver", "setting", "h", "rtol", "drift_per_time", "theory_drift_per_time",
-               "energy_drift_max", "passed", "checked", "status"],
+               "energy_drift_max", "energy_growth_exponent", "energy_fit_t0", "energy_fit_t1",
+               "phase_error_max", "phase_growth_exponent", "passed", "checked", "status"],
     "cheapest": None,  # validation.trust.COLUMNS (filled below)
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],

@@ -1,0 +1,344 @@
+"""Energy over time: the energy error's time series of a run, summarised.
+
+A run's relative energy error ``e(t) = (E(t) - E0) / E_motion``
+(:func:`rk4core.energy.relative_energy_error`; ``E_motion = E0 - V(q*)``)
+is summarised by
+
+- its maximum ``max_t |e(t)|`` (``energy_drift_max``, as every table has it);
+- its *growth law*: the slope ``k`` of ``log M(t)`` against ``log t``, where
+  ``M(t) = max_{s <= t} |e(s)|`` is the running maximum (the envelope; the
+  instantaneous error of a symplectic method dips to zero twice a period),
+  fitted by least squares at :data:`FIT_POINTS` log-spaced times over the
+  last :data:`FIT_DECADES` decades of the run, ``[t_end / 10^FIT_DECADES,
+  t_end]`` (``energy_fit_t0``, ``energy_fit_t1``, s). ``k`` near 0: the
+  error is bounded (oscillates, as a symplectic method's does); ``k`` near 1:
+  it grows secularly, linearly in time (RK4 loses ``1 - |R(i omega h)|^2``
+  of each mode's energy every step);
+- on a linear model (periodic motion of each mode), the *phase error* of
+  its modes: the unwrapped angle between the computed and the exact modal
+  coordinate ``omega_j eta_j - i eta_j'`` of every mode that holds at least
+  :data:`PHASE_MIN_SHARE` of the energy (rad), its maximum over the run and
+  modes (``phase_error_max``) and the growth exponent of its running maximum
+  (``phase_growth_exponent``, fitted as the energy's): 1 for a phase that
+  drifts linearly, as it does for every method of this harness (RK4 lags
+  ``theta^5/120`` per step, Stormer-Verlet ``theta^3/24``).
+
+The long runs (:func:`long_run`) use the compiled fixed-step loops
+(:mod:`rk4core.fast`), keeping :data:`LONG_SAMPLES` states.
+
+Functions here integrate only in :func:`long_run` and :func:`work_precision_rows`
+(the opt-in energy work-precision study, :mod:`validation.energy_study`);
+:func:`summary` is a pure function of a trajectory.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+__all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "LONG_SAMPLES", "COLUMNS", "running_max",
+           "growth_exponent", "phase_errors", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
+           "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES"]
+
+#: Decades of time, ending at the run's end, over which a growth exponent is fitted.
+FIT_DECADES = 2.0
+#: Log-spaced times at which the running maximum enters the fit.
+FIT_POINTS = 64
+#: A mode enters the phase error when it holds at least this share of the
+#: energy of the motion at t = 0 (a mode with almost no energy has no
+#: measurable phase).
+PHASE_MIN_SHARE = 1e-6
+#: States kept by :func:`long_run` (evenly spaced in steps).
+LONG_SAMPLES = 20000
+
+#: The energy table's columns :func:`summary` fills (declared, with units, in
+#: :mod:`validation.columns`).
+COLUMNS = ("energy_growth_exponent", "energy_fit_t0", "energy_fit_t1", "phase_error_max", "phase_growth_exponent")
+
+
+def running_max(err) -> np.ndarray:
+    """``max_{s <= t} |err(s)|`` along a series (NaN stays NaN from where it appears)."""
+    a = np.abs(np.asarray(err, dtype=float))
+    return np.maximum.accumulate(a) if a.size else a
+
+
+def growth_exponent(t, err, decades: float = FIT_DECADES, points: int = FIT_POINTS):
+    """Growth exponent of an error series: ``(k, t0, t1)``.
+
+    Parameters
+    ----------
+    t : array_like
+        Times (s), increasing.
+    err : array_like
+        The error at ``t`` (any unit; its absolute value is used).
+    decades : float
+        The fit covers ``[t1 / 10**decades, t1]``, ``t1 = t[-1]`` (and starts no
+        earlier than the first positive time).
+    points : int
+        Log-spaced times in that range; at each the running maximum is read at
+        the last sample at or before it.
+
+    Returns
+    -------
+    (float, float, float)
+        ``k``, the least-squares slope of ``log M`` against ``log t``, and the
+        fit range ``t0, t1`` (s). ``k`` is NaN when the series is not finite,
+        is zero somewhere in the range (no error to fit) or has fewer than 3
+        distinct samples there.
+    """
+    t = np.asarray(t, dtype=float)
+    m = running_max(err)
+    if t.size < 3 or t[-1] <= 0:
+        return math.nan, math.nan, math.nan
+    t1 = float(t[-1])
+    positive = t[t > 0]
+    t0 = max(t1 / 10.0 ** decades, float(positive[0]))
+    if not t0 < t1:
+        return math.nan, t0, t1
+    ts = np.geomspace(t0, t1, points)
+    idx = np.searchsorted(t, ts * (1 + 1e-12), side="right") - 1
+    idx = np.unique(idx[idx >= 0])
+    if idx.size < 3:
+        return math.nan, t0, t1
+    tt, mm = t[idx], m[idx]
+    if not (np.all(np.isfinite(mm)) and np.all(mm > 0)):
+        return math.nan, t0, t1
+    k = float(np.polyfit(np.log(tt), np.log(mm), 1)[0])
+    return k, t0, t1
+
+
+def phase_errors(model, y0, t, y):
+    """Phase error (rad) of each energetic mode of a linear model along a trajectory.
+
+    Parameters
+    ----------
+    model : rk4core.models.Model
+        A linear model (``model.linear``).
+    y0 : array_like
+        The initial state ``[q, v]`` (SI).
+    t : array_like, shape (m,)
+        Times (s) of the states.
+    y : array_like, shape (2n, m)
+        The computed states.
+
+    Returns
+    -------
+    numpy.ndarray, shape (modes, m)
+        Unwrapped ``arg(z_num) - arg(z_exact)`` of ``z = omega eta - i eta'``
+        per mode holding at least :data:`PHASE_MIN_SHARE` of the energy (a
+        positive value: the computed mode leads). Empty (0, m) for a model that
+        is not linear or has no such mode. The unwrapping assumes the error
+        changes by less than pi between samples.
+    """
+    from references.exact import modal_solution
+
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if not getattr(model, "linear", False):
+        return np.zeros((0, t.size))
+    ms = modal_solution(model, np.asarray(y0, float))
+    w = np.where(ms.zero, 1.0, ms.omega)
+    e_mode = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
+    keep = (~ms.zero) & (e_mode >= PHASE_MIN_SHARE * max(float(e_mode.sum()), 1e-300))
+    if not keep.any():
+        return np.zeros((0, t.size))
+    n = model.n_dof
+    M = np.asarray(model.mass, float)[:, None]
+    eta = ms.phi.T @ (M * y[:n])
+    deta = ms.phi.T @ (M * y[n:])
+    eta_x, deta_x = ms.modal(t)
+    z_num = w[:, None] * eta - 1j * deta
+    z_ex = w[:, None] * eta_x - 1j * deta_x
+    d = np.angle(z_num[keep] * np.conj(z_ex[keep]))
+    return np.unwrap(d, axis=1)
+
+
+def summary(model, y0, t, y) -> dict:
+    """The energy-over-time columns of one run (:data:`COLUMNS`), from its trajectory.
+
+    ``t`` (s, shape (m,)) and ``y`` (shape (2n, m)) as a solver returns them;
+    NaN entries where the run has none (a blown-up run, a nonlinear model's phase).
+    """
+    from rk4core.energy import relative_energy_error
+
+    t = np.asarray(t, dtype=float)
+    with np.errstate(all="ignore"):
+        e = relative_energy_error(model, y)
+    k, t0, t1 = growth_exponent(t, e)
+    out = {"energy_growth_exponent": k, "energy_fit_t0": t0, "energy_fit_t1": t1,
+           "phase_error_max": math.nan, "phase_growth_exponent": math.nan}
+    if getattr(model, "linear", False) and np.all(np.isfinite(y)):
+        ph = phase_errors(model, y0, t, y)
+        if ph.shape[0]:
+            env = np.max(np.abs(ph), axis=0)
+            out["phase_error_max"] = float(env.max())
+            out["phase_growth_exponent"] = growth_exponent(t, env)[0]
+    return out
+
+
+def is_symplectic(tab) -> bool:
+    """Whether a tableau is a symplectic method: its ``symplectic`` flag where it
+    has one, else whether it is partitioned (every partitioned method shipped
+    is symplectic: symplectic Euler, Stormer-Verlet and the splittings)."""
+    flag = getattr(tab, "symplectic", None)
+    return bool(tab.partitioned if flag is None else flag)
+
+
+def equal_cost_step(tab, h_ref: float, ref_calls_per_step: int = 4) -> float:
+    """The step (s) at which ``tab`` makes as many RHS calls per unit time as a
+    method of ``ref_calls_per_step`` calls at ``h_ref`` (RK4: 4)."""
+    return float(h_ref) * int(tab.nfev_per_step) / int(ref_calls_per_step)
+
+
+def slowest_period(model) -> float:
+    """``2 pi / omega_min`` (s) of the model's (linearized) slowest nonzero mode."""
+    try:
+        omega = np.asarray(model.modes()[0], float)
+    except Exception as e:  # noqa: BLE001 - a model without (linearized) modes
+        raise ValueError(f"the model has no modes ({type(e).__name__}): a horizon in periods is undefined") from None
+    omega = omega[omega > 0]
+    if not omega.size:
+        raise ValueError("the model has no oscillating mode: a horizon in periods is undefined")
+    return float(2.0 * math.pi / omega.min())
+
+
+#: Samples per period of the fastest mode kept by :func:`dense_samples`: the
+#: energy error of a symplectic method oscillates at up to twice the fastest
+#: frequency, so its largest value between samples is at most ``1 - cos(pi /
+#: 8)``, 8 %, above the largest sampled one (for one harmonic).
+SAMPLES_PER_FAST_PERIOD = 16
+#: Cap on :func:`dense_samples`: kept state values (rows x state size; 128 MB
+#: of float64), 4e6 rows of a 2-DOF model.
+MAX_VALUES = 16_000_000
+MAX_SAMPLES = 4_000_000
+
+
+def dense_samples(model, t_end: float, per_period: int = SAMPLES_PER_FAST_PERIOD, cap: int = MAX_SAMPLES) -> int:
+    """Samples for :func:`long_run` that resolve the fastest mode over ``t_end`` (s):
+    ``per_period`` per fastest period, at most ``cap`` rows and
+    :data:`MAX_VALUES` values (beyond, the maximum of an oscillating error is
+    undersampled: the samples alias its oscillation)."""
+    omega = np.asarray(model.modes()[0], float)
+    T_fast = 2.0 * math.pi / float(omega.max())
+    cap = min(int(cap), MAX_VALUES // (2 * int(model.n_dof)))
+    return int(min(cap, max(LONG_SAMPLES, math.ceil(t_end / T_fast * per_period))))
+
+
+def long_run(model, y0, method, h: float, t_end: float, samples: int = LONG_SAMPLES):
+    """A long fixed-step run on the compiled loops, ``samples`` states kept.
+
+    Parameters
+    ----------
+    model : rk4core.models.Model
+        A model with a compiled force (:func:`rk4core.fast.supports`).
+    y0 : array_like
+        Initial state ``[q, v]`` (SI).
+    method : str or rk4core.methods.Tableau
+    h : float
+        Step (s); the run takes ``ceil(t_end / h)`` equal steps.
+    t_end : float
+        Horizon (s), from t = 0.
+    samples : int
+        About this many states are kept, evenly spaced in steps.
+
+    Returns
+    -------
+    (result, wall_s)
+        The :class:`rk4core.solver.FixedStepResult` and the wall time (s) of
+        the run (the loop is warmed up first, its compile time apart).
+    """
+    import rk4core.fast as fast
+
+    n = max(1, int(math.ceil(t_end / h * (1 - 1e-12))))
+    every = max(1, n // max(int(samples), 1))
+    fast.warm_up(model, method)
+    start = time.perf_counter()
+    res = fast.solve_model(model, (0.0, float(t_end)), np.asarray(y0, float), n_steps=n, method=method,
+                           record_every=every)
+    return res, time.perf_counter() - start
+
+
+#: Horizons (periods of the slowest mode) of the energy work-precision study;
+#: 1e6 is added with ``full=True``.
+WP_HORIZONS = (1e2, 1e4)
+#: Scenes the study is meant for (FPUT, Henon-Heiles, lattice, exact planar4).
+WP_SCENES = ("fput-alpha", "henon-heiles", "lattice100", "planar4-case1")
+
+
+def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16, 32, 64), horizons=WP_HORIZONS,
+                        full: bool = False, references=(), rtols=(1e-6, 1e-8, 1e-10, 1e-12)) -> list:
+    """Energy work-precision: max |E(t) - E0| / E_motion against RHS calls and wall time.
+
+    Parameters
+    ----------
+    scene_name : str
+    model, y0
+        The scene's model and initial state (SI).
+    methods : iterable of rk4core.methods.Tableau
+        Fixed-step methods, run on the compiled loops.
+    steps_per_period : sequence of int
+        Steps per period of the *fastest* mode at which each method runs
+        (``h = T_fast / n``); a run past a method's stability limit ends
+        ``unstable`` and is listed so.
+    horizons : sequence of float
+        Horizons in periods of the slowest mode; ``full`` adds 1e6. States
+        are kept as :func:`dense_samples` says (16 per fastest period).
+    references : sequence of str
+        Adaptive references (``"heyoka"``, ...) run at each of ``rtols`` too,
+        on the same sampled grid (their ``h`` is NaN, ``rtol`` set).
+
+    Returns
+    -------
+    list of dict
+        One row per (horizon, method, step or rtol): ``scene, solver, periods,
+        t_end`` (s), ``h`` (s), ``rtol``, ``energy_drift_max`` (1), ``energy_growth_exponent``,
+        ``nfev``, ``wall_s`` (s, one run, compile time apart), ``status``.
+    """
+    from rk4core.energy import relative_energy_error
+
+    T_slow = slowest_period(model)
+    omega = np.asarray(model.modes()[0], float)
+    T_fast = 2.0 * math.pi / float(omega.max())
+    hs = list(horizons) + ([1e6] if full and 1e6 not in horizons else [])
+    rows = []
+    for periods in hs:
+        t_end = periods * T_slow
+        for tab in methods:
+            for n in steps_per_period:
+                h = T_fast / n
+                res, wall = long_run(model, y0, tab, h, t_end, dense_samples(model, t_end))
+                ok = bool(res.success)
+                with np.errstate(all="ignore"):
+                    e = relative_energy_error(model, res.y)
+                rows.append({"scene": scene_name, "solver": tab.name, "periods": float(periods), "t_end": t_end,
+                             "h": float(res.h), "rtol": math.nan,
+                             "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
+                             "energy_growth_exponent": growth_exponent(res.t, e)[0] if ok else math.nan,
+                             "nfev": int(res.nfev), "wall_s": wall, "status": "ok" if ok else res.reason})
+        for name in references:
+            for rtol in rtols:
+                rows.append(_reference_row(scene_name, model, y0, name, rtol, periods, t_end))
+    return rows
+
+
+def _reference_row(scene_name, model, y0, name, rtol, periods, t_end) -> dict:
+    """One adaptive reference's run for :func:`work_precision_rows` (``nfev``: its
+    RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it)."""
+    from references.solvers import integrate
+    from rk4core.energy import relative_energy_error
+
+    from .trust import rhs_calls
+
+    t = np.linspace(0.0, t_end, dense_samples(model, t_end))
+    r = integrate(name, model, y0, t, rtol)
+    status = getattr(r.status, "value", str(r.status))
+    ok = status == "ok"
+    with np.errstate(all="ignore"):
+        e = relative_energy_error(model, r.y)
+    return {"scene": scene_name, "solver": name, "periods": float(periods), "t_end": t_end, "h": math.nan,
+            "rtol": float(rtol), "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
+            "energy_growth_exponent": growth_exponent(t, e)[0] if ok else math.nan,
+            "nfev": int(rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})),
+            "wall_s": float(r.wall_s), "status": status}
+
