@@ -12,6 +12,8 @@ and the JSON Schema are generated from these models::
     python -m validation.scene_schema --markdown > docs/scene-reference.md
     python -m validation.scene_schema --json-schema > docs/scene.schema.json
 
+(``python -m validation.docs_gen`` writes both, with the other generated documents.)
+
 The top level is a union on ``model``: one variant per built-in model
 (``rk4core.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
 from the model's declaration (:func:`params_table`), and one for a user's
