@@ -1,4 +1,4 @@
-"""[sweep] tables (validation.scenes, "Sweeps"): a swept scene expands to the
+"""[sweep] tables (validation.sweeps): a swept scene expands to the
 Cartesian product of its lists, in key order; each point is the scene one
 would write by hand with that value; its name and sweep columns follow the
 documented rules; a bad sweep key is refused with one line naming it."""
