@@ -195,8 +195,7 @@ def test_previous_report_changed_during_the_run_is_kept_aside(tmp_path):
     tmp = atomic.fresh_dir(out)
     (tmp / "index.md").write_text("new\n")
     (out / "late-notes.txt").write_text("written while the run ran")
-    atomic.swap_into_place(tmp, out, scope="full", scenes=["a"])
-    kept = atomic.swap_into_place.kept
+    kept = atomic.swap_into_place(tmp, out, scope="full", scenes=["a"]).kept
     assert kept is not None and (kept / "late-notes.txt").read_text() == "written while the run ran"
     assert (out / "index.md").read_text() == "new\n"
 
@@ -456,8 +455,7 @@ new = atomic.fresh_dir(out)
 (out / "private").mkdir()
 (out / "private" / "notes.txt").write_text("mine")
 (out / "private").chmod(0)
-atomic.swap_into_place(new, out, scope="full", scenes=["a"])
-print(atomic.swap_into_place.kept.name)
+print(atomic.swap_into_place(new, out, scope="full", scenes=["a"]).kept.name)
 """
     uid, gid, base = unprivileged
     env = {**os.environ, "MPLBACKEND": "Agg"}

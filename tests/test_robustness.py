@@ -355,7 +355,9 @@ def test_swap_replaces_the_whole_directory(tmp_path, monkeypatch, exchange):
     new = _make(atomic.fresh_dir(target), {"index.md": "new", "accuracy.csv": "new"})
     if not exchange:
         monkeypatch.setattr(atomic, "_exchange", lambda a, b: False)
-    how = atomic.swap_into_place(new, target, scope="full", scenes=["a"])
+    swap = atomic.swap_into_place(new, target, scope="full", scenes=["a"])
+    how = swap.how
+    assert swap.kept is None and swap.why is None  # the verified previous report was removed
     if exchange and not atomic.exchange_supported(tmp_path):
         pytest.skip("this filesystem has no renameat2(RENAME_EXCHANGE)")
     assert how == ("exchange" if exchange else "two renames")

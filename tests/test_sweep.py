@@ -1,4 +1,4 @@
-"""[sweep] tables (validation.scenes, "Sweeps"): a swept scene expands to the
+"""[sweep] tables (validation.sweeps): a swept scene expands to the
 Cartesian product of its lists, in key order; each point is the scene one
 would write by hand with that value; its name and sweep columns follow the
 documented rules; a bad sweep key is refused with one line naming it."""
@@ -9,6 +9,7 @@ import re
 import pytest
 
 from validation import scenes as scenes_mod
+from validation import sweeps as sweeps_mod
 from validation.scenes import (MAX_SWEEP_POINTS, SCENE_DIR, Scene, SceneError, load_scene, load_scene_points,
                                load_scenes, resolve_scene, scene_from_dict, scene_points_from_dict)
 
@@ -251,8 +252,8 @@ def test_bad_sweep_is_refused_with_one_line_naming_the_key(case, doc, fld, text)
 
 def test_colliding_columns_and_tokens_are_refused(monkeypatch):
     # no built-in model has a parameter named like an [initial] key: give one to the chain
-    real = scenes_mod._model_keys
-    monkeypatch.setattr(scenes_mod, "_model_keys", lambda name: set(real(name)) | {"amplitude", "masses1"})
+    real = sweeps_mod._model_keys
+    monkeypatch.setattr(sweeps_mod, "_model_keys", lambda name: set(real(name)) | {"amplitude", "masses1"})
     with pytest.raises(SceneError) as info:
         scene_points_from_dict(_doc("mode", {"initial.amplitude": [1.0], "params.amplitude": [2.0]}), "bad.toml")
     assert info.value.field == 'sweep."params.amplitude"' and "column `amplitude`" in str(info.value)

@@ -89,10 +89,11 @@ import re
 import secrets
 import shutil
 import stat
+from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["MARKER", "TargetRefused", "EnvironmentRefused", "Lock", "check_target", "fresh_dir",
-           "swap_into_place", "recover", "exchange_supported", "read_marker", "ENVIRONMENT_ERRNOS",
+           "swap_into_place", "Swapped", "recover", "exchange_supported", "read_marker", "ENVIRONMENT_ERRNOS",
            "is_environment_error", "write_json_atomic"]
 
 #: The ownership marker in every report directory this tool writes.
@@ -411,26 +412,44 @@ def exchange_supported(directory) -> bool:
         os.rmdir(a)
 
 
-def swap_into_place(tmp, target, *, scope: str = "full", scenes=()) -> str:
+@dataclass(frozen=True)
+class Swapped:
+    """What :func:`swap_into_place` did.
+
+    Attributes
+    ----------
+    how : str
+        ``"exchange"``, ``"rename"`` (no previous target) or ``"two renames"``.
+    kept : Path or None
+        Where a previous report was kept aside because it could not be
+        verified (it changed during the run, or could not be read) or
+        removed; None when it was removed (or there was none).
+    why : str or None
+        Which of those it was (None when ``kept`` is None).
+    """
+
+    how: str
+    kept: Path | None = None
+    why: str | None = None
+
+
+def swap_into_place(tmp, target, *, scope: str = "full", scenes=()) -> Swapped:
     """Put directory ``tmp`` (from :func:`fresh_dir`) in place of ``target``
-    (see the module docstring). Returns ``"exchange"``, ``"rename"`` (no
-    previous target) or ``"two renames"``; ``swap_into_place.kept`` names a
-    previous report kept aside because it could not be verified (it changed
-    during the run, or could not be read) or removed, else None, and
-    ``swap_into_place.why`` says which.
+    (see the module docstring). Returns a :class:`Swapped`: how the swap was
+    made and, when the previous report was kept aside rather than removed,
+    where and why.
 
     An error before the swap leaves ``target`` as it was; once the new report
     is in place nothing raises (the previous report is then only ever kept
     aside, never lost to a caller's clean-up of ``tmp``)."""
     tmp, target = Path(tmp), Path(target)
-    swap_into_place.kept = swap_into_place.why = None
     _write_marker(tmp, {"state": "complete", "target": target.name, "scope": scope,
                         "scenes": list(scenes), "manifest": _manifest(tmp)})
     _fsync_tree(tmp)
     if not target.exists():
         os.rename(tmp, target)
         _fsync_parent(target)
-        return "rename"
+        return Swapped("rename")
     if _exchange(tmp, target):
         how, old = "exchange", tmp  # tmp now holds the previous report
     else:
@@ -443,11 +462,8 @@ def swap_into_place(tmp, target, *, scope: str = "full", scenes=()) -> str:
             raise
         how = "two renames"
     _fsync_parent(target)
-    _discard_previous(old, target)
-    return how
-
-
-swap_into_place.kept = swap_into_place.why = None
+    kept, why = _discard_previous(old, target)
+    return Swapped(how, kept, why)
 
 
 def _fsync_parent(target: Path) -> None:
@@ -487,13 +503,14 @@ def _remove_ours(directory: Path) -> None:
     os.rmdir(directory)
 
 
-def _discard_previous(old: Path, target: Path) -> None:
+def _discard_previous(old: Path, target: Path) -> tuple:
     """Remove the previous report only if it is still exactly what its manifest
-    says (or empty); otherwise keep it aside and say where. Never raises."""
+    says (or empty); otherwise keep it aside. Returns ``(kept, why)``: where it
+    was kept and why, or ``(None, None)`` once removed. Never raises."""
     if _verified(old):
         try:
             _remove_ours(old)
-            return
+            return None, None
         except OSError as e:
             why = f"it could not be removed ({e.strerror})"
     else:
@@ -503,7 +520,7 @@ def _discard_previous(old: Path, target: Path) -> None:
         os.rename(old, kept)
     except OSError:
         kept = old
-    swap_into_place.kept, swap_into_place.why = kept, why
+    return kept, why
 
 
 _KINDS = ("tmp", "old", "kept")

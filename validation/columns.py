@@ -8,6 +8,8 @@ gives ``docs/columns.md``::
 
     python -m validation.columns --markdown > docs/columns.md
 
+(``python -m validation.docs_gen`` writes it with the other generated documents.)
+
 Column order comes from :data:`validation.tables.COLUMNS`, the tables'
 descriptions from :data:`validation.tables.DESCRIPTIONS`.
 

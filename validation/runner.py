@@ -590,7 +590,7 @@ def _run_into(target: Path, scenes, options, repeats: int, scope: str, guard, pr
             if progress is not None and hasattr(progress, "close"):
                 progress.close()
             guard.hold()  # the swap is not interrupted half-way
-            atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
+            swap = atomic.swap_into_place(tmp, target, scope=scope, scenes=[s.name for s in scenes])
             swapped = True
             if not store.remove():
                 notify(f"run_all: {store.path} kept: it holds files this tool did not write", err=True)
@@ -630,8 +630,8 @@ def _run_into(target: Path, scenes, options, repeats: int, scope: str, guard, pr
         return report
     finally:
         guard.held, guard.pending = False, None
-    if atomic.swap_into_place.kept is not None:
-        report.kept_aside = (atomic.swap_into_place.kept, atomic.swap_into_place.why)
+    if swap.kept is not None:
+        report.kept_aside = (swap.kept, swap.why)
     _counts(report, stats)
     report.out, report.failures = target, list(failures)
     report.status = 1 if failures else 0

@@ -12,6 +12,8 @@ and the JSON Schema are generated from these models::
     python -m validation.scene_schema --markdown > docs/scene-reference.md
     python -m validation.scene_schema --json-schema > docs/scene.schema.json
 
+(``python -m validation.docs_gen`` writes both, with the other generated documents.)
+
 The top level is a union on ``model``: one variant per built-in model
 (``rk4core.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
 from the model's declaration (:func:`params_table`), and one for a user's
@@ -681,7 +683,7 @@ list written in the file) or `.KEY`. Sweepable: `params.NAME` (any parameter of 
 or not), `initial.x`, `initial.v`, `initial.mode`, `initial.amplitude` (`initial.x[0]` sweeps one
 coordinate) and `run.t_end`. A value is a number, `true`/`false` or a word of `a-z 0-9 _ . -`; a
 point is named `NAME@TOKEN=VALUE`, e.g. `sweep-2dof-mass-ratio@masses1=0.815`. The rules are in
-`validation/scenes.py` ("Sweeps").
+the docstring of `validation/sweeps.py`.
 """
 
 _USER = """\

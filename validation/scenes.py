@@ -44,68 +44,9 @@ overflows) is refused naming field ``params`` with rk4core's own line.
 Sweeps
 ------
 An optional ``[sweep]`` table makes the file stand for one scene per point of
-a parameter grid::
-
-    [sweep]
-    "params.masses[1]" = [0.0815, 0.815, 3.099, 8.15]
-    "run.t_end" = [5.0, 10.0]
-
-Each key is a quoted dotted path into the scene document, each value a
-non-empty list of values; the points are the Cartesian product of the lists,
-in key order as written (the first key varies slowest, like nested loops).
-A path is ``TABLE.NAME`` followed by any number of ``[i]`` (a 0-based index
-into a list written in the file) and ``.KEY`` (a key of a table written in the
-file, e.g. ``params.constants.w`` of the ``potential`` model). Sweepable:
-
-* ``params.NAME``: any parameter of the scene's model, written in the file or
-  not (``params.alpha`` of a chain sets the default 0 to each value);
-* ``initial.x``, ``initial.v``, ``initial.mode``, ``initial.amplitude``
-  (``initial.x[0]`` sweeps one coordinate; ``initial.amplitude`` goes with
-  ``mode``);
-* ``run.t_end``. The other ``[run]`` keys are not: ``h``, ``tolerances``,
-  ``solvers`` and ``outputs`` are already lists every point runs over, and
-  ``output_dt``/``max_output_points`` set the grid, not the physics. Nor are
-  ``name``, ``model``, ``quick``, ``[convergence]`` and ``[stability]``.
-
-A value is a number, ``true``/``false`` or a string (a word of ``a-z 0-9 _ . -``,
-since it appears in the point's name): one value per point, so a list
-parameter is swept element by element through its indices (this keeps every
-sweep column a scalar). A list may not hold one value twice; at most
-:data:`MAX_SWEEP_POINTS` points. Refused with one line naming the key
-(``FILE: field `sweep."params.nope"`: ...``): a key that is not a string
-path, an unknown table, an unknown parameter of the model, an index out of
-range or into something that is not a list, a path through something the file
-does not hold, an empty or non-list value, and two keys of which one contains
-the other or which share a column or a name token.
-
-Each point is the document with every swept path set to the point's value and
-the ``[sweep]`` table dropped, validated by :func:`scene_from_dict` as an
-ordinary scene: every rule above holds for every point, and an error names
-the first point that fails, e.g. ``FILE: field `sweep."params.masses[1]"[2]`:
-at params.masses[1] = -1.0: field `params.masses[1]`: must be > 0 (got
--1.0)``; an error that every point of a sweep of several shares word for word
-(``run.solvers[1]``, a missing ``name``) is the file's and reads as it would
-without the sweep.
-``quick = true`` marks every point. A point's :class:`Scene` has
-
-* ``base``: the ``name`` written in the file (for an unswept scene, its name);
-* ``sweep``: column -> value, in key order (empty for an unswept scene). The
-  column is the path without its table: ``masses[1]``, ``x[0]``,
-  ``amplitude``, ``k``, ``t_end``, ``constants.w``. Values are as written in
-  the file (int, float, bool or str).
-* ``name``: ``BASE@TOKEN=VALUE``, once per key in key order, e.g.
-  ``sweep-2dof-mass-ratio@masses1=0.815``. ``TOKEN`` is the column lowercased
-  with its brackets dropped (``x[0]`` -> ``x0``, ``springs[1][2]`` ->
-  ``springs1_2``); ``VALUE`` is ``true``/``false``, the string, or the number
-  printed with ``:g``, with ``repr`` instead for values of one key that print
-  alike under ``:g`` (``1.0000001`` and ``1.0000002``), a leading minus written
-  ``m`` and an exponent's ``+`` dropped (``-0.5`` -> ``m0.5``, ``1e+06`` ->
-  ``1e06``, ``1e-06`` stays): figure files are named after
-  ``validation.figures.slug(name)``, which turns every run of characters other
-  than ``a-z0-9`` into ``_``, so ``=-0.5`` and ``=0.5`` would collide. Point
-  names are unique within the file, also as figure-file stems (checked), at
-  most :data:`_POINT_NAME_MAX` characters, and never match the rule for names
-  in files (they hold ``@``), so a point cannot shadow a file's scene.
+a parameter grid; :mod:`validation.sweeps` expands it (its docstring gives the
+rules, the point names and the errors). Each point is validated by
+:func:`scene_from_dict` as an ordinary scene.
 
 Loading: :func:`load_scene_points` returns one :class:`Scene` per point (or
 the one scene of an unswept file); :func:`load_scenes` returns the flattened
@@ -138,15 +79,12 @@ pass ``allow_code=False``.
 """
 from __future__ import annotations
 
-import copy
-import itertools
 import math
 import os
 import re
 import stat
 import tomllib
 from dataclasses import dataclass, field
-from numbers import Real
 from pathlib import Path
 
 import numpy as np
@@ -155,8 +93,14 @@ from pydantic import ValidationError
 from references.registry import MethodError, methods_from_tables, names, resolve
 from rk4core.solver import _SLACK as _STEP_SLACK
 
-from . import scene_schema
+from . import scene_schema, sweeps
+from .scene_checks import SceneError
+from .scene_checks import check_model as _check_model
+from .scene_checks import figure_stem as _figure_stem
+from .scene_checks import show as _show
+from .scene_checks import unknown_keys as _unknown_keys
 from .scene_schema import OUTPUTS
+from .sweeps import MAX_SWEEP_POINTS, SWEEP_RUN_KEYS
 
 __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scenes", "resolve_scene",
            "scene_from_dict", "scene_points_from_dict", "output_stride", "OUTPUTS", "SCENE_DIR",
@@ -174,7 +118,6 @@ SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 ALLOW_CODE_ENV = "RK4H_ALLOW_CODE"
 
 _TOP = set(scene_schema.TOP_KEYS)
-_INITIAL = set(scene_schema.INITIAL_KEYS)
 _NAME = re.compile(scene_schema.NAME_PATTERN.strip("^$"))  # used with fullmatch: no trailing newline slips through
 _NAME_MAX = scene_schema.NAME_MAX
 #: Relative slack when checking that one step divides another: the slack of
@@ -183,35 +126,6 @@ _NAME_MAX = scene_schema.NAME_MAX
 _DIVIDES = _STEP_SLACK
 #: Largest scene file read (bytes); a scene is a few hundred bytes.
 MAX_SCENE_BYTES = 1 << 20
-#: Most points one ``[sweep]`` may give (each is validated, then run, as a scene).
-MAX_SWEEP_POINTS = 1000
-#: The ``[run]`` keys a sweep may set.
-SWEEP_RUN_KEYS = ("t_end",)
-#: Longest point name ``BASE@TOKEN=VALUE...`` (file-name stems stay well below 255 bytes).
-_POINT_NAME_MAX = 200
-_POINT_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*(?:@[a-z0-9_.]+=[a-z0-9_.-]+)+")
-_IDENT = scene_schema.IDENT
-_SWEEP_PATH = re.compile(rf"({_IDENT})((?:\.{_IDENT}|\[(?:0|[1-9][0-9]*)\])+)")
-_SWEEP_STEP = re.compile(rf"\.({_IDENT})|\[(0|[1-9][0-9]*)\]")
-_WORD = re.compile(scene_schema.WORD)
-
-
-class SceneError(ValueError):
-    """A malformed scene: one line naming the file, the field and the value."""
-
-    def __init__(self, path, fld: str, problem: str, value=None):
-        problem = " ".join(str(problem).split("\n"))  # one line, whatever the source said
-        self.path, self.field, self.problem, self.value = str(path), fld, problem, value
-        got = "" if value is None else f" (got {_show(value)})"
-        super().__init__(f"{self.path}: field `{fld}`: {problem}{got}")
-
-
-def _show(value) -> str:
-    try:
-        text = repr(value)
-    except Exception:  # noqa: BLE001 - e.g. an int too long to print
-        text = f"<{type(value).__name__}>"
-    return text if len(text) <= 80 else text[:77] + "..."
 
 
 @dataclass
@@ -322,29 +236,11 @@ def output_stride(n_intervals: int, max_points: int | None) -> int:
 
 
 # -- checks --------------------------------------------------------------------
-def _is_num(x) -> bool:
-    return isinstance(x, Real) and not isinstance(x, bool)
-
-
-def _unknown_keys(path, fld, table: dict, known) -> None:
-    """Refuse the first key of ``table`` outside ``known`` (a user model's
-    parameters; the top level of a swept document)."""
-    unknown = sorted((k for k in table if k not in known), key=str)
-    if unknown:
-        where = f"{fld}.{unknown[0]}" if fld else str(unknown[0])
-        raise SceneError(path, where, f"unknown key (known: {', '.join(sorted(known))})")
-
-
 def _divides(small: float, big: float) -> bool:
     r = big / small
     if not math.isfinite(r):
         return False
     return abs(r - round(r)) <= _DIVIDES * max(1.0, r)
-
-
-class _Raw(str):
-    def __repr__(self):
-        return str(self)
 
 
 def _validated(path, doc: dict):
@@ -476,7 +372,7 @@ def load_scene(path, *, allow_code=None) -> Scene:
 
 def load_scene_points(path, *, allow_code=None) -> list[Scene]:
     """Read and validate one scene file: one :class:`Scene` per point of its
-    ``[sweep]`` (module docstring, "Sweeps"), or the one scene of an unswept
+    ``[sweep]`` (:mod:`validation.sweeps`), or the one scene of an unswept
     file. ``allow_code`` as for :func:`load_scene`."""
     return _load_file(path, allow_code)
 
@@ -500,17 +396,6 @@ def scene_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True) -> Sc
     if not allow_code:
         _refuse_code(path, doc)
     return _scene_from_dict(doc, path)
-
-
-def _check_model(path, model_name):
-    from rk4core import MODELS
-    from rk4core.models import resolve_model
-
-    try:
-        resolve_model(model_name)
-    except ValueError:
-        raise SceneError(path, "model", f"must be one of {', '.join(sorted(MODELS))} or "
-                         f"'package.module:ClassName'", model_name) from None
 
 
 def _scene_from_dict(doc: dict, path) -> Scene:
@@ -694,13 +579,6 @@ def _methods(path, tables) -> dict:
                          e.problem) from None
 
 
-def _model_keys(model_name):
-    from rk4core.models import model_parameters
-
-    required, optional = model_parameters(model_name)
-    return set(required) | set(optional)
-
-
 def _mode_shape(path, model, ini) -> list:
     """``amplitude * phi[:, mode - 1]`` with a fixed sign (first nonzero entry > 0)."""
     mode = ini.mode
@@ -736,230 +614,16 @@ def _stability_method(path, name, solvers, methods) -> str:
     return name
 
 
-# -- sweeps --------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Axis:
-    """One ``[sweep]`` key: where it points, its values and how a point names it."""
-
-    key: str
-    field: str        # sweep."KEY", as error messages name it
-    table: str        # params / initial / run
-    steps: tuple      # ((is_index, name_or_index), ...) below the table
-    column: str       # the key without its table: masses[1]
-    token: str        # the column in a point name: masses1
-    values: tuple
-
-
 def scene_points_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True) -> list[Scene]:
     """Validate a parsed scene document: one :class:`Scene` per point of its
-    ``[sweep]`` (module docstring, "Sweeps"), or ``[scene]`` without one.
+    ``[sweep]`` (:mod:`validation.sweeps`), or ``[scene]`` without one.
     ``allow_code`` as for :func:`scene_from_dict`."""
     if not allow_code:
         _refuse_code(path, doc)
     if not isinstance(doc, dict) or "sweep" not in doc:
         return [_scene_from_dict(doc, path)]
     _unknown_keys(path, "", doc, _TOP)
-    axes = _sweep_axes(path, doc)
-    n_points = math.prod(len(a.values) for a in axes)
-    if n_points > MAX_SWEEP_POINTS:
-        raise SceneError(path, "sweep", f"gives {n_points} points, above the cap of {MAX_SWEEP_POINTS}")
-    base_doc = {k: v for k, v in doc.items() if k != "sweep"}
-
-    def point(idx):
-        point_doc = copy.deepcopy(base_doc)
-        for a, i in zip(axes, idx):
-            _set_path(point_doc[a.table], a.steps, a.values[i])
-        return _scene_from_dict(point_doc, path)
-
-    grid = list(itertools.product(*(range(len(a.values)) for a in axes)))
-    scenes = []
-    for idx in grid:
-        try:
-            scenes.append(point(idx))
-        except SceneError as e:
-            raise _point_error(path, axes, grid, idx, e, point) from None
-    labels = [_labels(path, a) for a in axes]
-    names, stems = {}, {}
-    for scene, idx in zip(scenes, grid):
-        name = scene.name + "".join(f"@{a.token}={lab[i]}" for a, lab, i in zip(axes, labels, idx))
-        where = ", ".join(f"{a.field}[{i}]" for a, i in zip(axes, idx))
-        if len(name) > _POINT_NAME_MAX or not _POINT_NAME.fullmatch(name):
-            raise SceneError(path, where, f"gives the point name {name!r}, which is not 1 to {_POINT_NAME_MAX} "
-                             f"characters of the form BASE@TOKEN=VALUE")
-        stem = _figure_stem(name)
-        for seen, key in ((names, name), (stems, stem)):
-            if key in seen:
-                raise SceneError(path, where, f"gives the point name {name!r}, which {seen[key]} gives too"
-                                 + ("" if seen is names else " as a figure-file stem"))
-            seen[key] = where
-        scenes_sweep = {a.column: a.values[i] for a, i in zip(axes, idx)}
-        scene.base, scene.name, scene.sweep = scene.name, name, scenes_sweep
-    return scenes
-
-
-def _point_error(path, axes, grid, idx, err: SceneError, point) -> SceneError:
-    """The error of the first failing point ``idx``, naming the point; an error
-    every point of a sweep of several shares (the same line) is the file's own
-    and is returned as it is."""
-    if len(grid) > 1 and all(_fails_alike(point, other, str(err)) for other in grid if other != idx):
-        return err
-    where = ", ".join(f"{a.field}[{i}]" for a, i in zip(axes, idx))
-    at = ", ".join(f"{a.key} = {_show(a.values[i])}" for a, i in zip(axes, idx))
-    return SceneError(path, where, f"at {at}: field `{err.field}`: {err.problem}",
-                      None if err.value is None else _Raw(_show(err.value)))
-
-
-def _fails_alike(point, idx, message) -> bool:
-    try:
-        point(idx)
-    except SceneError as e:
-        return str(e) == message
-    return False
-
-
-def _key_field(key) -> str:
-    if isinstance(key, str) and key.isprintable() and '"' not in key and '`' not in key and len(key) <= 80:
-        return f'sweep."{key}"'
-    return f"sweep.{_show(key)}"
-
-
-def _sweep_axes(path, doc) -> list[_Axis]:
-    sweep = doc["sweep"]
-    if not isinstance(sweep, dict):
-        raise SceneError(path, "sweep", 'must be a table of "PATH" = [values]', sweep)
-    if not sweep:
-        raise SceneError(path, "sweep", 'is empty: give at least one "PATH" = [values], '
-                         'e.g. "params.k" = [1.0, 2.0]')
-    if "model" not in doc:
-        raise SceneError(path, "model", "is missing")
-    _check_model(path, doc["model"])
-    axes = []
-    for key, values in sweep.items():
-        fld = _key_field(key)
-        if not isinstance(key, str):
-            raise SceneError(path, fld, 'must be a string path such as "params.k"')
-        if isinstance(values, dict) and re.fullmatch(_IDENT, key):
-            raise SceneError(path, fld, f'is a table of its own: quote the dotted path, "{key}.NAME" = [values] '
-                             f"(unquoted, TOML reads {key}.NAME as nested tables)")
-        m = _SWEEP_PATH.fullmatch(key)
-        if not m:
-            raise SceneError(path, fld, 'must be a dotted path such as "params.k", "initial.x[0]" or "run.t_end"')
-        table = m.group(1)
-        steps = tuple((g[1] != "", int(g[1]) if g[1] else g[0]) for g in _SWEEP_STEP.findall(m.group(2)))
-        _check_target(path, fld, doc, key, table, steps)
-        if not isinstance(values, list):
-            raise SceneError(path, fld, "must be a list of values, one per point", values)
-        if not values:
-            raise SceneError(path, fld, "must not be empty", values)
-        seen = {}
-        for i, v in enumerate(values):
-            if isinstance(v, bool):
-                kind = "bool"
-            elif isinstance(v, str):
-                kind = "str"
-                if not _WORD.fullmatch(v):
-                    raise SceneError(path, f"{fld}[{i}]", "must be a word of a-z, 0-9, '_', '.', '-' (at most 40 "
-                                     "characters): it appears in the point's name", v)
-            elif _is_num(v):
-                kind = "num"
-            else:
-                raise SceneError(path, f"{fld}[{i}]", "must be a number, true/false or a string: one value per "
-                                 "point (sweep a list element by element through its index)", v)
-            if (kind, v) in seen:
-                raise SceneError(path, f"{fld}[{i}]", f"repeats {fld}[{seen[(kind, v)]}]", v)
-            seen[(kind, v)] = i
-        column = key[len(table) + 1:]
-        token = re.sub(r"[\[\]]", "", column.replace("][", "_")).lower()
-        axis = _Axis(key, fld, table, steps, column, token, tuple(values))
-        for other in axes:
-            short, long_ = sorted((other.steps, steps), key=len)
-            if other.table == table and long_[:len(short)] == short:
-                raise SceneError(path, fld, f"overlaps {other.field}: one sets a part of the other")
-            for what in ("column", "token"):
-                if getattr(other, what) == getattr(axis, what):
-                    raise SceneError(path, fld, f"gives the {what} `{getattr(axis, what)}` of {other.field} too")
-        axes.append(axis)
-    return axes
-
-
-def _check_target(path, fld, doc, key, table, steps):
-    """Refuse a path that does not address a sweepable place of ``doc``."""
-    allowed = {"params": None, "initial": _INITIAL, "run": set(SWEEP_RUN_KEYS)}
-    if table not in allowed:
-        run_keys = SWEEP_RUN_KEYS[0] if len(SWEEP_RUN_KEYS) == 1 else f"{{{', '.join(SWEEP_RUN_KEYS)}}}"
-        raise SceneError(path, fld, f"addresses `{table}`, which cannot be swept (sweepable: params.*, "
-                         f"initial.{{{', '.join(sorted(_INITIAL))}}}, run.{run_keys})")
-    is_index, name = steps[0]
-    if is_index:  # "params[0]"
-        raise SceneError(path, fld, f"must name a key of `{table}` before an index")
-    if table == "params":
-        known, what = _model_keys(doc["model"]), f"a parameter of model {doc['model']!r}"
-    else:
-        known, what = allowed[table], f"a sweepable key of `{table}`"
-    if name not in known:
-        raise SceneError(path, fld, f"`{table}.{name}` is not {what} (known: {', '.join(sorted(known))})")
-    node = doc.get(table)
-    if not isinstance(node, dict):
-        raise SceneError(path, fld, f"addresses `{table}`, which the file does not hold as a table", node)
-    where = table
-    for j, (is_index, step) in enumerate(steps):
-        last = j == len(steps) - 1
-        if is_index:
-            if not isinstance(node, list):
-                raise SceneError(path, fld, f"indexes `{where}`, which is not a list", node)
-            if step >= len(node):
-                raise SceneError(path, fld, f"index {step} is out of range: `{where}` has {len(node)} "
-                                 f"entr{'y' if len(node) == 1 else 'ies'}")
-            where = f"{where}[{step}]"
-        else:
-            if not isinstance(node, dict):
-                raise SceneError(path, fld, f"reads the key `{step}` of `{where}`, which is not a table", node)
-            if step not in node and not (j == 0 and last):
-                raise SceneError(path, fld, f"`{where}.{step}` is not in the file (only a top-level key of "
-                                 f"`{table}` may be swept without being written)")
-            where = f"{where}.{step}"
-        if not last:
-            node = node[step]
-
-
-def _set_path(node, steps, value):
-    for _, step in steps[:-1]:
-        node = node[step]
-    node[steps[-1][1]] = value
-
-
-def _labels(path, axis: _Axis) -> list[str]:
-    """How each value of ``axis`` appears in a point name (module docstring)."""
-    def text(v, precise):
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return v
-        if not precise:
-            try:
-                return f"{v:g}"
-            except OverflowError:  # an int beyond the double range
-                pass
-        return repr(v)
-
-    rough = [text(v, False) for v in axis.values]
-    nums = [i for i, v in enumerate(axis.values) if _is_num(v)]
-    alike = {i for i in nums if sum(rough[j] == rough[i] for j in nums) > 1}
-    labels = []
-    for i, v in enumerate(axis.values):
-        lab = text(v, i in alike)
-        if _is_num(v):
-            lab = lab.replace("e+", "e")
-            if lab.startswith("-"):
-                lab = "m" + lab[1:]
-        labels.append(lab)
-    return labels
-
-
-def _figure_stem(name: str) -> str:
-    """The stem ``validation.figures.slug`` makes of a scene name (figure files
-    start with it); repeated here to keep matplotlib out of scene loading."""
-    return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")
+    return sweeps.expand(doc, path, lambda point_doc: _scene_from_dict(point_doc, path))
 
 
 def resolve_scene(arg) -> Path:
@@ -986,7 +650,7 @@ def resolve_scene(arg) -> Path:
 def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
     """Load ``paths`` (default: every ``*.toml`` in :data:`SCENE_DIR`, sorted).
 
-    Returns one :class:`Scene` per sweep point (module docstring, "Sweeps"),
+    Returns one :class:`Scene` per sweep point (:mod:`validation.sweeps`),
     file by file. A path may also name one point of a shipped scene,
     ``BASE@TOKEN=VALUE...``. With ``quick``, keep the scenes marked ``quick =
     true``. Every file is validated before any is run; the first bad one raises

@@ -7,7 +7,8 @@ README). Bounds keep every study's work finite and sensible: the boundary
 bisection cannot ask for more precision than double round-off allows, the long
 run at most ``1e7`` periods, the large-N chains at most ``1e6`` masses, every
 list at most :data:`MAX_LIST` entries. A value outside raises one line naming
-the field ``stability.<key>`` (see :func:`validate_params`).
+the field ``stability.<key>`` (see :func:`validate_params`). ``docs/stability-params.md``
+is :func:`params_document` (``python -m validation.docs_gen`` writes it).
 """
 from __future__ import annotations
 
