@@ -23,11 +23,11 @@ def region_methods(scene) -> list[str]:
     and the built-in fixed-step ones) and, when it runs the ``boundary``
     study, the built-ins every boundary study measures
     (:data:`references.registry.BOUNDARY_ALWAYS`), in that order."""
-    from references.registry import BOUNDARY_ALWAYS, resolve
+    from references.registry import BOUNDARY_ALWAYS, UNDER_TEST, resolve
 
     st = scene.stability or {}
     local = getattr(scene, "registry", None) or {}
-    names = [st.get("method") or "rk4"]
+    names = [st.get("method") or UNDER_TEST]
     for name in scene.solvers:
         try:
             if resolve(name, local).tableau is not None:
