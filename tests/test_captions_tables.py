@@ -162,3 +162,21 @@ def test_boundary_findings_quote_the_table(report):
                 and r["quantity"] == "largest_stable_h_s"]
         assert math.isclose(float(m[2]), r["measured"], rel_tol=5e-6)
         assert math.isclose(float(m[3]), r["theta"], rel_tol=5e-6)
+
+
+def test_region_caption_agrees_with_the_boundary_rows(report):
+    """The stability-region figure's crossings (from the drawn stability
+    function) are the boundary study's theory, theory_h * omega_max, to 1e-6,
+    and its measured theta to the bisection's rtol (1e-4)."""
+    index, df = report
+    (line,) = [ln for ln in index.splitlines() if "cost_2dof_stability_region.png" in ln
+               and "(stability_region)" in ln]
+    quoted = dict(re.findall(rf"(\S+) stable for \|Im z\| <= ({NUM})", line))
+    assert {"rk4", "symplectic-euler", "stormer-verlet"} <= set(quoted)
+    assert "euler on no interval of the imaginary axis" in line
+    for solver, y in quoted.items():
+        (r,) = [r for _, r in df.iterrows() if r["study"] == "boundary" and r["solver"] == solver
+                and r["quantity"] == "largest_stable_h_s"]
+        omega_max = r["theta"] / r["measured"]
+        assert abs(float(y) - r["theory"] * omega_max) <= 1e-6, (solver, y, r["theory"] * omega_max)
+        assert math.isclose(float(y), r["theta"], rel_tol=1e-4)

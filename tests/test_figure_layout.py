@@ -157,6 +157,16 @@ def _stability_plots():
     }
 
 
+def _region_plot():
+    """geometric-2dof's stability region: classical and partitioned methods,
+    one with no colour of its own (heun3)."""
+    from rk4core.methods import METHODS
+    from validation.stability.region import region_plot
+
+    names = ("rk4", "heun3", "euler", "stormer-verlet", "forest-ruth", "yoshida4")
+    return region_plot("geometric-2dof", [METHODS[n] for n in names], n=81)
+
+
 def _exact_run(name, params, x0, v0=None, t_end=20.0, m=2001):
     model = rk4core.make_model(name, params)
     t = np.linspace(0.0, t_end, m)
@@ -232,6 +242,7 @@ BUILDERS = {
                       "constants": {}}, [0.1, 0.05], t_end=20.0, h=0.01)),
     **{f"stability_{k}": (lambda k: lambda out: [S.draw(_stability_plots()[k], out)])(k)
        for k in ("growth", "drift", "long_energy", "roundoff", "cost_mu", "cost_ratio", "large_n", "amplitude")},
+    "stability_region": lambda out: [S.draw(_region_plot(), out)],
 }
 KINDS = list(BUILDERS)
 CHECKS = ["legend", "ticks", "title", "fonts", "inside"]

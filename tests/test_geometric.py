@@ -270,11 +270,13 @@ def test_methods_table_has_the_error_coefficient():
     res = SimpleNamespace(add=lambda table, r: rows.append((table, r)))
     scene = SimpleNamespace(name="s", registry=own, solvers=["rk4", "forest-ruth", "yoshida4"])
     measure._methods_table(scene, res)
-    assert {t for t, _ in rows} == {"methods"} and {r["method"] for _, r in rows} == {"forest-ruth", "yoshida4"}
+    assert {t for t, _ in rows} == {"methods"}
+    assert {r["method"] for _, r in rows} == {"rk4", "forest-ruth", "yoshida4"}  # the built-in RK4 too
     for _, r in rows:
-        assert r["error_coefficient"] == own[r["method"]].tableau.error_coefficient
+        tab = own[r["method"]].tableau if r["method"] in own else METHODS[r["method"]]
+        assert r["error_coefficient"] == tab.error_coefficient and r["builtin"] == (r["method"] not in own)
         assert set(r) == set(COLUMNS["methods"])
-    assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.12654, 0.16675}
+    assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.01450, 0.12654, 0.16675}
 
 
 def test_cli_refuses_a_bad_composition_in_one_line(tmp_path):

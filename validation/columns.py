@@ -218,7 +218,7 @@ _TABLES = {
         "corrected": _c("per quantity", "float", "what the corrected program gives"),
     },
     "methods": {
-        "method": _c("", "category", "the scene's tableau method"),
+        "method": _c("", "category", "a tableau method the scene runs (its own or a built-in)"),
         "order_p": _c("1", "int", "order whose conditions the row checks"),
         "conditions": _c("1", "int", "number of order conditions of order p"),
         "max_residual": _c("1", "float", "largest |b^T Phi(t) - 1/gamma(t)| over them"),
@@ -231,6 +231,12 @@ _TABLES = {
         "partitioned": _c("", "bool", "a partitioned (position/velocity) tableau"),
         "error_coefficient": _c("1", "float", "principal error coefficient: 2-norm of the order-(order+1) "
                                 "truncation-error coefficients (rk4core.methods.Tableau.error_coefficient)"),
+        "nfev_per_step": _c("1", "int", "right-hand-side evaluations per step after the first (first-same-as-last "
+                            "reuse counted)"),
+        "imaginary_axis_bound": _c("1", "float", "largest y = h omega with the method stable on y' = i omega y "
+                                   "(partitioned: on q'' = -omega^2 q) for every h omega in [0, y]; RK4 2 sqrt 2, "
+                                   "0 for none (rk4core.stability_function.imaginary_axis_boundary)"),
+        "builtin": _c("", "bool", "a built-in method (False: the scene's own `[methods]` table)"),
     },
 }
 

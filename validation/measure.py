@@ -267,27 +267,40 @@ def _tolerance_checks(scene, res):
 
 # -- the scene's own tableaux --------------------------------------------------------------
 def _methods_table(scene, res):
-    """``methods.csv``: for each tableau method the scene defines itself (its
-    ``[methods]`` tables), per order ``p`` up to its order plus one, the
-    largest residual of the order conditions of order ``p``, the residual the
-    coefficients' precision allows for that condition, and whether every
-    condition of order ``p`` holds (:attr:`rk4core.methods.Tableau.order_residuals`),
-    and the method's principal error coefficient (:attr:`rk4core.methods.Tableau.error_coefficient`).
+    """``methods.csv``: for each tableau method the scene runs (its
+    ``run.solvers`` that are tableaux: its own ``[methods]`` tables and the
+    built-in fixed-step methods such as RK4), per order ``p`` up to its order
+    plus one, the largest residual of the order conditions of order ``p``,
+    the residual the coefficients' precision allows for that condition, and
+    whether every condition of order ``p`` holds
+    (:attr:`rk4core.methods.Tableau.order_residuals`); and per method its
+    cost (``nfev_per_step``, first-same-as-last reuse counted), the end of
+    its stable interval of the imaginary axis (``imaginary_axis_bound``,
+    dimensionless ``h omega``;
+    :func:`rk4core.stability_function.imaginary_axis_boundary`: RK4 2 sqrt 2,
+    Heun3 sqrt 3) and its principal error coefficient
+    (:attr:`rk4core.methods.Tableau.error_coefficient`: RK4 0.01450).
     Computed from the coefficients, not from runs; the built-in tableaux are
     exact rationals (every residual 0)."""
+    from references.registry import BUILTIN
+    from rk4core.stability_function import imaginary_axis_boundary
+
     own = getattr(scene, "registry", None) or {}
-    for name in scene.solvers:
-        method = own.get(name)
+    for name in dict.fromkeys(scene.solvers):
+        method = own.get(name) if name in own else BUILTIN.get(name)
         tab = getattr(method, "tableau", None)
         if tab is None:
             continue
+        bound = float(imaginary_axis_boundary(tab))
         for r in tab.order_residuals:
             res.add("methods", {"scene": scene.name, "method": name, "order_p": r["order"],
                                 "conditions": r["conditions"], "max_residual": r["max_residual"],
                                 "tolerance": r["tolerance"], "holds": bool(r["holds"]), "order": tab.order,
                                 "precision": tab.precision, "coefficient_tol": float(tab.coefficient_tol),
                                 "stages": tab.n_stages, "partitioned": tab.partitioned,
-                                "error_coefficient": float(tab.error_coefficient)})
+                                "error_coefficient": float(tab.error_coefficient),
+                                "nfev_per_step": int(tab.nfev_per_step), "imaginary_axis_bound": bound,
+                                "builtin": name not in own})
 
 
 # -- convergence -----------------------------------------------------------------------------

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS"]
 
-#: Tables of the scene itself, not of an output (the scene's own tableau methods).
+#: Tables of the scene itself, not of an output (the tableau methods it runs).
 SCENE_TABLES = ("methods",)
 
 #: The built-in tables' columns (an output names the tables it writes).
@@ -38,7 +38,8 @@ _BUILTIN = {
                     "passed", "checked", "status", "message"],
     "thesis_errata": ["scene", "item", "quantity", "thesis", "corrected", "note"],
     "methods": ["scene", "method", "order_p", "conditions", "max_residual", "tolerance", "holds", "order",
-                "precision", "coefficient_tol", "stages", "partitioned", "error_coefficient"],
+                "precision", "coefficient_tol", "stages", "partitioned", "error_coefficient", "nfev_per_step",
+                "imaginary_axis_bound", "builtin"],
 }
 
 #: Columns that hold timings (not reproducible); whole tables built on timings.
@@ -123,13 +124,15 @@ DESCRIPTIONS = {
                    "consequences of the printed code's errors computed from the runs.",
     "thesis_errata": "the thesis' code errata computed from runs of its programs: what the printed "
                      "program gives (`thesis`) beside the corrected one (`corrected`).",
-    "methods": "the scenes' own tableau methods: per order p (up to the computed order plus one), the largest "
-               "residual |b^T Phi(t) - 1/gamma(t)| of the order conditions of order p, the residual the "
+    "methods": "the tableau methods each scene runs (its own `[methods]` and the built-in fixed-step methods "
+               "in its `run.solvers`; `builtin` says which): per order p (up to the computed order plus one), "
+               "the largest residual |b^T Phi(t) - 1/gamma(t)| of the order conditions of order p, the residual the "
                "coefficients' precision allows for that condition (`tolerance`; 0 for exact rationals), and "
                "whether every condition of order p holds; `order` is the computed order, `precision` what it "
                "and the stability boundaries are judged at (rk4core.methods.Tableau.coefficient_tol); "
                "`error_coefficient` the 2-norm of the method's order-(p+1) truncation-error coefficients "
-               "(as nodepy computes it: RK4 0.01450).",
+               "(as nodepy computes it: RK4 0.01450); `nfev_per_step` the cost per step and "
+               "`imaginary_axis_bound` the end of the stable interval of the imaginary axis (RK4 2 sqrt 2).",
 }
 
 

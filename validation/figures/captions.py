@@ -94,6 +94,13 @@ GENERIC_CAPTIONS = {
                       "were skipped for cost or did not reach the target (stability.csv says which).",
     "stability_large_n": "Wall time per step (left) and peak memory (right) against the chain length N, log-log: "
                          "slopes near the dotted slope-1 line mean O(N) work and storage.",
+    "stability_region": "Linear stability regions in the complex plane of z = h lambda (step times eigenvalue). "
+                        "Left, classical methods: the curve |R(z)| = 1 of y' = lambda y, the stable region on its "
+                        "inner side (containing small negative z). Right, partitioned methods on q'' = lambda^2 q: "
+                        "a symplectic method has det M = 1, so it is stable only on its interval of the imaginary "
+                        "axis; the dashed curve bounds where one step amplifies by less than the margin in the "
+                        "panel's title. Bars beside the axis: each method's stable interval |Im z| <= y*, the "
+                        "largest h omega an undamped oscillation of angular frequency omega allows.",
     "stability_amplitude": "Relative error of the linearized (small-oscillation) model against the initial "
                            "amplitude, log-log, beside the slope-2 theory ((r/l)^2): read off the largest amplitude "
                            "at which the cheap model is good enough.",

@@ -15,6 +15,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from matplotlib.lines import Line2D
 
 from references.registry import BUILTIN
 
@@ -271,8 +272,62 @@ def _amplitude(plot, out_dir):
     return path, _caption(F.sentence(f"{plot['scene']}: a/l = {a.min():.3g} to {a.max():.3g}", *facts), "amplitude")
 
 
+def _region(plot, out_dir):
+    """Stability regions in the complex plane of ``z = h lambda`` (data of
+    :func:`validation.stability.region.region_plot`): classical methods'
+    ``|R(z)| = 1`` (solid) left, partitioned methods' ``rho(M(z)) = 1 +
+    margin`` on ``q'' = lambda^2 q`` (dashed) right, each method's stable
+    interval of the imaginary axis as a bar beside the axis."""
+    d = plot["data"]
+    groups = [(key, d[key]) for key in ("classical", "partitioned") if d[key]]
+    fig = F.new_figure(F.SIZE_TALL)
+    F.suptitle(fig, f"{plot['scene']}: stability regions in the complex plane of z = h lambda; bars: the stable "
+                    f"interval of the imaginary axis")
+    axes = fig.subplots(1, len(groups), squeeze=False,
+                        width_ratios=[3.0 if k == "classical" else 1.4 for k, _ in groups])[0]
+    handles, facts, used = [], [], set()
+    spare = [c for c in F.plt_colors(10) if c not in {col for col, _ in F.all_styles().values()}] + F.plt_colors(10)
+    for ax, (key, regions) in zip(axes, groups):
+        part = key == "partitioned"
+        x_span = float(regions[0]["x"][-1] - regions[0]["x"][0])
+        for k, r in enumerate(regions):
+            color = F.solver_style(r["name"])[0]
+            if F.solver_style(r["name"]) == F.UNKNOWN_STYLE or color in used:  # a method with no colour of its own
+                color = next((c for c in spare if c not in used), color)
+            used.add(color)
+            level = 1.0 + (d["rho_margin"] if part else 0.0)
+            ax.contour(r["x"], r["y"], r["amp"], levels=[level], colors=[color], linestyles="--" if part else "-",
+                       linewidths=1.3)
+            y_star = r["interval"]
+            if math.isfinite(y_star) and y_star > 0:  # the bar, offset so that equal intervals stay apart
+                off = (1 if part else -1) * 0.014 * x_span * (k + 1)
+                ax.plot([off, off], [-y_star, y_star], color=color, lw=3.0, alpha=0.75, solid_capstyle="butt")
+            text = (f"|Im z| <= {r['crossing']:.7f}" if math.isfinite(y_star) and y_star > 0 else
+                    "no interval" if y_star == 0 else "the whole axis")
+            handles.append(Line2D([], [], color=color, ls="--" if part else "-", lw=1.3,
+                                  label=f"{r['name']}: {text}"))
+            on_axis = part and float(np.nanmin(r["amp"])) >= 1.0 - 1e-9
+            facts.append(f"{r['name']} " + (f"stable for |Im z| <= {r['crossing']:.7f}" if y_star > 0 and
+                                             math.isfinite(y_star) else "on no interval of the imaginary axis"
+                                             if y_star == 0 else "on the whole imaginary axis")
+                         + (" and nowhere off it (det M = 1: symplectic)" if on_axis else ""))
+        ax.axhline(0.0, color="0.6", lw=0.6)
+        ax.axvline(0.0, color="0.6", lw=0.6)
+        ax.set_xlim(regions[0]["x"][0], regions[0]["x"][-1])
+        ax.set_ylim(-d["im_max"], d["im_max"])
+        if not part:
+            ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("Re z")
+        ax.set_ylabel("Im z")
+        ax.set_title("|R(z)| = 1 on y' = lambda y" if not part else
+                     f"q'' = lambda^2 q: rho(M(z)) = {1 + d['rho_margin']:g}", fontsize=F.FONT_SMALL)
+    F.legend_below(fig, handles, [h.get_label() for h in handles])
+    path = F.save(fig, out_dir, _stem(plot))
+    return path, _caption(F.sentence(f"{plot['scene']}", *facts), "region")
+
+
 KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "roundoff": _roundoff, "cost": _cost,
-         "large_n": _large_n, "amplitude": _amplitude}
+         "large_n": _large_n, "amplitude": _amplitude, "region": _region}
 
 
 def draw(plot: dict, out_dir) -> tuple[Path, str]:

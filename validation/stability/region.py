@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["RHO_MARGIN", "amplification", "axis_crossing", "region_data", "draw_regions", "main"]
+__all__ = ["RHO_MARGIN", "amplification", "axis_crossing", "region_data", "region_plot", "draw_regions", "main"]
 
 #: Spectral-radius margin of the dashed curve drawn around a partitioned method's interval.
 RHO_MARGIN = 0.05
@@ -130,6 +130,41 @@ def region_data(tab, re=(-4.0, 1.0), im=(-4.0, 4.0), n: int = 401) -> dict:
     Z = x[None, :] + 1j * y[:, None]
     return {"x": x, "y": y, "amp": amplification(tab, Z), "interval": imaginary_axis_boundary(tab),
             "crossing": axis_crossing(tab), "partitioned": tab.partitioned, "name": tab.name}
+
+
+def region_plot(scene_name: str, tabs, *, n: int = 241) -> dict:
+    """The report's stability-region figure of ``tabs`` as a plot description
+    of the stability study (``{"kind": "region", ...}``, drawn by
+    :func:`validation.stability.plots.draw`): per method its
+    :func:`region_data` on a window that holds every method's axis
+    interval (classical: ``Re z`` in ``[-4, 1]``; partitioned: ``[-0.6,
+    0.6]``, where the ``1 + RHO_MARGIN`` band lies).
+
+    Parameters
+    ----------
+    scene_name : str
+    tabs : sequence of rk4core.methods.Tableau
+        Named as the scene names them (``tab.name``), in legend order.
+    n : int
+        Grid points per axis.
+
+    Returns
+    -------
+    dict
+        ``data``: ``classical`` and ``partitioned``, lists of
+        :func:`region_data` dicts (``name`` the method); ``rho_margin``;
+        ``im_max`` the half-height of the window (dimensionless ``Im z``).
+    """
+    from rk4core.stability_function import imaginary_axis_boundary
+
+    finite = [b for b in map(imaginary_axis_boundary, tabs) if math.isfinite(b)]
+    im_max = max([3.5] + [1.2 * b for b in finite])
+    data = {"classical": [], "partitioned": [], "rho_margin": RHO_MARGIN, "im_max": im_max}
+    for tab in tabs:
+        re = (-0.6, 0.6) if tab.partitioned else (-4.0, 1.0)
+        data["partitioned" if tab.partitioned else "classical"].append(
+            region_data(tab, re=re, im=(-im_max, im_max), n=n))
+    return {"kind": "region", "scene": scene_name, "study": "region", "name": "region", "data": data}
 
 
 def draw_regions(tabs, path, *, n: int = 401) -> tuple[Path, str]:
