@@ -311,7 +311,7 @@ class EnergyWorkPrecision(_Table):
 
     periods: list[Annotated[float, Field(ge=1, le=1e6, allow_inf_nan=False)]] = _f(
         "horizons in periods of the slowest (linearized) mode, each from 1 to 1e6 (a repeat runs once); every "
-        "solver runs over each",
+        "solver runs over each; the bounded-energy check reads those of at least 100",
         "periods", [1e2, 1e4], default=list(EWP_PERIODS), min_length=1, max_length=4)
     steps: list[Annotated[int, Field(ge=2, le=4096)]] = _f(
         "steps per period of the fastest mode at which each fixed-step method runs (h = T_fast / n); the "

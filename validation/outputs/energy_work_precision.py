@@ -194,7 +194,7 @@ def draw(out_dir, job, scene) -> list:
 OUTPUT = Output(
     name="energy_work_precision", rank=125, plan_rank=80, measure_rank=80,
     when="never by default (long runs)",
-    what="max |E(t) - E0| / E_motion against RHS calls and wall time over horizons of "
+    what="the largest relative energy error over each run against RHS calls and wall time over horizons of "
          "`[energy_work_precision] periods` of the slowest mode, every solver: `energy_work_precision.csv`, its "
          "figure and the check that every symplectic method's energy stays bounded (growth exponent < 0.1)",
     plan=plan, measure=measure, execute={PURPOSE: execute}, draw={FIGURE: draw},
