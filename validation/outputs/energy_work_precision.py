@@ -181,14 +181,50 @@ def caption(scene_name, rows) -> str:
             + "; ".join(parts) + ".")
 
 
-def draw(out_dir, job, scene) -> list:
-    """``<scene>_energy_work_precision.png`` (:func:`validation.energy_figures.energy_work_precision`)."""
-    from validation import energy_figures
-    from validation.figures import Caption
+#: Line styles of the horizons, shortest first.
+HORIZON_STYLES = ("-", "--", ":", "-.")
 
-    rows = job.data["rows"]
-    path = energy_figures.energy_work_precision(out_dir, job.scene, rows)
-    return [(path, Caption(caption(job.scene, rows), FIGURE))]
+
+def figure(out_dir, scene_name, rows):
+    """``<scene>_energy_work_precision.png``: max |E(t) - E0| / E_motion against
+    RHS calls (left) and wall time (right), log-log, one line per (method,
+    horizon) in the report's house style (:mod:`validation.figures.style`),
+    markers at the method's steps or tolerances; rows that did not end ok are
+    left out. Returns ``(Path, Caption)``."""
+    import numpy as np
+
+    from validation.figures import Caption
+    from validation.figures import style as kit
+
+    fig = kit.new_figure()
+    kit.suptitle(fig, f"{scene_name}: energy work-precision over horizons in periods of the slowest mode")
+    ax_n, ax_t = fig.subplots(1, 2, sharey=True)
+    ok = [r for r in rows if r["status"] == "ok" and r["energy_drift_max"] > 0]
+    horizons = sorted({r["periods"] for r in rows})
+    for name in kit.in_palette_order(list(dict.fromkeys(r["solver"] for r in rows))):
+        color, marker = kit.solver_style(name)
+        for hi, per in enumerate(horizons):
+            mine = sorted((r for r in ok if r["solver"] == name and r["periods"] == per), key=lambda r: r["nfev"])
+            if not mine:
+                continue
+            e = np.array([r["energy_drift_max"] for r in mine])
+            for ax, key, lab in ((ax_n, "nfev", f"{name}, {per:g} periods"), (ax_t, "wall_s", None)):
+                ax.plot([r[key] for r in mine], e, marker=marker, ms=4, lw=1.2, color=color,
+                        ls=HORIZON_STYLES[hi % len(HORIZON_STYLES)], label=lab)
+    for ax, xl in ((ax_n, "right-hand-side calls"), (ax_t, "wall time (s, one run)")):
+        if ax.lines:
+            kit.log_axes(ax)
+        ax.set_xlabel(xl)
+    ax_n.set_ylabel("max |E(t) - E0| / E_motion")
+    if ok:
+        kit.legend_below(fig)
+    path = kit.save(fig, out_dir, f"{kit.slug(scene_name)}_energy_work_precision")
+    return path, Caption(caption(scene_name, rows), FIGURE)
+
+
+def draw(out_dir, job, scene) -> list:
+    """The output's figure (:func:`figure`)."""
+    return [figure(out_dir, job.scene, job.data["rows"])]
 
 
 OUTPUT = Output(
