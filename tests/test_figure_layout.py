@@ -36,6 +36,7 @@ from references.exact import modal_solution
 from validation import draw as D
 from validation import figures
 from validation.execute import modal_content
+from validation.outputs import energy_work_precision as EWP
 
 MIN_PT = 8.0
 
@@ -57,6 +58,24 @@ def _wp_rows():
     df["error_rel"] = df["error_max"]  # amplitude 1 m
     df["status"] = "ok"
     return df
+
+
+def _ewp_rows():
+    """energy-henon-heiles (measured 2026-11-26): two horizons, a fixed-step
+    method, a symplectic one and heyoka at its tolerances."""
+    rows = []
+    for per, scale in ((1e2, 1.0), (1e4, 100.0)):
+        for solver, sym, pts in (("rk4", False, ((3200, 0.95, 0.66), (6400, 0.156, 0.97), (12800, 5.7e-3, 0.99))),
+                                 ("stormer-verlet", True, ((801, 0.22, 0.04), (1601, 0.045, 0.0),
+                                                           (3201, 0.011, 0.0))),
+                                 ("heyoka", False, ((18376, 5.5e-7, 0.72), (28200, 5.2e-13, 0.82)))):
+            for n, e, k in pts:
+                rows.append(dict(scene="energy-henon-heiles", solver=solver, symplectic=sym, periods=per,
+                                 t_end=per * 2 * math.pi, h=math.nan, rtol=math.nan,
+                                 energy_drift_max=min(1.0, e * (scale if not sym else 1.0)),
+                                 energy_growth_exponent=k, nfev=int(n * scale), wall_s=1e-7 * n * scale,
+                                 status="ok"))
+    return rows
 
 
 def _conv_inputs():
@@ -209,6 +228,7 @@ BUILDERS = {
         for lab, c in (("rk4 h=0.001", 2e-12), ("symplectic-euler h=0.001", 3e-5), ("dop853 rtol=1e-12", 4e-13),
                        ("cvode-adams rtol=1e-12", 2e-11), ("cvode-bdf rtol=1e-12", 4e-10),
                        ("heyoka rtol=1e-12", 2e-14))})],
+    "energy_work_precision": lambda out: [EWP.figure(out, "energy-henon-heiles", _ewp_rows())],
     "modal_energy": lambda out: [figures.modal_energy(
         out, "fput-alpha", np.linspace(0, 12000, 600),
         {"rk4 h=0.5": np.vstack([0.55 + 0.45 * np.cos(np.linspace(0, 2 * np.pi, 600)),

@@ -37,7 +37,7 @@ def _section(heading: str):
     m = re.fullmatch(r'`\[params\]` of `model = "(\w+)"`', heading)
     if m:
         return f"params:{m.group(1)}"
-    m = re.fullmatch(r"`\[(initial|run|convergence|methods\.NAME|stability)\]`", heading)
+    m = re.fullmatch(r"`\[(initial|run|convergence|energy_work_precision|methods\.NAME|stability)\]`", heading)
     return m.group(1).split(".")[0] if m else None
 
 

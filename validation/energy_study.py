@@ -3,7 +3,9 @@
     python -m validation.energy_study SCENE... --out DIR [--periods 1e2 1e4] [--full] [--steps 8 16 32 64]
 
 The numbers come from :mod:`validation.energy_time`, the figures from
-:mod:`validation.energy_figures`; the default report does not run it.
+:mod:`validation.energy_figures`; the default report does not run it. A
+scene runs the same numbers in the report by listing the
+``energy_work_precision`` output (:mod:`validation.outputs.energy_work_precision`).
 """
 from __future__ import annotations
 

@@ -302,6 +302,25 @@ class MethodTable(_Table):
                             default=None, ge=0, default_text="counted")
 
 
+#: Horizons (periods of the slowest mode) and steps per fastest period of the
+#: ``energy_work_precision`` output (validation.energy_time.WP_HORIZONS; the CLI's steps).
+EWP_PERIODS = (1e2, 1e4)
+EWP_STEPS = (8, 16, 32, 64)
+
+
+class EnergyWorkPrecision(_Table):
+    """The energy work-precision output (`energy_work_precision` in run.outputs; docs/energy-over-time.md)."""
+
+    periods: list[Annotated[float, Field(ge=1, le=1e6, allow_inf_nan=False)]] = _f(
+        "horizons in periods of the slowest (linearized) mode, each from 1 to 1e6 (a repeat runs once); every "
+        "solver runs over each; the bounded-energy check reads those of at least 100",
+        "periods", [1e2, 1e4], default=list(EWP_PERIODS), min_length=1, max_length=4)
+    steps: list[Annotated[int, Field(ge=2, le=4096)]] = _f(
+        "steps per period of the fastest mode at which each fixed-step method runs (h = T_fast / n); the "
+        "adaptive references run at run.tolerances", "1", [16, 32], default=list(EWP_STEPS), min_length=1,
+        max_length=8)
+
+
 def _stability_field(p):
     """``(type, Field)`` of the ``[stability]`` key of row ``p`` of PARAMS."""
     number = Annotated[float, Field(ge=p.min, le=p.max)] if p.min is not None else float
@@ -356,6 +375,9 @@ def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
         run=(Run, _f("the runs and the outputs", "-", {"t_end": 1.0, "h": [0.1], "solvers": ["rk4"]})),
         convergence=(Convergence, _f("the convergence sweep", "-", {"t_end": 0.5}, default_factory=Convergence,
                                      default_text="the defaults below")),
+        energy_work_precision=(EnergyWorkPrecision, _f("the energy work-precision output's horizons and steps", "-",
+                                                       {"periods": [1e2, 1e4]}, default_factory=EnergyWorkPrecision,
+                                                       default_text="the defaults below")),
         methods=(dict[str, MethodTable], _f("the scene's own methods, [methods.NAME] (NAME: 1 to 40 of a-z 0-9 . - "
                                             "_, not a built-in's)", "-",
                                             {"ralston2": {"A": [["0", "0"], ["2/3", "0"]], "b": ["1/4", "3/4"]}},
@@ -720,7 +742,9 @@ def reference_markdown() -> str:
               "### Outputs\n", "`run.outputs` defaults to every output that applies to the model "
               "(`validation.scenes.default_outputs`); a chain above 5000 degrees of freedom gets only "
               "`stability` (every other output needs a dense eigensolve).\n", _outputs_table(), "",
-              "## `[convergence]`\n", _table(Convergence), "", "## `[methods.NAME]`\n",
+              "## `[convergence]`\n", _table(Convergence), "",
+              "## `[energy_work_precision]`\n", "Read only when run.outputs lists `energy_work_precision`.\n",
+              _table(EnergyWorkPrecision), "", "## `[methods.NAME]`\n",
               "Exactly one of a tableau (`A`, `b`, optional `c`; `A_v`, `b_v` make it partitioned), `python` or "
               "`command`; the last two need `order`.\n", _table(MethodTable), "",
               "## `[stability]`\n", "Declared from `validation.stability.params.PARAMS`; the same keys with their "

@@ -148,6 +148,8 @@ class Scene:
     path: Path | None = None
     output_dt: float = 0.0
     convergence: dict = field(default_factory=dict)
+    #: the ``[energy_work_precision]`` keys as written (the output applies the defaults)
+    energy_work_precision: dict = field(default_factory=dict)
     max_output_points: int | None = None
     #: sweep column -> value of this point (empty unless the file has ``[sweep]``)
     sweep: dict = field(default_factory=dict)
@@ -477,6 +479,7 @@ def _scene_from_dict(doc: dict, path) -> Scene:
                   h=h, tolerances=tolerances, solvers=list(run.solvers), outputs=outputs, quick=s.quick,
                   stability=stability, path=Path(path), output_dt=output_dt,
                   convergence=s.convergence.model_dump(exclude_unset=True),
+                  energy_work_precision=s.energy_work_precision.model_dump(exclude_unset=True),
                   max_output_points=run.max_output_points,
                   methods={k: dict(v) for k, v in doc.get("methods", {}).items()},
                   thesis_figures=s.thesis_figures)

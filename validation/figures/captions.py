@@ -59,6 +59,13 @@ GENERIC_CAPTIONS = {
                     "time, log-log (thick: running maximum, thin: instantaneous): a line of slope 1 is a steady "
                     "drift (RK4 loses energy at a rate set by (omega h)^6/72 per step), a flat band a bounded "
                     "error (symplectic methods).",
+    "energy_work_precision": "Largest relative energy error max |E(t) - E0| / E_motion over the run against "
+                             "right-hand-side calls (left) and wall time (right), log-log, one line per method and "
+                             "horizon (solid: the shortest, dashed, dotted: longer ones), markers at its steps or "
+                             "tolerances: a longer horizon moves a line right by the ratio of the horizons; a "
+                             "symplectic method's lines stay at the same height (bounded error), RK4's and an "
+                             "adaptive reference's rise with the horizon (secular drift); the lowest line at a given "
+                             "cost keeps the energy best for that work.",
     "modal_energy": "Energy in each of the lowest linear modes as a fraction of the energy of the motion "
                     "(E0 - V at equilibrium), against time: "
                     "started in mode 1, an FPUT chain shares its energy with a few low modes and then returns "
