@@ -82,6 +82,7 @@ def test_references_ran_on_the_rhs_they_were_given(tiny_output):
                          tiny_output, flags=re.MULTILINE), tiny_output
 
 
+@pytest.mark.slow
 def test_heyoka_startup_benchmark_prints_its_three_medians():
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_heyoka_startup.py"), "--rounds", "1"],
                           cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -58,6 +58,7 @@ def test_models_of_one_class_with_other_parameters_have_their_own_constants():
     assert b._gershgorin_w2() == b._compute_gershgorin_w2()
 
 
+@pytest.mark.slow
 def test_a_new_model_at_a_freed_address_gets_its_own_constants():
     # A cache keyed on id() would hand a model built where a dead one lived
     # that one's modes: CPython reuses freed addresses at once.

@@ -219,6 +219,12 @@ def test_boundary_crosses_the_imaginary_axis():
     assert axis_crossing(METHODS["rk4"]) == pytest.approx(2.8284271, abs=1e-6)
     assert axis_crossing(METHODS["heun3"]) == pytest.approx(math.sqrt(3), abs=1e-6)
     assert axis_crossing(METHODS["euler"]) == 0.0
+
+
+@pytest.mark.slow
+def test_drawn_crossing_equals_the_exact_boundary_for_every_method():
+    from validation.stability.region import axis_crossing
+
     # the drawn function against the exact boundary (Sturm sequences in exact arithmetic: 21 s of this
     # test's 30 are blanes-moan6's, whose 15-digit decimals make large rationals)
     for name, tab in METHODS.items():

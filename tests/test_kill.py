@@ -218,6 +218,7 @@ def test_an_interrupted_run_exits_even_when_a_thread_would_hold_the_exit(code):
     assert r.returncode == code and r.stdout == "settled\n", (r.returncode, r.stdout, r.stderr)
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_run_is_a_retry_or_a_failed_row_not_a_traceback(setup, tmp_path):
     """kill -9 of one local worker process (what the OOM killer does) while
     the plan runs: its pool is replaced, the run finishes (exit 0, or 1 when

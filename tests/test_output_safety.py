@@ -221,6 +221,7 @@ def test_a_held_lock_is_exit_3_and_nothing_is_touched(tmp_path, scene, capsys):
     assert _tree(tmp_path) == before
 
 
+@pytest.mark.slow
 def test_two_concurrent_runs_one_waits_out_the_other(tmp_path):
     """Run A holds the lock for its whole run; B started meanwhile gets exit 3 and
     touches nothing of A's (the bug: B deleted A's temporary directory)."""

@@ -60,6 +60,7 @@ def test_warm_starts_every_worker_and_run_uses_the_callers_pools_and_leaves_them
     assert pools.general is None and pools.lane is None
 
 
+@pytest.mark.slow
 def test_figures_are_drawn_in_workers_when_run_all_is_not_the_main_module(tmp_path):
     """Under ``python -m cProfile`` the main module is cProfile's: a figure
     job submitted as a function of ``run_all`` run as a script could not be

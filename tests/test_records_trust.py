@@ -192,6 +192,7 @@ def test_an_arrays_file_linked_to_dev_zero_is_not_read(tmp_path):
 
 
 # -- the command line ---------------------------------------------------------------------------
+@pytest.mark.slow
 def test_resume_reruns_what_changed_and_equals_a_fresh_run(tmp_path, monkeypatch):
     paths = _scenes(tmp_path)
     out = tmp_path / "out"
@@ -227,6 +228,7 @@ def test_resume_reruns_what_changed_and_equals_a_fresh_run(tmp_path, monkeypatch
     assert not store.exists()
 
 
+@pytest.mark.slow
 def test_leftover_records_refuse_a_plain_rerun_and_fresh_moves_them_aside(tmp_path, monkeypatch):
     paths = _scenes(tmp_path)[1:]  # the plain scene
     out = tmp_path / "out"
