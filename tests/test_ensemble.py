@@ -185,3 +185,34 @@ def test_import_loads_neither_numba_nor_jax():
             "print('numba' in sys.modules, 'jax' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "False"]
+
+
+def test_stability_map_boundary_is_2_8284_along_the_mass_ratio_axis():
+    from rk4core.batch.maps import RK4_IMAGINARY_LIMIT, stability_map
+
+    model = chain([0.815, 3.099])
+    values = 0.815 * np.geomspace(0.1, 10.0, 12)  # masses[1] over masses[0] from 0.1 to 10
+    h = np.linspace(0.035, 0.23, 40)
+    y0 = [0.005, -0.003, 0.0, 0.0]
+    rk4 = stability_map(model, "masses[1]", values, h, y0=y0)
+    dh = h[1] - h[0]
+    assert not np.isnan(rk4.h_max).any() and (rk4.h_max < h[-1]).all()  # the boundary lies inside the grid
+    # largest stable grid step: omega_max h at most 2.8284, the next grid step past it
+    assert (rk4.z_max <= RK4_IMAGINARY_LIMIT).all()
+    assert (RK4_IMAGINARY_LIMIT - rk4.z_max < rk4.omega_max * dh).all()
+    # a method with another stability function has another boundary (sqrt(3) on the imaginary axis)
+    heun3 = stability_map(model, "masses[1]", values[-3:], h, y0=y0, method="heun3")
+    assert (np.abs(heun3.z_max - np.sqrt(3.0)) < heun3.omega_max * dh).all()
+
+
+def test_float32_floor_grows_like_sqrt_n_eps32():
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4core.batch.maps import float32_floor
+
+    y0 = np.random.default_rng(1).uniform(-0.01, 0.01, (16, 4))
+    n = np.array([100, 10000])
+    floor = float32_floor(chain([0.815, 3.099]), y0, 10.0, n)
+    eps32 = float(np.finfo(np.float32).eps)
+    assert floor[1] > 3 * floor[0]  # grows with the step count
+    ratio = floor / (np.sqrt(n) * eps32)
+    assert ((ratio > 0.2) & (ratio < 5.0)).all(), ratio
