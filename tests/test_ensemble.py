@@ -216,3 +216,28 @@ def test_float32_floor_grows_like_sqrt_n_eps32():
     assert floor[1] > 3 * floor[0]  # grows with the step count
     ratio = floor / (np.sqrt(n) * eps32)
     assert ((ratio > 0.2) & (ratio < 5.0)).all(), ratio
+
+
+@pytest.mark.parametrize("name, params, swept", [
+    ("planar4", {"m": 1.0, "k": 10.0, "l": 1.0}, "k"),
+    ("oscillator2d", {"m": 1.0, "kx": 10.0, "ky": 20.0}, "ky"),
+    ("pendulums", {"m": 1.0, "length": 1.0, "g": 9.81, "k": 5.0}, "length"),
+    ("triangle", {"m": 1.0, "k": 10.0, "side": 1.0}, "side"),
+])
+def test_every_two_dof_model_per_instance(name, params, swept):
+    # the exact (nonlinear) planar models and the potential-defined ones: each
+    # instance with its own parameter, against rk4core.solve on that instance
+    model = rk4core.make_model(name, params)
+    rng = np.random.default_rng(2)
+    y0 = rng.uniform(-0.1, 0.1, (4, 2 * model.n_dof))
+    values = rng.uniform(0.5, 2.0, 4)
+    values[2] = params[swept]  # equal numbers can print another force (shared constants): a second structure
+    # every other parameter as model.params() gives it (pendulums: the separation the base length implied)
+    ref = np.stack([rk4core.solve(rk4core.make_model(name, {**model.params(), swept: values[b]}).rhs, (0.0, 1.0), y0[b],
+                                  h=0.01, method="stormer-verlet").y.T for b in range(4)])
+    res = ensemble(model, y0, (0.0, 1.0), h=0.01, method="stormer-verlet", params={swept: values}, backend="numba")
+    assert np.array_equal(res.y, ref)
+    if pytest.importorskip("jax", reason="jax is not installed (the gpu extra)"):
+        res = ensemble(model, y0, (0.0, 1.0), h=0.01, method="stormer-verlet", params={swept: values},
+                       backend="jax")
+        assert _rel(res.y, ref) <= 1e-13

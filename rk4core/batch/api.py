@@ -153,7 +153,8 @@ def _split_key(key: str):
 
 
 def instance_parameters(model, params: Mapping | None, B: int):
-    """Per-instance kernel numbers of ``model`` under ``params``.
+    """Per-instance kernel numbers of ``model`` under ``params``, grouped by
+    the structure of the compiled force.
 
     Parameters
     ----------
@@ -168,16 +169,17 @@ def instance_parameters(model, params: Mapping | None, B: int):
 
     Returns
     -------
-    fp : ndarray, shape (B, n_fp)
-        The force kernel's float parameters per instance.
-    mass : ndarray, shape (B, n_dof)
-        Masses per instance (kg, or the model's inertia units).
-    kern : ForceKernel
-        The base model's kernel (its structure is shared by every instance).
+    list of (index, fp, mass, kern)
+        One entry per force structure: ``index`` (ndarray of int) the
+        instances, ``fp`` (len(index), n_fp) the kernel's float parameters,
+        ``mass`` (len(index), n_dof) the masses (kg, or the model's inertia
+        units), ``kern`` a kernel of that structure. One entry unless the
+        numbers change the printed force (a potential model's constants
+        share one slot when two are equal, so equal values give another
+        text); each structure compiles its own loop.
 
     Each distinct parameter row builds the model once (``type(model)(**p)``,
-    so the model's own checks apply); a row that changes the kernel's
-    structure (its text) is refused.
+    so the model's own checks apply, refusals naming the instance).
     """
     from ..fast import force_kernel
 
@@ -188,7 +190,7 @@ def instance_parameters(model, params: Mapping | None, B: int):
     fp0 = np.ascontiguousarray(kern.fp, dtype=np.float64)
     mass0 = np.ascontiguousarray(model.mass, dtype=np.float64)
     if not params:
-        return np.tile(fp0, (B, 1)), np.tile(mass0, (B, 1)), kern
+        return [(np.arange(B), np.tile(fp0, (B, 1)), np.tile(mass0, (B, 1)), kern)]
     if not isinstance(params, Mapping):
         raise ValueError(f"`params` must be a mapping of parameter names to arrays, got {type(params).__name__}")
     base = model.params()
@@ -201,6 +203,8 @@ def instance_parameters(model, params: Mapping | None, B: int):
         current = base[name]
         if i is not None and (not isinstance(current, list) or i >= len(current)):
             raise ValueError(f"`params` key {key!r}: {name} has no element {i}")
+        if i is None and (isinstance(current, (bool, str)) or current is None):
+            raise ValueError(f"`params` key {key!r} is not a numeric parameter of {model.name}")
         col = _parameter_column(key, value, B)
         if i is None and isinstance(current, list):
             if col.shape[1] not in (1, len(current)):
@@ -212,9 +216,8 @@ def instance_parameters(model, params: Mapping | None, B: int):
     table = np.concatenate([c[3] for c in cols], axis=1)
     rows, inverse = np.unique(table, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
-    fp_rows = np.empty((rows.shape[0], fp0.shape[0]))
-    mass_rows = np.empty((rows.shape[0], mass0.shape[0]))
-    structure = (kern.key(), kern.scalar_key() if kern.has_scalar() else None, kern.ip.tobytes())
+    structures: dict = {}  # structure -> (kern, row numbers, fp rows, mass rows)
+    row_group = np.empty(rows.shape[0], dtype=np.int64)
     for r, row in enumerate(rows):
         p = {k: (list(v) if isinstance(v, list) else v) for k, v in base.items()}
         j = 0
@@ -228,19 +231,28 @@ def instance_parameters(model, params: Mapping | None, B: int):
                 p[name] = [float(v) for v in vals] if w > 1 else [float(vals[0])] * len(p[name])
             else:
                 p[name] = float(vals[0])
-        b = int(np.flatnonzero(inverse == r)[0])
         try:
             m = type(model)(**p)
         except ValueError as e:
-            raise ValueError(f"`params` of instance {b}: {e}") from None
+            raise ValueError(f"`params` of instance {int(np.flatnonzero(inverse == r)[0])}: {e}") from None
         k = force_kernel(m)
-        if k is None or (k.key(), k.scalar_key() if k.has_scalar() else None, k.ip.tobytes()) != structure \
-                or k.fp.shape != fp0.shape or m.mass.shape != mass0.shape:
-            raise ValueError(f"`params` of instance {b} change the structure of {model.name}'s force "
-                             f"(only numbers may differ between instances)")
-        fp_rows[r] = k.fp
-        mass_rows[r] = m.mass
-    return np.ascontiguousarray(fp_rows[inverse]), np.ascontiguousarray(mass_rows[inverse]), kern
+        if k is None or m.mass.shape != mass0.shape:
+            raise ValueError(f"`params` of instance {int(np.flatnonzero(inverse == r)[0])} give {model.name} "
+                             f"no compiled force of its size")
+        key = (k.key(), k.scalar_key() if k.has_scalar() else None, k.ip.tobytes(), k.fp.shape)
+        g = structures.setdefault(key, (k, [], [], []))
+        row_group[r] = list(structures).index(key)
+        g[1].append(r)
+        g[2].append(np.asarray(k.fp, dtype=np.float64))
+        g[3].append(np.asarray(m.mass, dtype=np.float64))
+    groups = []
+    for gi, (k, rnums, fps, masses) in enumerate(structures.values()):
+        local = np.full(rows.shape[0], -1, dtype=np.int64)
+        local[np.asarray(rnums)] = np.arange(len(rnums))
+        index = np.flatnonzero(row_group[inverse] == gi)
+        at = local[inverse[index]]
+        groups.append((index, np.ascontiguousarray(np.stack(fps)[at]), np.ascontiguousarray(np.stack(masses)[at]), k))
+    return groups
 
 
 def _growth_bounds(y0: np.ndarray, max_growth, y_scale):
@@ -333,7 +345,7 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
     step = (t1 - t0) / N
     t_eval = check_t_eval(t_eval, t0, t1)
     chunk = _check_chunk(chunk)
-    fp, mass, kern = instance_parameters(model, params, B)
+    groups = instance_parameters(model, params, B)
     bound, pending = _growth_bounds(y, max_growth, y_scale)
     from ..fast.solve import _output_points
 
@@ -347,17 +359,22 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
             raise ValueError("`t_eval` must hold grid times t0 + i h with backend='jax' "
                              "(off-grid output is cubic Hermite on the numba backend only)")
         from . import _jax as impl
-    per_instance = 8 * (fp.shape[1] + mass.shape[1] + 4 * n + (len(tab.b) + 4) * n + kern.work_size)
-    if chunk is None:
-        chunk = max(1, min(B, CHUNK_BYTES // max(per_instance, 1)))
     ys = np.full((B, rows, n), np.nan)
     n_done = np.zeros(B, dtype=np.int64)
     status = np.zeros(B, dtype=np.int64)
-    for lo in range(0, B, chunk):
-        hi = min(B, lo + chunk)
-        d, s = impl.run(tab, kern, fp[lo:hi], mass[lo:hi], y[lo:hi], t0, step, N, idx, theta,
-                        ys[lo:hi], bound[lo:hi].copy(), pending[lo:hi].copy(), dtype=dtype)
-        n_done[lo:hi], status[lo:hi] = d, s
+    for index, fp, mass, kern in groups:
+        per_instance = 8 * (fp.shape[1] + mass.shape[1] + 4 * n + (len(tab.b) + 4) * n + kern.work_size)
+        size = chunk or max(1, min(index.size, CHUNK_BYTES // max(per_instance, 1)))
+        whole = index.size == B  # one structure: write the result in place
+        for lo in range(0, index.size, size):
+            hi = min(index.size, lo + size)
+            sel = index[lo:hi]
+            out = ys[lo:hi] if whole else np.full((hi - lo, rows, n), np.nan)
+            d, s = impl.run(tab, kern, fp[lo:hi], mass[lo:hi], y[sel], t0, step, N, idx, theta, out,
+                            bound[sel].copy(), pending[sel].copy(), dtype=dtype)
+            if not whole:
+                ys[sel] = out
+            n_done[sel], status[sel] = d, s
     t_fail = np.full(B, np.nan)
     failed = status != 0
     if failed.any():
