@@ -22,17 +22,24 @@ parameter, its units). Distributions:
   their Cartesian product (the first key varies slowest), repeated over the
   random draws: ``size`` must then be a multiple of the product.
 
-Not wired into the scene pipeline yet (no output of the report reads it):
-:func:`draw_instances` and the statistics below are the pieces it will call.
+Two more keys configure the ``stability_map`` output and are not drawn:
+``map_h = { low, high, n, scale }`` (s: the grid of steps, as a ``grid``
+entry) and ``map_steps`` (steps per run, default 2000); the map's other axis
+is the table's one ``grid`` key over a ``params.*`` value
+(:func:`map_settings`). The scene pipeline reads the table through the
+``ensemble`` and ``stability_map`` outputs (``validation/outputs/``).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["draw_instances", "error_statistics", "stability_map_figure", "DISTRIBUTIONS"]
+__all__ = ["draw_instances", "error_statistics", "stability_map_figure", "map_settings", "DISTRIBUTIONS",
+           "MAP_KEYS"]
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "log-uniform": ("low", "high"),
                  "grid": ("low", "high", "n")}
+#: Keys of ``[ensemble]`` that configure the stability map (not drawn per instance).
+MAP_KEYS = ("map_h", "map_steps")
 
 
 def _field(key, name=None):
@@ -137,7 +144,7 @@ def draw_instances(table, model, x, v=None):
         raise ValueError(f"`ensemble.size` must be an integer from 1 to 10^8, got {size!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise ValueError(f"`ensemble.seed` must be a non-negative integer, got {seed!r}")
-    entries = [(k, s) for k, s in table.items() if k not in ("size", "seed")]
+    entries = [(k, s) for k, s in table.items() if k not in ("size", "seed", *MAP_KEYS)]
     if not entries:
         raise ValueError("`ensemble` must draw at least one quantity ('initial.x[0]', 'params.NAME', ...)")
     n = model.n_dof
@@ -179,6 +186,44 @@ def draw_instances(table, model, x, v=None):
         else:
             params[name if i is None else f"{name}[{i}]"] = col
     return y0, params
+
+
+def map_settings(table, model):
+    """The stability map an ``[ensemble]`` table asks for.
+
+    Returns
+    -------
+    param : str
+        The model parameter of the table's one ``grid`` key (``"masses[1]"``).
+    values : ndarray
+        Its grid points (the parameter's units).
+    h : ndarray
+        ``map_h``'s grid of steps (s), increasing.
+    n_steps : int
+        ``map_steps`` (default 2000).
+
+    Raises
+    ------
+    ValueError
+        One line naming the field (``ensemble.map_h``, ``ensemble.map_steps``, ...).
+    """
+    spec = table.get("map_h")
+    if not isinstance(spec, dict):
+        raise ValueError(f"`ensemble.map_h` must be a table like {{ low = 0.01, high = 0.2, n = 100 }}, got {spec!r}")
+    h = _grid_points("map_h", spec)
+    if not ((h > 0).all() and (np.diff(h) > 0).all()):
+        raise ValueError(f"`ensemble.map_h` must be positive and increasing, got {spec!r}")
+    n_steps = table.get("map_steps", 2000)
+    if isinstance(n_steps, bool) or not isinstance(n_steps, int) or not 1 <= n_steps <= 10 ** 6:
+        raise ValueError(f"`ensemble.map_steps` must be an integer from 1 to 10^6, got {n_steps!r}")
+    grids = [k for k, s in table.items() if k not in ("size", "seed", *MAP_KEYS)
+             and isinstance(s, dict) and s.get("dist") == "grid"]
+    if len(grids) != 1 or not grids[0].startswith("params."):
+        raise ValueError(f"`ensemble` must have exactly one grid key over a 'params.NAME' value for the stability "
+                         f"map, got {grids!r}")
+    head, name, i = _index(grids[0])
+    values = _grid_points(grids[0], table[grids[0]])
+    return (name if i is None else f"{name}[{i}]"), values, h, n_steps
 
 
 def _stats(a):
