@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["draw_instances", "error_statistics", "stability_map_figure", "map_settings", "DISTRIBUTIONS",
+__all__ = ["draw_instances", "error_statistics", "instance_errors", "stability_map_figure", "map_settings",
+           "DISTRIBUTIONS",
            "MAP_KEYS"]
 
 DISTRIBUTIONS = {"uniform": ("low", "high"), "normal": ("mean", "std"), "log-uniform": ("low", "high"),
@@ -226,6 +227,11 @@ def map_settings(table, model):
     return (name if i is None else f"{name}[{i}]"), values, h, n_steps
 
 
+def statistics(a):
+    """``{"median", "p95", "max"}`` of ``a`` (its units)."""
+    return _stats(a)
+
+
 def _stats(a):
     a = np.asarray(a, dtype=float)
     return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)), "max": float(np.max(a))}
@@ -253,6 +259,31 @@ def error_statistics(model, result, y0, params=None):
         max_t |y_exact|_inf`` (dimensionless), the energy error ``max_t |E -
         E0| / E0``.
     """
+    errs, eerrs, failed = instance_errors(model, result, y0, params)
+    if not errs.size:
+        return {"error": None, "energy_error": None, "failed": failed}
+    return {"error": _stats(errs), "energy_error": _stats(eerrs), "failed": failed}
+
+
+def instance_errors(model, result, y0, params=None, built=None):
+    """Per instance that reached the end, the error and the relative energy
+    error of :func:`error_statistics` (before the statistics).
+
+    Parameters
+    ----------
+    model, result, y0, params
+        As :func:`error_statistics`.
+    built : dict, optional
+        Parameter row -> model, filled as rows are built (pass one dict to
+        several calls on chunks of one ensemble: one build per distinct row).
+
+    Returns
+    -------
+    errors, energy_errors : ndarray
+        Dimensionless, one per instance with ``status == 0``, in instance order.
+    failed : int
+        Instances that did not reach the end.
+    """
     from references.exact import modal_solution
 
     if not model.linear:
@@ -261,9 +292,14 @@ def error_statistics(model, result, y0, params=None):
 
     ok = np.flatnonzero(result.status == 0)
     errs, eerrs = [], []
+    built = {} if built is None else built  # parameter row -> model: one build (and eigensolve) per row
     for b in ok:
         m = model
-        if params:
+        row = tuple(x for col in params.values()
+                    for x in np.asarray(np.asarray(col)[b], dtype=float).reshape(-1).tolist()) if params else ()
+        if row in built:
+            m = built[row]
+        elif params:
             p = {k: (list(x) if isinstance(x, list) else x) for k, x in model.params().items()}
             for key, col in params.items():
                 name, i = _split_key(key)
@@ -274,14 +310,12 @@ def error_statistics(model, result, y0, params=None):
                     p[name] = [float(c) for c in val]
                 else:
                     p[name] = float(val) if not isinstance(p[name], list) else [float(val)] * len(p[name])
-            m = type(model)(**p)
+            m = built[row] = type(model)(**p)
         exact = modal_solution(m, y0[b])(result.t).T
         errs.append(np.max(np.abs(result.y[b] - exact)) / np.max(np.abs(exact)))
         e = m.energy(result.y[b].T)
         eerrs.append(np.max(np.abs(e - e[0])) / abs(e[0]) if e[0] != 0 else np.nan)
-    if not errs:
-        return {"error": None, "energy_error": None, "failed": int(result.status.size)}
-    return {"error": _stats(errs), "energy_error": _stats(eerrs), "failed": int(result.status.size - ok.size)}
+    return np.asarray(errs, float), np.asarray(eerrs, float), int(result.status.size - ok.size)
 
 
 def stability_map_figure(smap, path, *, limit=None, label=None):

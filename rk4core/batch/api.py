@@ -293,7 +293,7 @@ def _check_chunk(value):
 
 
 def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, backend="auto",
-             dtype="float64", max_growth=1e8, y_scale=None, chunk=None) -> EnsembleResult:
+             dtype="float64", max_growth=1e8, y_scale=None, chunk=None, groups=None) -> EnsembleResult:
     """Integrate ``B`` instances of ``model`` with one fixed-step method, as one batch.
 
     Parameters
@@ -326,6 +326,10 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
         (``y_scale``: (n,) or (B, n)).
     chunk : int, optional
         Instances per chunk (default from :data:`CHUNK_BYTES`).
+    groups : list, optional
+        ``instance_parameters(model, params, B)`` computed before (a
+        stability map reuses it over its steps: each distinct parameter
+        row builds a model, milliseconds each); ``params`` is then ignored.
 
     Returns
     -------
@@ -345,7 +349,7 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
     step = (t1 - t0) / N
     t_eval = check_t_eval(t_eval, t0, t1)
     chunk = _check_chunk(chunk)
-    groups = instance_parameters(model, params, B)
+    groups = instance_parameters(model, params, B) if groups is None else groups
     bound, pending = _growth_bounds(y, max_growth, y_scale)
     from ..fast.solve import _output_points
 

@@ -106,10 +106,13 @@ def stability_map(model, param: str, values, h, *, y0, n_steps: int = 2000, meth
         raise ValueError(f"`n_steps` must be an integer >= 1, got {n_steps!r}")
     y = np.tile(np.asarray(y0, dtype=float), (values.size, 1))
     stable = np.zeros((values.size, hs.size), dtype=bool)
+    from .api import instance_parameters
+
+    groups = instance_parameters(model, {param: values}, values.size)  # the models, built once for every h
     for j, step in enumerate(hs):
         t1 = n_steps * step
         r = ensemble(model, y, (0.0, t1), h=step, method=method, params={param: values}, t_eval=[0.0, t1],
-                     max_growth=max_growth, backend=backend)
+                     max_growth=max_growth, backend=backend, groups=groups)
         stable[:, j] = r.status == 0
     omega = np.array([m.frequency_range()[1] for m in _instance_models(model, param, values)])
     first_bad = np.where(stable.all(axis=1), hs.size, np.argmin(stable, axis=1))

@@ -4,6 +4,8 @@ from validation.outputs import Output, Table
 
 #: The statistics of each quantity (median, 95th percentile, maximum over the instances).
 STATS = ("median", "p95", "max")
+#: Bytes of states one batch may hold (the rest runs in further chunks of instances).
+CHUNK_BYTES = 256 * 2**20
 
 
 def _methods(scene) -> list:
@@ -25,15 +27,29 @@ def execute(scene, spec, quick):
     import numpy as np
 
     import rk4core
-    from validation.ensemble import draw_instances, error_statistics
+    from validation.ensemble import draw_instances, instance_errors, statistics
     from validation.records import RunRecord
 
     model = scene.build_model()
     y0, params = draw_instances(scene.ensemble, model, scene.initial_x, scene.initial_v)
     t_eval = np.asarray(scene.t_eval(), float)
-    res = rk4core.ensemble(model, y0, (0.0, scene.t_end), h=spec.setting, method=scene.method(spec.solver).tableau,
-                           params=params or None, t_eval=t_eval, backend="numba")
-    st = error_statistics(model, res, y0, params or None)
+    tableau = scene.method(spec.solver).tableau
+    B = y0.shape[0]
+    # chunks of instances so the batch's states (B x rows x n float64) stay within CHUNK_BYTES
+    chunk = max(1, int(CHUNK_BYTES // (8 * t_eval.size * y0.shape[1])))
+    errs, eerrs, failed, built = [], [], 0, {}
+    for lo in range(0, B, chunk):
+        sl = slice(lo, min(B, lo + chunk))
+        part = {k: np.asarray(v)[sl] for k, v in params.items()}
+        res = rk4core.ensemble(model, y0[sl], (0.0, scene.t_end), h=spec.setting, method=tableau,
+                               params=part or None, t_eval=t_eval, backend="numba")
+        e, ee, f = instance_errors(model, res, y0[sl], part or None, built)
+        errs.append(e)
+        eerrs.append(ee)
+        failed += f
+    errs, eerrs = np.concatenate(errs), np.concatenate(eerrs)
+    st = {"error": statistics(errs) if errs.size else None,
+          "energy_error": statistics(eerrs) if eerrs.size else None, "failed": failed}
     values = {"instances": int(y0.shape[0]), "failed": st["failed"]}
     for q in ("error", "energy_error"):
         for k in STATS:

@@ -61,14 +61,17 @@ def measure(m) -> None:
                                         "n_steps": rec.values["n_steps"]})
         limit = _limit(spec.solver)
         if limit is not None:
-            # the boundary lies between the largest stable grid step and the next one, at every value
-            inside = np.isfinite(h_next)
-            ok = inside & (omega * h_max <= limit) & (limit < omega * h_next)
-            worst = float(np.nanmax(np.abs(omega * h_max - limit) / (omega * np.diff(h).max())))
+            # the boundary found (the largest stable grid step) lies within one grid spacing of the limit at
+            # every value; just past the limit |R| - 1 is small, so a step there may stay inside the growth
+            # bound for map_steps steps: z_max may exceed the limit by less than a cell
+            cell = omega * (h_next - h_max)
+            ok = np.isfinite(cell) & (np.abs(omega * h_max - limit) < cell)
+            worst = float(np.nanmax(np.abs(omega * h_max - limit) / cell)) if np.isfinite(cell).any() else np.nan
             m.res.check(f"stability map boundary {spec.solver}", bool(ok.all()),
-                        f"{m.scene.name}: omega_max h = {limit:.4f} lies outside the grid cell of the largest "
-                        f"stable step at {int((~ok).sum())} of {ok.size} values of {param}",
-                        measured=float(np.nanmax(omega * h_max)), expected=limit, tolerance=worst)
+                        f"{m.scene.name}: the largest stable omega_max h is not within one grid spacing of "
+                        f"{limit:.4f} at {int((~ok).sum())} of {ok.size} values of {param} (worst: "
+                        f"{worst:.2f} spacings)",
+                        measured=worst, expected=0.0, tolerance=1.0)
         # the map is the output's point: drawn whatever run.outputs says (as the stability study's figures)
         m.res.figures.append(FigureJob(m.scene.name, "stability_map", {
             "param": param, "values": values, "h": h, "stable": np.asarray(a["stable"], bool),
