@@ -24,4 +24,8 @@ def __getattr__(name):
     if name == "ivp":
         import importlib
         return importlib.import_module(".ivp", __name__)
+    # rk4core.ensemble (rk4core.batch) is imported on first use; numba and jax only when a batch runs
+    if name in ("ensemble", "EnsembleResult"):
+        from . import batch
+        return getattr(batch, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -352,6 +352,9 @@ def _by_params(value, handler):
         raise _rule(e.problem, at=e.field[len("stability"):], **shown) from None
 
 
+#: A key of ``[ensemble]`` (validation.ensemble).
+_ENSEMBLE_KEY = r"^(size|seed|map_h|map_steps|initial\.[xv]\[(0|[1-9][0-9]*)\]|params\.[A-Za-z_][A-Za-z0-9_]*(\[(0|[1-9][0-9]*)\])?)$"
+
 SweepValue = Union[bool, int, float, Annotated[str, Field(pattern=f"^{WORD}$")]]
 
 
@@ -385,6 +388,13 @@ def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
                                             schema={"propertyNames": {"pattern": f"^{_METHOD_NAME.pattern}$"}})),
         stability=(Annotated[Stability, WrapValidator(_by_params)],
                    _f("the stability study", "-", {"studies": ["boundary"]}, default=None, default_text="none")),
+        ensemble=(dict[str, Any], _f("an ensemble of instances run as one batch: size, seed, one distribution per "
+                                     "`initial.x[i]`, `initial.v[i]` or numeric `params.NAME[i]`, and the stability "
+                                     "map's `map_h`, `map_steps` ([ensemble] below)", "-",
+                                     {"size": 100, "seed": 1,
+                                      "params.masses[1]": {"dist": "log-uniform", "low": 0.1, "high": 10.0}},
+                                     default=None, default_text="none",
+                                     schema={"propertyNames": {"pattern": _ENSEMBLE_KEY}})),
         sweep=(dict[str, Annotated[list[SweepValue], Field(min_length=1)]],
                _f("one scene per point of the product of these lists: \"PATH\" = [values] ([sweep] below)", "-",
                   {"params.masses[1]": [0.5, 1.0]}, default=None, default_text="none",
@@ -696,6 +706,21 @@ with `allow_code=True`. Before you allow a scene from someone else, read it: sea
 they import).
 """
 
+_ENSEMBLE = """\
+## `[ensemble]`
+
+`size` instances (1 to 10^8) of the scene's model, one batch (`rk4core.ensemble`, numba backend), for the
+`ensemble` and `stability_map` outputs. `seed` (default 0) seeds `numpy.random.default_rng`. Every other key
+is `"initial.x[i]"`, `"initial.v[i]"`, `"params.NAME"` or `"params.NAME[i]"` (a numeric parameter) = a
+distribution: `{ dist = "uniform", low, high }`, `{ dist = "normal", mean, std }`,
+`{ dist = "log-uniform", low, high }` (low > 0) or `{ dist = "grid", low, high, n }` (`scale = "log"`
+optional; or `values = [...]`; grid keys form a product repeated over the draws, `size` a multiple of it).
+What is not drawn keeps the scene's `[initial]` and `[params]`. The stability map reads `map_h = { low,
+high, n }` (its steps, s; `scale = "log"` optional), `map_steps` (steps per run, default 2000) and the one
+grid key over a parameter. Details: [ensembles.md](ensembles.md).
+
+"""
+
 _SWEEP = """\
 ## `[sweep]`
 
@@ -748,7 +773,7 @@ def reference_markdown() -> str:
               "Exactly one of a tableau (`A`, `b`, optional `c`; `A_v`, `b_v` make it partitioned), `python` or "
               "`command`; the last two need `order`.\n", _table(MethodTable), "",
               "## `[stability]`\n", "Declared from `validation.stability.params.PARAMS`; the same keys with their "
-              "ranges: [stability-params.md](stability-params.md).\n", _table(Stability), "", _SWEEP]
+              "ranges: [stability-params.md](stability-params.md).\n", _table(Stability), "", _ENSEMBLE, _SWEEP]
     return "\n".join(parts)
 
 

@@ -159,6 +159,8 @@ class Scene:
     methods: dict = field(default_factory=dict)
     #: the thesis figures the scene reproduces (``thesis_figures``; "" for none)
     thesis_figures: str = ""
+    #: the ``[ensemble]`` table as written (validation.ensemble), or None
+    ensemble: dict | None = None
 
     def __post_init__(self):
         if not self.base:
@@ -474,6 +476,7 @@ def _scene_from_dict(doc: dict, path) -> Scene:
     if stability is not None:
         stability["method"] = _stability_method(path, stability.get("method"), run.solvers, methods)
 
+    ensemble = _ensemble(path, doc.get("ensemble"), outputs, model, x, v)
     scene = Scene(name=s.name, description=s.description, model=s.model, params=dict(doc["params"]),
                   initial_x=[float(a) for a in x], initial_v=[float(a) for a in v], t_end=t_end,
                   h=h, tolerances=tolerances, solvers=list(run.solvers), outputs=outputs, quick=s.quick,
@@ -482,9 +485,34 @@ def _scene_from_dict(doc: dict, path) -> Scene:
                   energy_work_precision=s.energy_work_precision.model_dump(exclude_unset=True),
                   max_output_points=run.max_output_points,
                   methods={k: dict(v) for k, v in doc.get("methods", {}).items()},
-                  thesis_figures=s.thesis_figures)
+                  thesis_figures=s.thesis_figures, ensemble=ensemble)
     scene.__dict__["_registry"] = methods
     return scene
+
+
+def _ensemble(path, table, outputs, model, x, v):
+    """The ``[ensemble]`` table, checked against the model (every draw and the
+    stability map's keys), or the :class:`SceneError` naming its field."""
+    import re
+
+    from .ensemble import draw_instances, map_settings
+
+    wants = [o for o in ("ensemble", "stability_map") if o in outputs]
+    if table is None:
+        if wants:
+            raise SceneError(path, "run.outputs", f"`{wants[0]}` needs an [ensemble] table", wants[0])
+        return None
+    try:
+        draw_instances(table, model, x, v)
+        if "stability_map" in outputs:
+            map_settings(table, model)
+    except ValueError as e:
+        m = re.match(r"`([^`]+)` (.*)", str(e))
+        raise SceneError(path, m.group(1) if m else "ensemble", m.group(2) if m else str(e)) from None
+    if wants and not getattr(model, "linear", False):
+        raise SceneError(path, "run.outputs", f"`{wants[0]}` needs a linear model (each instance's exact modal "
+                         f"solution, omega_max); {model.name} is nonlinear", wants[0])
+    return dict(table)
 
 
 def _first_order_start(path, model_name, model, ini, doc):
