@@ -1,6 +1,6 @@
 """Hand-written numba RK4 loops: the yardsticks of ``bench_rk4.py``.
 
-Both do the arithmetic of the loops ``rk4core.fast`` generates, in the same
+Both do the arithmetic of the loops ``rk4h.fast`` generates, in the same
 order, so their final states must equal the generated loops' bit for bit
 (the benchmark checks it):
 
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# The classical RK4 tableau as rk4core.methods stores it (floats).
+# The classical RK4 tableau as rk4h.methods stores it (floats).
 A10 = A21 = 0.5
 A32 = 1.0
 B0 = B3 = 1.0 / 6.0

@@ -7,15 +7,15 @@
 
 For every CVODE solver and tolerance of each scene (``--scenes``, default
 ``thesis_2dof_case1 lattice100 pendulums_beats``), on the scene's own output
-grid and absolute-tolerance rule (``references.solvers.integrate``'s), it runs
+grid and absolute-tolerance rule (``rk4h.references.solvers.integrate``'s), it runs
 
-- new: ``references.solvers.cvode.run_cvode`` (one ``CVODE.solve`` call), and
+- new: ``rk4h.references.solvers.cvode.run_cvode`` (one ``CVODE.solve`` call), and
 - old: the one-step loop, ``cvode._run_cvode(..., one_step_loop=True)`` (the
   fallback kept in the module), or ``run_cvode`` of the file given by ``--old``,
 
 ``--repeats`` times each, alternated (old, new, old, new, ...), after one
 untimed warm-up run of each. Printed per row: ``error_max`` of each against
-the scene's truth (``references.truth``, exact-modal or real128; the disk
+the scene's truth (``rk4h.references.truth``, exact-modal or real128; the disk
 cache is used), n_steps, nfev, the median wall time (``wall_s``: the
 integration only) of each with its spread (min-max) and the ratio old/new.
 The last lines are the results:
@@ -47,11 +47,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the repository, installed or not
 
-from references.solvers import absolute_tolerance  # noqa: E402
-from references.solvers import cvode  # noqa: E402
-from references.truth import reference_solution  # noqa: E402
-from validation import metrics  # noqa: E402
-from validation.scenes import SCENE_DIR, load_scene  # noqa: E402
+from rk4h.references.solvers import absolute_tolerance  # noqa: E402
+from rk4h.references.solvers import cvode  # noqa: E402
+from rk4h.references.truth import reference_solution  # noqa: E402
+from rk4h.validation import metrics  # noqa: E402
+from rk4h.validation.scenes import SCENE_DIR, load_scene  # noqa: E402
 
 SCENES = ("thesis_2dof_case1", "lattice100", "pendulums_beats")
 CVODE = ("cvode-adams", "cvode-bdf")
@@ -59,8 +59,8 @@ CVODE = ("cvode-adams", "cvode-bdf")
 
 def load_old(path):
     """``run_cvode`` of an older ``references/solvers/cvode.py`` (its relative
-    imports resolved inside ``references.solvers``)."""
-    spec = importlib.util.spec_from_file_location("references.solvers._cvode_old", path)
+    imports resolved inside ``rk4h.references.solvers``)."""
+    spec = importlib.util.spec_from_file_location("rk4h.references.solvers._cvode_old", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod.run_cvode

@@ -4,7 +4,7 @@
     python benchmarks/bench_dop853.py --scenes henon_heiles --repeats 1
 
 For each scene (``validation/scenes/<name>.toml``, its whole horizon and output
-grid, the absolute-tolerance rule of ``references.solvers.integrate``) and
+grid, the absolute-tolerance rule of ``rk4h.references.solvers.integrate``) and
 rtol, both runs are made ``--repeats`` times, alternated, after one untimed
 run of each (numba compile or cache load excluded, printed apart). Printed
 per row: steps and nfev of each, the largest state difference over the
@@ -31,10 +31,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from references.solvers import absolute_tolerance  # noqa: E402
-from references.solvers.dop853 import run_dop853, run_dop853_compiled  # noqa: E402
-from validation.execute import problem  # noqa: E402
-from validation.scenes import load_scene  # noqa: E402
+from rk4h.references.solvers import absolute_tolerance  # noqa: E402
+from rk4h.references.solvers.dop853 import run_dop853, run_dop853_compiled  # noqa: E402
+from rk4h.validation.execute import problem  # noqa: E402
+from rk4h.validation.scenes import load_scene  # noqa: E402
 
 SCENES = ("thesis_2dof_case1", "henon_heiles", "planar4_case2", "chain10_mode2")
 RTOLS = (1e-4, 1e-7, 1e-10, 1e-13)

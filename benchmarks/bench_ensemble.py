@@ -1,4 +1,4 @@
-"""Benchmark of ``rk4core.ensemble`` (issue 31): ns per instance-step.
+"""Benchmark of ``rk4h.ensemble`` (issue 31): ns per instance-step.
 
     python benchmarks/bench_ensemble.py                 # B = 1, 1e3, 1e5, 1e6
     python benchmarks/bench_ensemble.py --tiny          # same code, small sizes (seconds)
@@ -39,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
-import rk4core  # noqa: E402
+import rk4h  # noqa: E402
 
 BEGIN, END = "<!-- bench_ensemble:begin -->", "<!-- bench_ensemble:end -->"
 MASSES, SPRINGS = [0.815, 3.099], [41.5, 138.0, 157.8]
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
         if text.count(BEGIN) != 1 or text.count(END) != 1:
             print(f"error: --docs {a.docs}: needs exactly one {BEGIN} and one {END} line", file=sys.stderr)
             return 2
-    model = rk4core.make_model("chain", {"masses": MASSES, "springs": SPRINGS})
+    model = rk4h.make_model("chain", {"masses": MASSES, "springs": SPRINGS})
     h = 1e-3
     import numba
 
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
         cells = {}
         for backend in a.backends:
             def run():
-                return rk4core.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend=backend)
+                return rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend=backend)
             t = time.perf_counter()
             r = run()
             first = time.perf_counter() - t

@@ -12,7 +12,7 @@ alternating between the two trees so machine drift hits both alike, and
 prints both medians and their ratio. CPU seconds are the figure to read on
 a shared machine; wall seconds include what the neighbours take.
 ``--minor-ticks`` instead compares the log axes' minor ticks at 2 and 5 of
-each decade (``validation.figures.style.MINOR_SUBS``, the default) with
+each decade (``rk4h.validation.figures.style.MINOR_SUBS``, the default) with
 matplotlib's 2..9 in this tree. Run::
 
     python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks]
@@ -42,7 +42,7 @@ root, rounds, minor = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 sys.path[:0] = [str(root), str(root / "tests")]
 import test_figure_layout as layout
 if minor != "default":
-    from validation.figures import style
+    from rk4h.validation.figures import style
     style.MINOR_SUBS = None if minor == "2..9" else (2.0, 5.0)
 out = {}
 with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:

@@ -1,4 +1,4 @@
-"""Per-call fixed cost of ``references.solvers.integrate`` (issue 29).
+"""Per-call fixed cost of ``rk4h.references.solvers.integrate`` (issue 29).
 
     python benchmarks/bench_fixed_cost.py              # 300 calls per figure (about 10 s)
     python benchmarks/bench_fixed_cost.py --calls 30   # quicker, noisier
@@ -15,7 +15,7 @@ figure is a median (microseconds) of wall-clock times of whole calls.
     warmed loop, validated ``y0``) already computed: the per-call cost.
 ``rk4 cold``
     The same call with every model's constants forgotten before it
-    (``rk4core.models.base.clear_constants`` and the warm-up record), i.e.
+    (``rk4h.models.base.clear_constants`` and the warm-up record), i.e.
     what each call cost when nothing was kept (an estimate of the behaviour
     before issue 29, measured in this run).
 ``fixed``
@@ -25,7 +25,7 @@ figure is a median (microseconds) of wall-clock times of whole calls.
     ``integrate("cvode-adams", ...)`` and the median of its ``wall_s`` (the
     solver's own clock); ``fixed = warm - solver`` (target: at most 0.5 ms).
 ``truth hit``
-    ``references.truth.reference_solution`` answered from the memory cache.
+    ``rk4h.references.truth.reference_solution`` answered from the memory cache.
 ``CPU clock``
     ``loop`` and ``rk4 warm`` again, timed by the process's CPU clock
     (``time.process_time``): on a shared machine less inflated by other
@@ -48,14 +48,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository, installed or not
 
-import rk4core  # noqa: E402
-import rk4core.fast as fast  # noqa: E402
-import rk4core.fast.solve as fast_solve  # noqa: E402
-from references.solvers import integrate  # noqa: E402
-from references.truth import reference_solution  # noqa: E402
-from rk4core.fast.codegen import array_kernel  # noqa: E402
-from rk4core.models.base import clear_constants  # noqa: E402
-from rk4core.solver import growth_bound, step_count  # noqa: E402
+import rk4h  # noqa: E402
+import rk4h.fast as fast  # noqa: E402
+import rk4h.fast.solve as fast_solve  # noqa: E402
+from rk4h.references.solvers import integrate  # noqa: E402
+from rk4h.references.truth import reference_solution  # noqa: E402
+from rk4h.fast.codegen import array_kernel  # noqa: E402
+from rk4h.models.base import clear_constants  # noqa: E402
+from rk4h.solver import growth_bound, step_count  # noqa: E402
 
 N = 32
 T = np.array([0.0, 0.05])
@@ -83,7 +83,7 @@ def direct_loop(model, y0):
     """The compiled loop and its arguments as ``solve_model`` prepares them
     for ``t_eval = T``, step ``H`` (all output points on the grid)."""
     kern = fast.force_kernel(model)
-    tab = rk4core.get_method("rk4")
+    tab = rk4h.get_method("rk4")
     n = step_count((float(T[0]), float(T[-1])), H)
     step = (T[-1] - T[0]) / n
     idx = np.array([0, n], dtype=np.int64)
@@ -106,8 +106,8 @@ def main(argv=None) -> int:
         print(f"bench_fixed_cost: `--calls` must be >= 3, got {args.calls}", file=sys.stderr)
         return 2
     calls = args.calls
-    fput = rk4core.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1), "alpha": 0.25})
-    lin = rk4core.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
+    fput = rk4h.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1), "alpha": 0.25})
+    lin = rk4h.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
     y0 = fput.state(0.1 * np.sin(0.3 * np.arange(N)))
 
     print(f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())} on {os.cpu_count()} CPUs; "

@@ -2,7 +2,7 @@
 
 In each of ``--rounds`` fresh Python processes (heyoka imported first,
 untimed): the wall time of a first ``taylor_adaptive`` compile of the
-2-DOF case-1 model (``references.solvers.taylor.get_integrator``'s system),
+2-DOF case-1 model (``rk4h.references.solvers.taylor.get_integrator``'s system),
 then of the same system compiled again after it; and, in a second set of
 processes, of that compile after the untimed start-up
 ``taylor.start_up`` (what the harness times as ``compile_s``). Prints the
@@ -22,8 +22,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 _CHILD = """
 import time, heyoka as hy, numpy as np
-from references.solvers import taylor
-from validation.scenes import load_scene, SCENE_DIR
+from rk4h.references.solvers import taylor
+from rk4h.validation.scenes import load_scene, SCENE_DIR
 model = load_scene(SCENE_DIR / "thesis_2dof_case1.toml").build_model()
 _, sys_ = taylor.scaled_system(model)
 pars = taylor._pars(model, (1.0, 1.0))

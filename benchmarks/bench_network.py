@@ -14,7 +14,7 @@ Two planar networks of harmonic springs:
     (k = 40 N/m) between horizontal and vertical neighbours, each edge mass
     tied to an anchor one spacing outside the grid: 1860 springs.
 
-For each: the generated loop (``rk4core.fast.solve_model`` with only the
+For each: the generated loop (``rk4h.fast.solve_model`` with only the
 final state kept, ``record_every = n``) and ``_tight.rk4_network`` (the same
 arithmetic in the same order, nothing else: no output rows, no instability
 test) over the same ``n`` RK4 steps from the same state; medians of
@@ -39,15 +39,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _tight  # noqa: E402
 
-import rk4core  # noqa: E402
-import rk4core.fast as fast  # noqa: E402
+import rk4h  # noqa: E402
+import rk4h.fast as fast  # noqa: E402
 
 
 def web():
     params = {"dim": 2, "masses": [0.5, 0.8], "positions": [-0.2, 0.0, 0.2, 0.0],
               "anchors": [-0.6, 0.0, 0.0, 0.5, 0.6, 0.0, 0.0, -0.5],
               "springs": [[0, 2, 30.0], [0, 3, 20.0], [1, 4, 30.0], [1, 5, 20.0], [0, 1, 50.0]]}
-    return rk4core.make_model("network", params), np.array([0.02, 0.0, -0.01, 0.015, 0.0, 0.0, 0.0, 0.0])
+    return rk4h.make_model("network", params), np.array([0.02, 0.0, -0.01, 0.015, 0.0, 0.0, 0.0, 0.0])
 
 
 def lattice(side: int = 30, d: float = 0.1):
@@ -67,7 +67,7 @@ def lattice(side: int = 30, d: float = 0.1):
                 if not (0 <= i + di < side and 0 <= j + dj < side):
                     anchors += [(j + dj) * d, (i + di) * d]
                     springs.append([node(i, j), n + len(anchors) // 2 - 1, 40.0])
-    model = rk4core.make_model("network", {"dim": 2, "masses": [0.5] * n, "positions": positions,
+    model = rk4h.make_model("network", {"dim": 2, "masses": [0.5] * n, "positions": positions,
                                            "springs": springs, "anchors": anchors})
     rng = np.random.default_rng(1)
     y0 = np.concatenate([0.01 * d * rng.standard_normal(2 * n), np.zeros(2 * n)])

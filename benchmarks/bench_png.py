@@ -1,7 +1,7 @@
 """What writing a figure's PNG costs: colour quantization and zlib settings.
 
 Renders every figure kind of ``tests/test_figure_layout.py`` once (the
-canvas ``validation.figures.style.save`` would store), then stores each canvas as
+canvas ``rk4h.validation.figures.style.save`` would store), then stores each canvas as
 a 256-colour palette PNG with median-cut or fast-octree quantization and
 with PNG's ``optimize`` search or zlib level 6. Prints, per setting, the
 median milliseconds per figure over rounds, the mean file size, and the
@@ -27,12 +27,12 @@ sys.path.insert(0, str(REPO / "tests"))
 
 
 def _canvases():
-    """The RGB canvases of every figure kind, as ``validation.figures.style.save`` draws them
+    """The RGB canvases of every figure kind, as ``rk4h.validation.figures.style.save`` draws them
     (caught by its ``SAVE_HOOK`` after the final draw)."""
     from PIL import Image
 
     import test_figure_layout as layout
-    from validation.figures import style
+    from rk4h.validation.figures import style
 
     out, original = [], style.SAVE_HOOK
 

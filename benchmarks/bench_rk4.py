@@ -13,11 +13,11 @@ but not enforced (timings are machine- and load-dependent).
    (thesis Table 4.1), every step stored by both.
 2. Matched error: over ``t_end`` s of 2-DOF case 1 with outputs every 0.1 s,
    error_max (all state components, all outputs) against the modal solution
-   ``references.exact``. For each solver the largest setting with
+   ``rk4h.references.exact``. For each solver the largest setting with
    ``error_max <= 1e-6``, found the same way: bisection on log h for RK4 (to
    0.1 %), on log rtol for DOP853 and heyoka (to 1 %, their shared
    absolute-tolerance rule). All three are then timed through
-   ``references.solvers.integrate`` (its ``wall_s``: the integration only,
+   ``rk4h.references.solvers.integrate`` (its ``wall_s``: the integration only,
    numba loading and heyoka's JIT apart); ratio of the median wall times.
 3. Chains of N equal masses (walls both) from N = 10 up: time per step per mass,
    its max/min ratio and the exponent p of a least-squares fit cost ~ N^p.
@@ -37,7 +37,7 @@ but not enforced (timings are machine- and load-dependent).
 7. References on the compiled right-hand side: DOP853 and CVODE (Adams, BDF)
    over ``--periods`` periods of the slowest mode of 2-DOF case 1 at
    ``--rtol`` (absolute tolerance by the shared rule), wall time (``wall_s``,
-   the integration only) with ``references.solvers.base.compiled_rhs`` vs the
+   the integration only) with ``rk4h.references.solvers.base.compiled_rhs`` vs the
    numpy ``model.rhs`` (``model.__dict__["_references_rhs"] = None``), runs
    of the two alternated; the cost of one right-hand-side call of each. Both
    runs must give the same ``nfev`` and ``y`` to 1e-12 relative (``check``).
@@ -57,13 +57,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository, installed or not
 
-import rk4core
-import rk4core.fast as fast
-from references.exact import modal_solution
-from references.solvers import absolute_tolerance, integrate
-from references.solvers.base import compiled_rhs
-from references.solvers.cvode import run_cvode
-from references.solvers.dop853 import run_dop853
+import rk4h
+import rk4h.fast as fast
+from rk4h.references.exact import modal_solution
+from rk4h.references.solvers import absolute_tolerance, integrate
+from rk4h.references.solvers.base import compiled_rhs
+from rk4h.references.solvers.cvode import run_cvode
+from rk4h.references.solvers.dop853 import run_dop853
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_tight.py, beside this script
 import _tight  # noqa: E402
@@ -158,7 +158,7 @@ def largest_rk4_step(model, y0, t_eval, exact_y):
 def loosest_tolerance(solver, model, y0, t_eval, exact_y):
     """Loosest rtol (to 1 % , bisection on log rtol between 1e-3 and 1e-13)
     with ``error_max <= TARGET_ERROR`` (absolute tolerance by the shared rule
-    of ``references.solvers.integrate``), its error and the compile time of
+    of ``rk4h.references.solvers.integrate``), its error and the compile time of
     the first run (heyoka's JIT)."""
 
     def err(rtol):
@@ -180,7 +180,7 @@ def bench_matched_error(model, y0, t_end, repeats):
     t_eval = np.linspace(0.0, t_end, int(round(t_end / 0.1)) + 1)
     exact_y = modal_solution(model, y0)(t_eval)
     print(f"matched error_max <= {TARGET_ERROR:g} over {t_end:g} s, {t_eval.size} outputs "
-          f"(largest setting found by bisection; wall time through references.solvers.integrate, "
+          f"(largest setting found by bisection; wall time through rk4h.references.solvers.integrate, "
           f"median of {repeats}, compile/JIT apart):")
     settings = {"rk4": (*largest_rk4_step(model, y0, t_eval, exact_y), 0.0)}
     for solver in ("dop853", "heyoka"):
@@ -203,7 +203,7 @@ def bench_matched_error(model, y0, t_end, repeats):
 def bench_chains(sizes, work, repeats):
     per = []
     for N in sizes:
-        model = rk4core.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
+        model = rk4h.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
         y0 = np.zeros(2 * N)
         y0[: N] = 1e-3 * np.sin(np.pi * np.arange(1, N + 1) / (N + 1))  # lowest mode shape
         n = max(20, work // N)
@@ -287,7 +287,7 @@ def bench_tight_chains(sizes, seconds, repeats):
           f"loop alone = (call - one-step call) / steps):")
     ratios, all_same = [], True
     for N in sizes:
-        model = rk4core.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
+        model = rk4h.make_model("chain", {"masses": [1.0] * N, "springs": [1.0] * (N + 1)})
         mass, k = np.ascontiguousarray(model.mass, dtype=float), np.ascontiguousarray(model.k, dtype=float)
         y0 = np.zeros(2 * N)
         y0[:N] = 1e-3 * np.sin(np.pi * np.arange(1, N + 1) / (N + 1))  # lowest mode shape
@@ -345,7 +345,7 @@ def _per_call_us(fn, calls, repeats):
 
 def bench_references(periods, rtol, calls, repeats):
     """Section 7: DOP853 and CVODE on the compiled vs the numpy right-hand side."""
-    model = rk4core.make_model("chain", CASE1)  # its own object: the references cache the RHS on it
+    model = rk4h.make_model("chain", CASE1)  # its own object: the references cache the RHS on it
     y0 = model.state(X0)
     w_min = model.frequency_range()[0]
     t_end = periods * 2 * math.pi / w_min
@@ -425,7 +425,7 @@ def main(argv=None):
         _tight.compile_all()
         print(f"hand-written loops compile / cache load (apart, not in any timing): "
               f"{time.perf_counter() - start:.3f} s")
-    model = rk4core.make_model("chain", CASE1)
+    model = rk4h.make_model("chain", CASE1)
     y0 = model.state(X0)
     if "python" in sections:
         bench_python_loop(model, y0, cfg["python_steps"], repeats)

@@ -1,4 +1,4 @@
-"""CPU and wall time of every unit of the stability study (validation.stability.units).
+"""CPU and wall time of every unit of the stability study (rk4h.validation.stability.units).
 
     python benchmarks/bench_stability_units.py [--quick] [--scene NAME ...] [--fresh]
 
@@ -25,8 +25,8 @@ SCENES = ["stability_2dof", "stability_stiff_chain", "stability_large_n", "stabi
 
 
 def _one(name, unit, quick):
-    from validation.scenes import SCENE_DIR, load_scene
-    from validation.stability import run_unit
+    from rk4h.validation.scenes import SCENE_DIR, load_scene
+    from rk4h.validation.stability import run_unit
 
     scene = load_scene(SCENE_DIR / f"{name}.toml")
     c0, w0 = time.process_time(), time.perf_counter()
@@ -47,8 +47,8 @@ def main(argv=None):
         cpu, wall, bad = _one(args.scene[0], args.unit, args.quick)
         print(f"{cpu} {wall} {bad}")
         return 0
-    from validation.scenes import SCENE_DIR, load_scene
-    from validation.stability import units
+    from rk4h.validation.scenes import SCENE_DIR, load_scene
+    from rk4h.validation.stability import units
 
     total_cpu = total_wall = 0.0
     print(f"{'scene':24s} {'unit':28s} {'cpu_s':>8s} {'wall_s':>8s}  failed/false rows")

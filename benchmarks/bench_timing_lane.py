@@ -31,8 +31,8 @@ SCENES = ("thesis-2dof-case1", "pendulums-beats", "lattice100")
 
 def _burn(seconds):
     """Untimed work for ``seconds``: what a neighbour worker does."""
-    from references.solvers import integrate
-    from validation.scenes import load_scenes
+    from rk4h.references.solvers import integrate
+    from rk4h.validation.scenes import load_scenes
 
     scene = load_scenes(["lattice100"])[0]
     model, y0 = scene.build_model(), scene.y0()
@@ -50,8 +50,8 @@ def main(argv=None):
     p.add_argument("--rounds", type=int, default=5)
     args = p.parse_args(argv)
 
-    from validation import engine, plan
-    from validation.scenes import load_scenes
+    from rk4h.validation import engine, plan
+    from rk4h.validation.scenes import load_scenes
 
     scenes = load_scenes(list(SCENES))
     jobs = [(sc, s) for sc, s in plan.plan_all(scenes, figures=False, repeats=3) if s.timed]

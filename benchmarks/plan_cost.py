@@ -13,8 +13,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 
 def main():
-    from validation import budget, engine, plan
-    from validation.scenes import load_scenes
+    from rk4h.validation import budget, engine, plan
+    from rk4h.validation.scenes import load_scenes
 
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     quick = "--quick" in sys.argv

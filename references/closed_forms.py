@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from rk4core.validate import positive
+from rk4h.validate import positive
 
 __all__ = [
     "two_dof_frequencies", "two_dof_equal_k", "thesis_table_4_3",
@@ -168,7 +168,7 @@ def thesis_table_4_3() -> list[dict]:
         Keys ``case, m1, m2, k1, k2, k3, x0, omega_1, omega_2, f_max,
         omega_1_eig, omega_2_eig, f_max_eig``.
     """
-    from rk4core.models import Chain
+    from rk4h.models import Chain
 
     rows = []
     for p in TABLE_4_3_CASES:

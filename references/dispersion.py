@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from rk4core.validate import positive
+from rk4h.validate import positive
 
 __all__ = [
     "omega", "omega_0", "v_0", "phase_velocity", "group_velocity",
@@ -139,7 +139,7 @@ def gaussian_packet_group_velocity(kp0, sigma, m, k, d) -> float:
     """Speed (m/s) of the energy centroid of a right-moving Gaussian packet.
 
     The packet is ``u_j = Re[A exp(-(x_j - x0)^2 / (2 sigma^2)) exp(i kp0 (x_j - x0))]``
-    travelling right (``references.wavepacket.packet_state``). Its wave of
+    travelling right (``rk4h.references.wavepacket.packet_state``). Its wave of
     wavenumber ``K`` has amplitude ``psi_hat(K) ~ exp(-(K - kp0)^2 sigma^2 / 2)``
     and energy ``~ omega(K)^2 |psi_hat(K)|^2``, and travels at ``v_g(K)``; the
     energy centroid of a linear, non-reflecting chain moves at the

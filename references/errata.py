@@ -15,9 +15,9 @@ import math
 
 import numpy as np
 
-from references import closed_forms as cf
-from references import dispersion as disp
-from rk4core.models import Chain, Oscillator2D, Planar4
+from rk4h.references import closed_forms as cf
+from rk4h.references import dispersion as disp
+from rk4h.models import Chain, Oscillator2D, Planar4
 
 __all__ = ["errata_rows", "errata_markdown", "erratum_4_rows", "THESIS_PRINTED", "ERRATUM_4_READINGS"]
 
@@ -137,7 +137,7 @@ def errata_rows(with_wavepacket: bool = False) -> list[dict]:
     note = ("thesis column: d omega / dt, which is 0 for a wave of fixed frequency; corrected: "
             "d omega / d kp = d sqrt(k/m) cos(kp d/2) (eq. 2.54 is right)")
     if with_wavepacket:
-        from references.wavepacket import measure_group_velocity
+        from rk4h.references.wavepacket import measure_group_velocity
 
         wp = measure_group_velocity(kp, m=lat["m"], k=lat["k"], d=lat["d"])
         note += (f"; an RK4 wave packet (N = {wp.N}, sigma = {wp.sigma / lat['d']:g} d) measures "
@@ -163,11 +163,11 @@ _ASSUMPTION = ("ASSUMPTION (a reading, not a certainty): Code 03's printed `1` i
 
 
 def _y_ratio_3s(fun, y0, h=0.01, t_end=3.0) -> float:
-    """``y(t_end) / y(0)`` of an RK4 run (rk4core.solve) of ``fun`` from ``y0``."""
-    import rk4core
+    """``y(t_end) / y(0)`` of an RK4 run (rk4h.solve) of ``fun`` from ``y0``."""
+    import rk4h
 
     n = int(round(t_end / h))
-    res = rk4core.solve(fun, (0.0, t_end), np.asarray(y0, float), n_steps=n, method="rk4")
+    res = rk4h.solve(fun, (0.0, t_end), np.asarray(y0, float), n_steps=n, method="rk4")
     return float(res.y[1, -1] / y0[1]) if res.success else float("nan")
 
 
@@ -182,7 +182,7 @@ def erratum_4_rows() -> list[dict]:
     the Octave run); and the same with the physics' equations (the planar4
     model, dz4 repaired).
     """
-    from references.thesis_code import printed_code03_rhs
+    from rk4h.references.thesis_code import printed_code03_rhs
 
     m, k = 0.815, 41.5
     l1, l2 = ERRATUM_4_READINGS["digit"], ERRATUM_4_READINGS["letter"]

@@ -1,7 +1,7 @@
 """The reference ("truth") of a first-order ODE (``model.first_order``:
-:class:`rk4core.models.OdeModel`, :class:`rk4core.models.FunctionOde`).
+:class:`rk4h.models.OdeModel`, :class:`rk4h.models.FunctionOde`).
 
-``ode_reference(model, y0, t_eval)`` returns a :class:`references.truth.Truth`:
+``ode_reference(model, y0, t_eval)`` returns a :class:`rk4h.references.truth.Truth`:
 
 * the model's exact solution when it has one (``kind = "exact"``);
 * else the tightest reference the harness has for an arbitrary right-hand
@@ -63,7 +63,7 @@ def _key(model, y0, t) -> str:
 
 
 def _drift(model, y) -> float:
-    from rk4core.energy import relative_energy_error
+    from rk4h.energy import relative_energy_error
 
     if not model.has_invariant():
         return float("nan")
@@ -94,9 +94,9 @@ def _confirming_run(model, y0, t):
 def ode_reference(model, y0, t, Truth):
     """The reference trajectory of the first-order ``model`` from ``y0`` (at
     ``t[0]``) on the output times ``t`` (s), as a ``Truth`` (the class
-    :class:`references.truth.Truth`, passed in by the caller); see the
+    :class:`rk4h.references.truth.Truth`, passed in by the caller); see the
     module docstring. ``y0`` and ``t`` are checked by the caller
-    (:func:`references.truth.reference_solution`)."""
+    (:func:`rk4h.references.truth.reference_solution`)."""
     from .solvers import integrate
 
     key = _key(model, y0, t)

@@ -7,7 +7,7 @@ integrator"):
 
 ``tableau``
     An explicit Runge-Kutta method given by its Butcher tableau
-    (:func:`rk4core.methods.make_tableau`): order from the order conditions,
+    (:func:`rk4h.methods.make_tableau`): order from the order conditions,
     cost per step counting first-same-as-last reuse.
 ``partitioned``
     A partitioned tableau for ``y = [q, v]`` with ``dq/dt = v`` (symplectic
@@ -15,10 +15,10 @@ integrator"):
 ``python``
     ``"package.module:function"``, a step ``f(fun, t, y, h) -> y_next`` with
     a declared ``order``; run on the generic loop of
-    :mod:`references.solvers.stepper`, its right-hand-side calls counted.
+    :mod:`rk4h.references.solvers.stepper`, its right-hand-side calls counted.
 ``command``
     An external program run through the file protocol of
-    :mod:`rk4core.command` (problem in, trajectory out), with a declared
+    :mod:`rk4h.command` (problem in, trajectory out), with a declared
     ``order``.
 ``reference``
     ``dop853``, ``cvode-adams``, ``cvode-bdf``, ``heyoka``: adaptive, their
@@ -123,19 +123,19 @@ class Method:
         references).
     style : Style
     description : str
-    tableau : rk4core.methods.Tableau or None
+    tableau : rk4h.methods.Tableau or None
         For ``tableau`` and ``partitioned`` methods.
     target : str or None
         ``"package.module:function"`` of a ``python`` method.
     argv : tuple of str or None
         The command line of a ``command`` method, with the placeholders of
-        :mod:`rk4core.command`.
+        :mod:`rk4h.command`.
     definition : dict
         The scene's ``[methods.NAME]`` table as written (empty for built-ins);
         part of the scene's digest, so a changed definition reruns.
     adapter : str or None
         The runner of a ``reference`` (a key of
-        ``references.solvers.REFERENCE_RUNNERS``); None for the other kinds,
+        ``rk4h.references.solvers.REFERENCE_RUNNERS``); None for the other kinds,
         whose kind names their runner.
     implicit : bool
         Solves an implicit (Newton) system each step.
@@ -290,16 +290,16 @@ def _tableau_method(tab) -> Method:
                   _STYLES.get(tab.name, _USER_STYLES[0]), tab.description, tableau=tab)
 
 
-#: The tableaux of ``rk4core.methods.METHODS`` a scene may list without
+#: The tableaux of ``rk4h.methods.METHODS`` a scene may list without
 #: defining them: the thesis' three methods and Stormer-Verlet. The other
 #: tableaux of rk4core's library (``rk38``, ``heun3``, ``ralston``) serve
-#: ``rk4core.solve`` callers; a scene defines its own (the README's
+#: ``rk4h.solve`` callers; a scene defines its own (the README's
 #: ``[methods.rk38]`` example), so their names stay free for scenes.
 BUILTIN_TABLEAUX = ("rk4", "euler", "symplectic-euler", "stormer-verlet")
 
 
 def _builtins() -> dict[str, Method]:
-    from rk4core.methods import METHODS
+    from rk4h.methods import METHODS
 
     out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX}
     for name, text in _REFERENCE_TEXT.items():
@@ -307,7 +307,7 @@ def _builtins() -> dict[str, Method]:
     return out
 
 
-#: Every built-in method by name: the tableaux of ``rk4core.methods.METHODS``
+#: Every built-in method by name: the tableaux of ``rk4h.methods.METHODS``
 #: and the four adaptive references.
 BUILTIN: dict[str, Method] = _builtins()
 #: Names of the adaptive references.
@@ -351,7 +351,7 @@ def resolve(method, local: Mapping[str, Method] | None = None) -> Method:
 _TARGET = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*:[A-Za-z_][A-Za-z0-9_]*")
 _KEYS = {"A", "b", "c", "A_v", "b_v", "description", "python", "command", "order", "nfev_per_step",
          "kind", "a", "base", "gamma"}
-#: Keys of a ``kind = "splitting"`` / ``"composition"`` method (rk4core.geometric).
+#: Keys of a ``kind = "splitting"`` / ``"composition"`` method (rk4h.geometric).
 _GEOMETRIC_KEYS = {"splitting": ("a", "b"), "composition": ("base", "gamma")}
 _METHOD_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]{0,39}")
 
@@ -390,7 +390,7 @@ def method_from_table(name: str, table: Mapping, index: int = 0) -> Method:
     ``b_v`` make it partitioned; numbers or rational strings such as
     ``"1/3"``), ``python = "package.module:function"`` or ``command = [argv...]``;
     the last two need ``order``. Raises :class:`MethodError` naming the key."""
-    from rk4core.methods import make_tableau
+    from rk4h.methods import make_tableau
 
     if not isinstance(name, str) or not _METHOD_NAME.fullmatch(name):
         raise MethodError(str(name), "name", "must be 1 to 40 lowercase letters, digits, '.', '-' or '_'")
@@ -454,8 +454,8 @@ def methods_from_tables(tables: Mapping) -> dict[str, Method]:
 def _geometric_method(name: str, table: Mapping, index: int) -> Method:
     """A ``kind = "splitting"`` (``a``, ``b``) or ``kind = "composition"``
     (``base``, ``gamma``) method, converted to its partitioned tableau by
-    :mod:`rk4core.geometric`; ``kind = "tableau"`` is the plain tableau."""
-    from rk4core.geometric import composition_tableau, splitting_tableau
+    :mod:`rk4h.geometric`; ``kind = "tableau"`` is the plain tableau."""
+    from rk4h.geometric import composition_tableau, splitting_tableau
 
     kind = table.get("kind")
     allowed = ("tableau", "splitting", "composition")

@@ -2,10 +2,10 @@
 and compared with rk4core and with the truth.
 
 :func:`compare` runs every transcription in ``rk4core/thesis_code`` through
-the file protocol of :mod:`rk4core.command` (11 runs of ``octave-cli``, two
+the file protocol of :mod:`rk4h.command` (11 runs of ``octave-cli``, two
 at a time: about 5 s on 2 cores) and returns the rows of a ``thesis_code.csv`` table;
 :func:`errata` turns the consequences of the printed code's errors into
-rows of :func:`references.errata.errata_rows`' format.
+rows of :func:`rk4h.references.errata.errata_rows`' format.
 
 Programs and cases (``program``, ``variant``, ``case``)
 -------------------------------------------------------
@@ -31,7 +31,7 @@ Programs and cases (``program``, ``variant``, ``case``)
     listing's 0.001 s costs ten times the Octave time for the same
     findings), m = 0.815 kg, k = 41.5 N/m and
     Code 03's natural length l = 1 m (erratum 4: its printed ``1`` read as the
-    digit one, an assumption; :func:`references.errata.erratum_4_rows` gives
+    digit one, an assumption; :func:`rk4h.references.errata.erratum_4_rows` gives
     both readings' numbers); Tables 4.4 (x0 = 5 mm) and
     4.5 (x0 = 5 mm, y0 = 30 mm) and a probe from (0, 1 um) that measures the
     y-equation near the origin. Printed: dz4 = w*T1 + T2 + T3 + T4;
@@ -42,7 +42,7 @@ Quantities (``quantity``; ``value`` from the Octave run)
 ``diff_vs_rk4core_rel``
     max |octave - rk4core| over the outputs, positions over the largest
     |position| and velocities over the largest |velocity| of rk4core's run:
-    rk4core.solve with the program's method ("euler", "symplectic-euler",
+    rk4h.solve with the program's method ("euler", "symplectic-euler",
     "rk4") on the program's right-hand side (printed: a Python transcription
     of the printed equations, same operations; corrected: the harness'
     model) and the program's time labels. Expected 0; the tolerance is the
@@ -50,7 +50,7 @@ Quantities (``quantity``; ``value`` from the Octave run)
 ``error_vs_truth_m``
     max |q - q_truth| (m) over the outputs; the truth is the physics
     (modal superposition for the chains, heyoka in quadruple precision for
-    planar4: :mod:`references.truth`). Expected: the same for rk4core's run
+    planar4: :mod:`rk4h.references.truth`). Expected: the same for rk4core's run
     above (for ode45: none; the tolerance is then an upper bound).
 ``y_slope_origin_1/s2``, ``y_ratio_3s``
     (code03, y-probe) the coefficient lambda of y'' = lambda y near the
@@ -92,8 +92,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from scipy.linalg import eigh
 
-import rk4core
-from rk4core.models import Chain, Planar4
+import rk4h
+from rk4h.models import Chain, Planar4
 
 from .exact import modal_solution
 from .solvers.base import Status
@@ -242,7 +242,7 @@ def _twin(program, variant, model, y0, h, n):
         fun = printed_code03_rhs(p["m"], p["k"])
     else:
         fun = model.rhs
-    res = rk4core.solve(fun, (0.0, n * h), y0, n_steps=n, method=_METHOD[program])
+    res = rk4h.solve(fun, (0.0, n * h), y0, n_steps=n, method=_METHOD[program])
     y = res.y
     if program == "code02" and variant == "printed":  # rows = states after 0..n-1 steps, labelled h..n h
         return t_grid[1:], y[:, :-1], y
@@ -361,7 +361,7 @@ def _rows_of(key, case, run, runs):
         f"the harness' {model.name} model"
     d = _rel_diff(y, twin, nd) if status == "ok" else None
     rows.append(R("diff_vs_rk4core_rel", d, 0.0, bound,
-                  f"max |octave - rk4core| / amplitude; rk4core.solve(method={_METHOD[program]!r}) on {same}, "
+                  f"max |octave - rk4core| / amplitude; rk4h.solve(method={_METHOD[program]!r}) on {same}, "
                   f"h = {h:g} s, {n} steps"))
     twin_err = _pos_err(twin, _truth(model, y0, labels), nd)
     amp = float(np.max(np.abs(twin[:nd])))
@@ -453,13 +453,13 @@ def _rk4_error_code01_grid() -> float:
     if CASES is None:
         CASES = _cases()
     model, y0, h, n = CASES[("code01-ode45", "printed", "table-4.1")]
-    res = rk4core.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method="rk4")
+    res = rk4h.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method="rk4")
     return _pos_err(res.y, modal_solution(model, y0)(res.t), model.n_dof)
 
 
 def errata(rows: list[dict] | None = None, octave: str = "octave-cli") -> list[dict]:
     """The printed code's errors as computed errata, in the format of
-    :func:`references.errata.errata_rows` (keys ``item``, ``quantity``,
+    :func:`rk4h.references.errata.errata_rows` (keys ``item``, ``quantity``,
     ``thesis``, ``corrected``, ``note``): ``thesis`` is what the printed
     program's run gives, ``corrected`` what the corrected run gives, both
     measured here (``rows``: :func:`compare`'s, run when not given). A value

@@ -3,16 +3,16 @@
 ``reference_solution(model, y0, t_eval)`` returns a :class:`Truth`:
 
 * linear models (``model.linear``): the modal superposition of
-  :func:`references.exact.modal_solution` (``kind = "exact-modal"``), exact up
+  :func:`rk4h.references.exact.modal_solution` (``kind = "exact-modal"``), exact up
   to the double-precision evaluation of ``phi``, ``cos`` and ``sin``;
 * first-order models (any ODE, ``model.first_order``): the exact solution
   when the model has one, else DOP853 at its tightest tolerance confirmed by
-  a second reference (:mod:`references.ode_truth`);
+  a second reference (:mod:`rk4h.references.ode_truth`);
 * nonlinear models (planar4 and pendulums with ``linear=False``, triangle):
   heyoka's Taylor integrator in quadruple precision (``heyoka.real128``, 113-bit
   significand, eps = 1.9e-34) at ``tol = 1e-32`` (``kind = "heyoka-real128"``).
   It integrates the same expressions as the double-precision ``heyoka``
-  solver (:mod:`references.solvers.taylor`: the model's one ``_force`` code,
+  solver (:mod:`rk4h.references.solvers.taylor`: the model's one ``_force`` code,
   constants the same Python floats, state scaled by the tolerance rule's
   ``s``), so the only differences are precision and tolerance.
 
@@ -20,14 +20,14 @@
 remainder (``y + y_lo`` is the real128 result to about 1e-32 relative;
 ``Truth.y_ext()`` rebuilds it as a real128 array). ``energy_drift`` is
 ``max_t |E(t) - E(0)| / E_motion`` of the reference (``E_motion = E(0) -
-V(q*)``, :mod:`rk4core.energy`), evaluated in real128 for
+V(q*)``, :mod:`rk4h.energy`), evaluated in real128 for
 real128 runs (so it measures the integration, not double round-off) and in
 float64 for the modal solution (where it is the evaluation's round-off).
 
 Caching
 -------
 A truth is computed once per scene: results are kept in memory and on disk,
-in ``rk4core.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
+in ``rk4h.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
 ``$XDG_CACHE_HOME/rk4h/truth``, else ``~/.cache/rk4h/truth``: created 0700,
 verified to be a real directory owned by the user and closed to others). An
 explicit ``path`` is used as given, created 0700 when missing, and must pass
@@ -77,10 +77,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rk4core import cachedir
-from rk4core.cachedir import UntrustedCacheError
-from rk4core.energy import rest_energy
-from rk4core.validate import check_model_y0, check_output_times
+from rk4h import cachedir
+from rk4h.cachedir import UntrustedCacheError
+from rk4h.energy import rest_energy
+from rk4h.validate import check_model_y0, check_output_times
 
 from .exact import modal_solution
 from .solvers import check_model
@@ -178,7 +178,7 @@ def cache_dir(path=None) -> Path:
     ----------
     path : path-like, optional
         Used as given; created with mode 0700 when missing. Default:
-        ``rk4core.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
+        ``rk4h.cachedir.private_dir("truth")`` (``$RK4H_CACHE/truth``, else
         ``$XDG_CACHE_HOME/rk4h/truth``, else ``~/.cache/rk4h/truth``).
 
     Returns
@@ -187,7 +187,7 @@ def cache_dir(path=None) -> Path:
 
     Raises
     ------
-    rk4core.cachedir.UntrustedCacheError
+    rk4h.cachedir.UntrustedCacheError
         The directory (or, by default, the cache root) is a symbolic link, not
         owned by the user, open to group or others, or cannot be created.
     """
@@ -217,9 +217,9 @@ def definition_hash(model) -> str | None:
     """SHA-256 (hex) of the code that defines ``model``'s equations: the source
     of every class in ``type(model).__mro__`` (``object`` excepted) and of the
     module each is defined in, of the definitions they are built on
-    (:mod:`rk4core.models.network`, :mod:`rk4core.models.potential`, the
-    expression code :mod:`rk4core.expr`), and of the code turning ``_force``
-    into heyoka's equations (:func:`references.solvers.taylor.scaled_system`,
+    (:mod:`rk4h.models.network`, :mod:`rk4h.models.potential`, the
+    expression code :mod:`rk4h.expr`), and of the code turning ``_force``
+    into heyoka's equations (:func:`rk4h.references.solvers.taylor.scaled_system`,
     ``_pars``).
 
     Returns None when a source cannot be read (a class defined interactively):
@@ -243,7 +243,7 @@ def definition_hash(model) -> str | None:
         # The definitions the shipped models are built on (a Defined model's
         # Network or PotentialModel, the spring-energy template) and the
         # expression code that turns them into heyoka's equations.
-        for name in ("rk4core.expr", "rk4core.models.network", "rk4core.models.potential"):
+        for name in ("rk4h.expr", "rk4h.models.network", "rk4h.models.potential"):
             h.update(_source(sys.modules[name]).encode())
         out = h.hexdigest()
     except (OSError, TypeError):
@@ -260,7 +260,7 @@ def _versions() -> dict:
 
 
 def _versions_once() -> tuple:
-    from rk4core.distributions import version
+    from rk4h.distributions import version
 
     return tuple((dist, version(dist)) for dist in ("heyoka", "numpy", "scipy"))
 
@@ -282,10 +282,10 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
     y0 : array_like, shape (2 n_dof,)
         Initial state ``[q, v]``; must have finite force and energy
-        (:meth:`rk4core.models.Model.check_state`).
+        (:meth:`rk4h.models.Model.check_state`).
     t_eval : array_like, shape (m,)
         Output times (s), strictly increasing; ``y0`` is the state at ``t_eval[0]``.
     kind : {"auto", "exact-modal", "heyoka-real128"}

@@ -3,12 +3,12 @@
 The experiment behind the report's dispersion check: a packet of carrier
 wavenumber ``kp0`` (rad/m) and Gaussian envelope of width ``sigma`` (m) is
 launched rightwards on a long chain of equal masses (walls at both ends),
-integrated with ``rk4core.solve``, and its energy centroid is tracked while it
+integrated with ``rk4h.solve``, and its energy centroid is tracked while it
 is far from both walls. The fitted centroid speed is compared with the
 energy-weighted mean group velocity of the packet's spectrum (``v_spectral``;
 ``rel_error_spectral``), and, with the explained offset ``spectral_offset``
 beside it, with the group velocity ``d omega / d kp`` at the carrier
-(``references.dispersion.group_velocity``; thesis eq. 2.54 with erratum 7).
+(``rk4h.references.dispersion.group_velocity``; thesis eq. 2.54 with erratum 7).
 
 Initial state (a right-moving packet)
 -------------------------------------
@@ -35,7 +35,7 @@ packet's spectrum, ``v_spectral``, not ``v_g(kp0)``. The energy of the wave
 ``K`` is ``omega(K)^2 |psi_hat(K)|^2``: the Gaussian displacement spectrum
 tilted towards larger ``K``, where ``v_g = v_0 cos(K d / 2)`` is smaller.
 Hence ``v_spectral = v_g(kp0) (1 - 5 d^2 / (16 sigma^2) + ...)``
-(``references.dispersion.gaussian_packet_group_velocity``), independent of
+(``rk4h.references.dispersion.gaussian_packet_group_velocity``), independent of
 ``kp0`` to that order: ``-0.485%`` (kp0 = 0.3 pi/d) and ``-0.487%``
 (0.6 pi/d) for the default ``sigma = 8 d``, the ``-0.49%`` offset of both
 packets from ``v_g(kp0)``. What is left, ``rel_error_spectral``, is RK4's: its
@@ -56,10 +56,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-import rk4core
-from references.dispersion import THESIS_LATTICE, group_velocity, omega
-from rk4core.models import Chain
-from rk4core.validate import positive
+import rk4h
+from rk4h.references.dispersion import THESIS_LATTICE, group_velocity, omega
+from rk4h.models import Chain
+from rk4h.validate import positive
 
 __all__ = ["WavePacketResult", "packet_state", "site_energy", "energy_centroid",
            "spectral_group_velocity", "rk4_group_velocity_offset", "measure_group_velocity"]
@@ -98,7 +98,7 @@ class WavePacketResult:
         group-velocity error at the carrier, ``-(omega(kp0) h)^4 / 24``.
     energy_drift : float
         ``max |E(t) - E(0)| / E(0)`` over the samples (``E(0)`` is ``E_motion``
-        of :mod:`rk4core.energy`: the lattice's potential is 0 at rest).
+        of :mod:`rk4h.energy`: the lattice's potential is 0 at rest).
     success : bool
     message : str
     """
@@ -235,10 +235,10 @@ def measure_group_velocity(kp0, *, N=400, sigma=None, h=0.02, n_samples=80,
     t_end = travel * length / v_theory
     chain = Chain([m] * N, [k] * (N + 1), walls="both")
     y0 = packet_state(N, kp0, sigma, x0, m=m, k=k, d=d)
-    n_steps = rk4core.step_count((0.0, t_end), h)
+    n_steps = rk4h.step_count((0.0, t_end), h)
     step = t_end / n_steps
     idx = np.unique(np.linspace(0, n_steps, n_samples).round().astype(int))
-    res = rk4core.solve(chain.rhs, (0.0, t_end), y0, n_steps=n_steps, t_eval=idx * step)
+    res = rk4h.solve(chain.rhs, (0.0, t_end), y0, n_steps=n_steps, t_eval=idx * step)
     v_spectral = spectral_group_velocity(y0, m, k, d)
     common = dict(kp0=kp0, sigma=sigma, x0=x0, N=N, h=res.h, t_end=t_end, v_theory=v_theory,
                   v_spectral=v_spectral, spectral_offset=v_spectral / v_theory - 1.0,

@@ -11,7 +11,7 @@ from .geometric import GEOMETRIC as _GEOMETRIC
 from .models import MODELS, Defined, Drawing, Model, Network, PotentialModel, make_model, register_model
 from .solver import FixedStepResult, nfev_count, solve, step_count
 
-METHODS.update(_GEOMETRIC)  # splitting and composition methods, as tableaux (rk4core.geometric)
+METHODS.update(_GEOMETRIC)  # splitting and composition methods, as tableaux (rk4h.geometric)
 
 __all__ = ["solve", "FixedStepResult", "step_count", "nfev_count", "Tableau", "make_tableau", "RK4", "RK38",
            "HEUN3", "RALSTON", "EULER", "SYMPLECTIC_EULER", "STORMER_VERLET", "METHODS", "get_method", "rk_step",
@@ -20,11 +20,11 @@ __all__ = ["solve", "FixedStepResult", "step_count", "nfev_count", "Tableau", "m
 
 
 def __getattr__(name):
-    # rk4core.ivp (scipy's OdeSolver classes) is imported on first use: it loads scipy.integrate
+    # rk4h.ivp (scipy's OdeSolver classes) is imported on first use: it loads scipy.integrate
     if name == "ivp":
         import importlib
         return importlib.import_module(".ivp", __name__)
-    # rk4core.ensemble (rk4core.batch) is imported on first use; numba and jax only when a batch runs
+    # rk4h.ensemble (rk4h.batch) is imported on first use; numba and jax only when a batch runs
     if name in ("ensemble", "EnsembleResult"):
         from . import batch
         return getattr(batch, name)

@@ -1,4 +1,4 @@
-"""Dense output of :func:`rk4core.solve`: the method's cubic Hermite interpolant
+"""Dense output of :func:`rk4h.solve`: the method's cubic Hermite interpolant
 between steps, as an object that behaves as scipy's ``OdeSolution``.
 
 Between grid points ``t_i`` and ``t_{i+1} = t_i + d_i`` the solution is the
@@ -10,7 +10,7 @@ cubic Hermite polynomial through the step's end states and slopes::
     h01 = theta^2 (3 - 2 theta),        h11 = theta^2 (theta - 1),
 
 with ``f_i = f(t_i, y_i)`` taken from the stages the method already computed
-(:func:`~rk4core.methods.start_slope`, :func:`~rk4core.methods.end_slope`;
+(:func:`~rk4h.methods.start_slope`, :func:`~rk4h.methods.end_slope`;
 one extra right-hand-side call where no stage gives it, counted in
 ``nfev``). ``theta`` is dimensionless; ``d_i`` has the units of ``t`` (negative
 for a backward run: the formula is the same).
@@ -52,7 +52,7 @@ def hermite(theta, d, y0, y1, f0, f1):
     ``d`` (scalar or shape (m,)) with end states ``y0, y1`` and slopes
     ``f0, f1`` (shape (m, n), or (n,) for one step shared by every point).
 
-    Returns shape (m, n). The arithmetic is that of ``rk4core.solver._emit``
+    Returns shape (m, n). The arithmetic is that of ``rk4h.solver._emit``
     term for term, so a point is bit for bit what the solver's ``t_eval``
     output gives for the same ``theta`` and ``d``."""
     h00 = (1 + 2 * theta) * (1 - theta) ** 2
@@ -63,7 +63,7 @@ def hermite(theta, d, y0, y1, f0, f1):
 
 
 class HermiteSolution(OdeSolution):
-    """Continuous solution of one :func:`rk4core.solve` run (``result.sol``).
+    """Continuous solution of one :func:`rk4h.solve` run (``result.sol``).
 
     Behaves as ``scipy.integrate.OdeSolution`` (and is one, for
     ``isinstance``): ``sol(t)`` for a scalar ``t`` returns shape (n,), for a

@@ -13,7 +13,7 @@ kinetic energy plus the potential energy above the equilibrium, so it is
 invariant under ``V -> V + c``. When it is 0 (a model at rest in its
 equilibrium) the error is absolute (J): the scale is 1.
 
-A first-order model (``rk4core.models.OdeModel``: ``model.first_order``)
+A first-order model (``rk4h.models.OdeModel``: ``model.first_order``)
 has an invariant ``I(y)`` in place of an energy, and no rest state: its
 scale is ``|I0|`` (absolute where ``I0 = 0``).
 

@@ -1,4 +1,4 @@
-"""Event functions of :func:`rk4core.solve`, with ``scipy.integrate.solve_ivp``'s
+"""Event functions of :func:`rk4h.solve`, with ``scipy.integrate.solve_ivp``'s
 conventions (scipy/integrate/_ivp/ivp.py: ``prepare_events``,
 ``find_active_events``, ``handle_events``, ``solve_event_equation``).
 
@@ -6,11 +6,11 @@ An event is a function ``event(t, y, *args) -> float`` whose zeros are
 wanted. After each step the event is evaluated at the new grid point; a sign
 change over the step (``up``: from <= 0 to >= 0, ``down``: from >= 0 to <= 0,
 filtered by the event's ``direction``) is located by ``scipy.optimize.brentq``
-on the step's dense-output polynomial (:mod:`rk4core.dense`) with
+on the step's dense-output polynomial (:mod:`rk4h.dense`) with
 ``xtol = rtol = 4 eps``, as scipy. The located time is then exact for the
 interpolant; its distance from the true event time is the dense output's
 error divided by ``|dg/dt|`` there (fourth order in ``h`` for RK4; see
-:mod:`rk4core.dense`). Two sign changes inside one step are not seen (as
+:mod:`rk4h.dense`). Two sign changes inside one step are not seen (as
 scipy).
 
 Attributes read from each event function (as scipy >= 1.12):

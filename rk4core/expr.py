@@ -1063,7 +1063,7 @@ def to_text(expr: Expr) -> str:
 def digest(expr: Expr) -> str:
     """SHA-256 (hex) of the canonical text (:func:`to_text`), versioned; a
     stable key for caches of anything derived from ``expr``."""
-    return hashlib.sha256(("rk4core.expr/1\n" + to_text(expr)).encode("utf-8")).hexdigest()
+    return hashlib.sha256(("rk4h.expr/1\n" + to_text(expr)).encode("utf-8")).hexdigest()
 
 
 _SOURCE_VAR_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\[[0-9]+\])?\Z")
@@ -1242,7 +1242,7 @@ def lambdify(exprs, names: Sequence[str], backend: str = "numpy", *, broadcast: 
                     f"return ({', '.join(results)}{',' if len(results) == 1 else ''})")
     src = f"def _rk4core_expr({', '.join(args)}):\n" + "".join(f"    {line}\n" for line in body)
     ns["__builtins__"] = {}
-    code = compile(src, "<rk4core.expr.lambdify>", "exec")
+    code = compile(src, "<rk4h.expr.lambdify>", "exec")
     exec(code, ns)  # noqa: S102 - source printed from a validated tree, see Notes
     fn = ns["_rk4core_expr"]
     fn.source = src

@@ -3,10 +3,10 @@
 Two ways to write a geometric integrator of ``q' = v``, ``v' = a(q, t)``
 (positions ``q``, velocities ``v``; units of the model), both turned into the
 equivalent explicit (partitioned) Runge-Kutta tableau of
-:mod:`rk4core.methods`, so that the order conditions
-(:mod:`rk4core.order_conditions`), the stability function
-(:mod:`rk4core.stability_function`), the cost (evaluated stages, first same
-as last) and the compiled loops (:mod:`rk4core.fast`) apply unchanged.
+:mod:`rk4h.methods`, so that the order conditions
+(:mod:`rk4h.order_conditions`), the stability function
+(:mod:`rk4h.stability_function`), the cost (evaluated stages, first same
+as last) and the compiled loops (:mod:`rk4h.fast`) apply unchanged.
 
 Splitting (:func:`splitting_tableau`)
     Drift and kick coefficients ``a_1..a_s``, ``b_1..b_s`` (dimensionless
@@ -32,13 +32,13 @@ Composition (:func:`composition_tableau`)
 Coefficients
     Each coefficient is a number or a string: a plain decimal numeral (any
     number of digits, read exactly as the decimal it shows), or an
-    expression of the harness's parser (:func:`rk4core.expr.parse`) over
+    expression of the harness's parser (:func:`rk4h.expr.parse`) over
     integers and short decimals (``"1/(2 - 2^(1/3))"``, ``"sqrt(7)/3"``),
     evaluated with mpmath at :data:`DIGITS` significant digits. A value
     carries a bound on how far it may be from the intended one: 0 for
     rationals, ``2**-BITS`` relative for an irrational expression, one unit
     in the last place for a decimal with more than
-    :data:`rk4core.methods.EXACT_DECIMALS` places (plus 4 ulps for a binary
+    :data:`rk4h.methods.EXACT_DECIMALS` places (plus 4 ulps for a binary
     float). These bounds become the tableau's ``uncertainty``, with which
     its order conditions and stability boundaries are judged
     (``Tableau.coefficient_tol``). The drift, kick or step fractions must
@@ -261,12 +261,12 @@ def _normalise(vals, bounds, field_: str, name: str, what: str):
 
 
 class SeparableTableau(Tableau):
-    """A partitioned :class:`~rk4core.methods.Tableau` that is a splitting or
+    """A partitioned :class:`~rk4h.methods.Tableau` that is a splitting or
     composition method: equivalent to it on ``q' = v``, ``v' = a(q, t)``
     (the only systems the harness gives a partitioned method), not on a
     general partitioned system. Its :attr:`order` and
     :attr:`order_residuals` are therefore over
-    :func:`rk4core.order_conditions.separable_trees` (a classical
+    :func:`rk4h.order_conditions.separable_trees` (a classical
     composition keeps the plain trees)."""
 
     @cached_property
@@ -350,7 +350,7 @@ def composition_tableau(name: str, base: Tableau | str, gamma, *, description: s
     ----------
     name : str
     base : Tableau or str
-        The base method (a name of :data:`rk4core.methods.METHODS` or a tableau).
+        The base method (a name of :data:`rk4h.methods.METHODS` or a tableau).
     gamma : sequence of m coefficients
         Step fractions, in the order the sub-steps are taken; they must sum
         to 1 (within their precision).
@@ -555,6 +555,6 @@ BLANES_MOAN6 = _bm(["0.0502627644003922", "0.413514300428344", "0.04507988979439
                    ["0.148816447901042", "-0.132385865767784", "0.067307604692185", "0.432666402578175"],
                    "blanes-moan6", "Blanes-Moan optimised 6th-order splitting S10, 10 kicks (Blanes & Moan 2002)")
 
-#: The shipped geometric methods by name (added to :data:`rk4core.methods.METHODS`).
+#: The shipped geometric methods by name (added to :data:`rk4h.methods.METHODS`).
 GEOMETRIC: dict[str, Tableau] = {t.name: t for t in (YOSHIDA4, YOSHIDA6, SUZUKI4, FOREST_RUTH, BLANES_MOAN4,
                                                      BLANES_MOAN6)}

@@ -1,10 +1,10 @@
 """rk4core's fixed-step methods as ``scipy.integrate.OdeSolver`` classes.
 
-``scipy.integrate.solve_ivp(fun, t_span, y0, method=rk4core.ivp.RK4, h=0.01)``
+``scipy.integrate.solve_ivp(fun, t_span, y0, method=rk4h.ivp.RK4, h=0.01)``
 runs scipy's own driver (``t_eval``, ``dense_output``, events, ``args``,
 ``vectorized``) on rk4core's stepping function: every step is one call of
-:func:`rk4core.methods.rk_step` with the method's tableau, so the states are
-those of :func:`rk4core.solve` at the same grid points (bit for bit when
+:func:`rk4h.methods.rk_step` with the method's tableau, so the states are
+those of :func:`rk4h.solve` at the same grid points (bit for bit when
 ``h`` divides ``t_span``).
 
 Conventions
@@ -13,11 +13,11 @@ Conventions
   the direction of ``t_span`` (``h`` is a magnitude; a negative ``h`` is
   accepted for a backward span only). With a finite ``t_bound`` the number
   of steps is ``N = ceil(|t_bound - t0| / h)`` (relative slack 1e-12, as
-  :func:`rk4core.solver.step_count`). When ``N h`` equals the span to that
-  slack, the grid is :func:`rk4core.solve`'s (steps of ``(t_bound - t0) /
+  :func:`rk4h.solver.step_count`). When ``N h`` equals the span to that
+  slack, the grid is :func:`rk4h.solve`'s (steps of ``(t_bound - t0) /
   N``: states and ``nfev`` equal bit for bit); otherwise the last step is
   shortened to ``t_bound - t_{N-1}`` so that it ends on ``t_bound``
-  exactly, as scipy's own solvers end on ``t_bound`` (``rk4core.solve``
+  exactly, as scipy's own solvers end on ``t_bound`` (``rk4h.solve``
   would take ``N`` equal steps instead). Times are in the units of
   ``t_span``.
 * An infinite ``t_bound`` (``t_span = (0, inf)``) needs a terminal event to
@@ -26,7 +26,7 @@ Conventions
   instead of running forever.
 * Dense output (``dense_output=True`` and event location) is the cubic
   Hermite interpolant of the step's end states and slopes, as
-  :mod:`rk4core.dense`. The slopes come from the stages where the method has
+  :mod:`rk4h.dense`. The slopes come from the stages where the method has
   them (``start_slope``/``end_slope``); else ``f(t_{i+1}, y_{i+1})`` costs
   one call, which the next step's first stage then reuses.
 * Options for adaptive or implicit methods (``rtol``, ``atol``,
@@ -34,7 +34,7 @@ Conventions
   naming the option; so is any other unknown keyword.
 * Partitioned (symplectic) tableaux are supported: ``y = [q, v]`` (even
   length), ``fun`` returns ``[v, a(q)]`` and only its acceleration half is
-  used, as in :func:`rk4core.solve`.
+  used, as in :func:`rk4h.solve`.
 """
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ MAX_STEPS_INFINITE = 10**6
 
 class FixedStepDenseOutput(DenseOutput):
     """Cubic Hermite interpolant of one step (``y`` and ``f = dy/dt`` at both
-    ends), the arithmetic of :func:`rk4core.dense.hermite`."""
+    ends), the arithmetic of :func:`rk4h.dense.hermite`."""
 
     def __init__(self, t_old, t, y_old, y, f_old, f):  # noqa: D107
         super().__init__(t_old, t)
@@ -106,15 +106,15 @@ class FixedStepSolver(OdeSolver):
     def __init__(self, fun, t0, y0, t_bound, vectorized=False, *, h=None, max_steps=MAX_STEPS_INFINITE,
                  **options):  # noqa: D107
         name = type(self).__name__
-        refuse_options(options, f"rk4core.ivp.{name}", "h", "it takes h and max_steps")
+        refuse_options(options, f"rk4h.ivp.{name}", "h", "it takes h and max_steps")
         if self.tableau is None:
-            raise TypeError("FixedStepSolver has no tableau; use rk4core.ivp.solver_class(method)")
+            raise TypeError("FixedStepSolver has no tableau; use rk4h.ivp.solver_class(method)")
         tab = self.tableau
         super().__init__(fun, t0, y0, t_bound, vectorized, support_complex=True)
         if tab.partitioned and self.n % 2:
             raise ValueError(f"`y0` must have even length for {tab.name!r} (y = [q, v]), got {self.n}")
         if h is None:
-            raise ValueError(f"`h` is required by rk4core.ivp.{name} (the fixed step), got h=None")
+            raise ValueError(f"`h` is required by rk4h.ivp.{name} (the fixed step), got h=None")
         t0, t_bound = float(t0), float(t_bound)
         if t_bound == t0 or math.isinf(t_bound):
             # no grid to fit: h is a magnitude (a negative one only for a backward span)
@@ -131,7 +131,7 @@ class FixedStepSolver(OdeSolver):
             self.max_steps = self.n_grid
             span = abs(t_bound - t0)
             if abs(self.n_grid * h - span) <= _SLACK * span:
-                h = span / self.n_grid  # h divides the span: rk4core.solve's grid, bit for bit
+                h = span / self.n_grid  # h divides the span: rk4h.solve's grid, bit for bit
             else:
                 self._uneven = True
         self.h = self.direction * h
@@ -206,7 +206,7 @@ class FixedStepSolver(OdeSolver):
 
 def solver_class(method) -> type:
     """A :class:`FixedStepSolver` subclass for ``method`` (a name of
-    ``rk4core.METHODS`` or a :class:`~rk4core.methods.Tableau`), to pass as
+    ``rk4h.METHODS`` or a :class:`~rk4h.methods.Tableau`), to pass as
     ``solve_ivp(..., method=solver_class(tab), h=...)``."""
     tab = get_method(method)
     cls_name = "".join(ch if ch.isalnum() else "_" for ch in tab.name.upper()) or "METHOD"

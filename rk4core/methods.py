@@ -3,11 +3,11 @@
 A method is a :class:`Tableau`, built by :func:`make_tableau` from its
 coefficients (numbers or rational strings such as ``"1/3"``, kept exactly as
 :class:`fractions.Fraction`). Everything else about it is computed from the
-coefficients: its order (:mod:`rk4core.order_conditions`), its stability
-function (:mod:`rk4core.stability_function`), which stages are evaluated and
+coefficients: its order (:mod:`rk4h.order_conditions`), its stability
+function (:mod:`rk4h.stability_function`), which stages are evaluated and
 which evaluation is reused by the next step (first same as last, FSAL), hence
 its cost per step. Stepping is one pure function, :func:`rk_step`, shared by
-every method; the compiled loops of :mod:`rk4core.fast` are generated from the
+every method; the compiled loops of :mod:`rk4h.fast` are generated from the
 same data.
 
 Classical methods use one tableau (``A``, ``b``, ``c``) for the whole state.
@@ -60,7 +60,7 @@ __all__ = ["Tableau", "make_tableau", "RK4", "RK38", "HEUN3", "RALSTON", "EULER"
            "ORDER_TOL", "EXACT_DECIMALS", "FLOAT_ULPS"]
 
 #: Former relative tolerance of the order conditions for float tableaux,
-#: kept for callers of :func:`rk4core.order_conditions.order` (``tol=``);
+#: kept for callers of :func:`rk4h.order_conditions.order` (``tol=``);
 #: a :class:`Tableau` uses its coefficient uncertainty instead
 #: (:attr:`Tableau.coefficient_tol`).
 ORDER_TOL = Fraction(1, 2**40)
@@ -282,13 +282,13 @@ class Tableau:
         :data:`FLOAT_ULPS` ulps for floats), ``FLOAT_ULPS * 2**-52`` (relative) for floats that are
         otherwise exact decimals, 0 for exact entries. The order conditions
         (:attr:`order`, :attr:`order_residuals`), the row-sum check and the
-        stability boundaries (:mod:`rk4core.stability_function`) each accept
+        stability boundaries (:mod:`rk4h.stability_function`) each accept
         a residual no larger than what entries that far off can produce
         (:attr:`uncertainty` propagated through the same formula with
         absolute values). Ralston's fourth-order method printed to 8 decimals
         has residuals up to 6.6e-9 in its order-2..4 conditions: order 4.
     order : int
-        Computed from the order conditions (:func:`rk4core.order_conditions.order`;
+        Computed from the order conditions (:func:`rk4h.order_conditions.order`;
         bi-coloured trees for a partitioned method), up to 10 (8 partitioned).
         Conditions for autonomous problems: with ``row_sum=False`` a method
         whose ``c`` is not ``A``'s row sums may have a lower order on ``t``-
@@ -320,7 +320,7 @@ class Tableau:
         Evaluations per step after the first: ``nfev_first_step - fsal``
         (RK4 4, RK38 4, Heun3 3, Ralston 2, Euler 1, symplectic Euler 1,
         Stormer-Verlet 1). A run of ``N`` steps costs
-        ``nfev_first_step + (N - 1) nfev_per_step`` (see :func:`rk4core.solve`).
+        ``nfev_first_step + (N - 1) nfev_per_step`` (see :func:`rk4h.solve`).
     """
 
     name: str
@@ -430,19 +430,19 @@ class Tableau:
         conditions of order ``p``, the tolerance of that condition (what the
         coefficients' precision allows, 0 for an exact tableau) and whether
         every condition of order ``p`` holds
-        (:func:`rk4core.order_conditions.residuals`)."""
+        (:func:`rk4h.order_conditions.residuals`)."""
         return order_conditions.residuals(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
                                           uncertainty=self.uncertainty, max_order=self.order + 1)
 
     #: Trees of the order conditions of a partitioned tableau (None: every
-    #: bi-coloured tree; rk4core.geometric's splittings use the Nystrom subset).
+    #: bi-coloured tree; rk4h.geometric's splittings use the Nystrom subset).
     _order_trees = None
 
     @cached_property
     def error_coefficient(self) -> float:
         """Principal error coefficient: the 2-norm of the truncation-error
         coefficients of order ``order + 1`` over the trees its order is
-        judged on (:func:`rk4core.order_conditions.principal_error_norm`, as
+        judged on (:func:`rk4h.order_conditions.principal_error_norm`, as
         nodepy computes it; RK4 0.01450). From the
         coefficients as given; dimensionless."""
         return order_conditions.principal_error_norm(self.A_exact, self.b_exact, self.A_v_exact, self.b_v_exact,
@@ -612,7 +612,7 @@ STORMER_VERLET = make_tableau(
 METHODS: dict[str, Tableau] = {m.name: m for m in (RK4, EULER, SYMPLECTIC_EULER, STORMER_VERLET, RK38,
                                                    HEUN3, RALSTON)}
 # (rk4core's package import adds the splitting and composition methods of
-# rk4core.geometric, built from Stormer-Verlet above: yoshida4, yoshida6,
+# rk4h.geometric, built from Stormer-Verlet above: yoshida4, yoshida6,
 # suzuki4, forest-ruth, blanes-moan4, blanes-moan6.)
 
 

@@ -17,7 +17,7 @@ when the same holds over every *bi-coloured* tree with at most ``p`` vertices
 Theorem 2.4): a vertex of colour 0 stands for ``f``, of colour 1 for ``g``;
 the colour of a child picks the matrix on the edge to it (``A`` for colour 0,
 ``A_v`` for colour 1) and the colour of the root picks the weights (``b`` or
-``b_v``). In :mod:`rk4core.methods` colour 0 is the position half ``q`` and
+``b_v``). In :mod:`rk4h.methods` colour 0 is the position half ``q`` and
 colour 1 the velocity half ``v``.
 
 All arithmetic is in :class:`fractions.Fraction`: a condition holds or it
@@ -282,7 +282,7 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
     uncertainty : tuple, optional
         ``(dA, db)`` or ``(dA, db, dA_v, db_v)``: nonnegative bounds, entry by
         entry, on how far the coefficients may be from the intended ones
-        (:attr:`rk4core.methods.Tableau.uncertainty`); a condition holds when
+        (:attr:`rk4h.methods.Tableau.uncertainty`); a condition holds when
         its residual is within what such errors can produce (module
         docstring). None: exact.
     trees : callable, optional

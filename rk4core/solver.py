@@ -31,7 +31,7 @@ Conventions
 
 The dense output (``dense_output=True``: ``result.sol``) and the event
 location are the method's cubic Hermite interpolant between steps
-(:mod:`rk4core.dense`, :mod:`rk4core.events`); off-grid ``t_eval`` points use
+(:mod:`rk4h.dense`, :mod:`rk4h.events`); off-grid ``t_eval`` points use
 the same polynomial.
 """
 from __future__ import annotations
@@ -61,8 +61,8 @@ MESSAGES = {0: "The solver successfully reached the end of the integration inter
 _NO_JACOBIAN = "rk4core's methods are explicit and never use a Jacobian"
 #: ``solve_ivp`` options refused by :func:`solve`, with the reason given.
 REFUSED_OPTIONS = {
-    "rtol": "an error tolerance steers an adaptive step size; rk4core.solve estimates no error",
-    "atol": "an error tolerance steers an adaptive step size; rk4core.solve estimates no error",
+    "rtol": "an error tolerance steers an adaptive step size; rk4h.solve estimates no error",
+    "atol": "an error tolerance steers an adaptive step size; rk4h.solve estimates no error",
     "first_step": "every step, the first included, has the one size set by h or n_steps",
     "max_step": "every step has the one size set by h or n_steps",
     "min_step": "every step has the one size set by h or n_steps",
@@ -92,7 +92,7 @@ class ArgsError(TypeError, ValueError):
 
 @dataclass
 class FixedStepResult(Mapping):
-    """Outcome of :func:`solve` (and of :func:`rk4core.fast.solve_model`).
+    """Outcome of :func:`solve` (and of :func:`rk4h.fast.solve_model`).
 
     Behaves as scipy's ``OdeResult``: every field is an attribute and a key
     (``res.t``, ``res["t"]``, ``res.keys()``, ``dict(res)``); the keys start
@@ -109,7 +109,7 @@ class FixedStepResult(Mapping):
         failure, only the times reached before the run stopped.
     sol : HermiteSolution or None
         With ``dense_output=True``, the continuous solution
-        (:class:`rk4core.dense.HermiteSolution`, an ``OdeSolution``), else
+        (:class:`rk4h.dense.HermiteSolution`, an ``OdeSolution``), else
         None.
     t_events, y_events : list of ndarray, or None
         With ``events``: per event, the times (shape (k,)) and the states
@@ -118,7 +118,7 @@ class FixedStepResult(Mapping):
     nfev : int
         Calls of ``fun``. Without events or dense output, :func:`nfev_count`:
         ``nfev_first_step + (N - 1) nfev_per_step`` of the method
-        (:class:`~rk4core.methods.Tableau`) for ``N`` steps attempted (the
+        (:class:`~rk4h.methods.Tableau`) for ``N`` steps attempted (the
         step that failed included), plus the dense-output slopes no stage
         provided (one per step holding off-grid ``t_eval`` points for a
         method that is not FSAL). With events or dense output, the calls
@@ -436,8 +436,8 @@ class _Once:
         return self.fun(t, y)
 
 
-def refuse_options(options, owner="rk4core.solve", give="h or n_steps",
-                   unknown="solve_ivp warns about unknown options and ignores them; rk4core.solve refuses them"):
+def refuse_options(options, owner="rk4h.solve", give="h or n_steps",
+                   unknown="solve_ivp warns about unknown options and ignores them; rk4h.solve refuses them"):
     """Raise ``ValueError`` for any keyword in ``options``: an adaptive
     solver's option (:data:`REFUSED_OPTIONS`) names why it does not apply to
     ``owner`` and that the step is ``give``; any other is unknown (``unknown``
@@ -464,7 +464,7 @@ def _check_args(args) -> tuple:
 
 def _get_method(method) -> Tableau:
     if isinstance(method, str) and method in _ADAPTIVE:
-        raise ValueError(f"`method` = {method!r} is an adaptive method of scipy's solve_ivp; rk4core.solve takes "
+        raise ValueError(f"`method` = {method!r} is an adaptive method of scipy's solve_ivp; rk4h.solve takes "
                          f"a fixed step with one of {sorted(METHODS)} or a Tableau")
     if isinstance(method, type):
         raise ValueError(f"`method` must be one of {sorted(METHODS)} or a Tableau, got the class "
@@ -637,10 +637,10 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
         imaginary part kept, as in ``solve_ivp``); strings, booleans and an
         empty ``y0`` are refused.
     method : str or Tableau, optional
-        A name of ``rk4core.METHODS`` (``"rk4"``, the default, ``"euler"``,
+        A name of ``rk4h.METHODS`` (``"rk4"``, the default, ``"euler"``,
         ``"rk38"``, ``"heun3"``, ``"ralston"``, ``"symplectic-euler"``,
-        ``"stormer-verlet"``) or a :class:`~rk4core.methods.Tableau`
-        (:func:`~rk4core.methods.make_tableau`). ``solve_ivp``'s adaptive
+        ``"stormer-verlet"``) or a :class:`~rk4h.methods.Tableau`
+        (:func:`~rk4h.methods.make_tableau`). ``solve_ivp``'s adaptive
         names (``"RK45"``, ...) are refused naming ``method``. A partitioned
         method (``"symplectic-euler"``, ``"stormer-verlet"``) needs ``y = [q,
         v]`` (equal halves) of a separable second-order system ``dq/dt = v``,
@@ -651,20 +651,20 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
         Output times inside ``t_span``, in its direction (non-decreasing, or
         non-increasing for a backward run). Grid points are returned exactly;
         other points by the cubic Hermite interpolant of their step
-        (:mod:`rk4core.dense`; ``result.dense`` says which). Default: every
+        (:mod:`rk4h.dense`; ``result.dense`` says which). Default: every
         grid point.
     dense_output : bool, optional
         Also return ``result.sol``, the continuous solution
-        (:class:`rk4core.dense.HermiteSolution`, an ``OdeSolution``): one
+        (:class:`rk4h.dense.HermiteSolution`, an ``OdeSolution``): one
         cubic Hermite polynomial per step from the step's end states and
         slopes. Order 3 as a continuous extension (local error O(h^4)),
         hence globally fourth order with RK4, like the grid values; see
-        :mod:`rk4core.dense`. Default False.
+        :mod:`rk4h.dense`. Default False.
     events : callable or list of callables, optional
         Event functions ``event(t, y, *args) -> float`` with the optional
         attributes ``terminal`` (bool, or a positive int: stop at that
         occurrence) and ``direction`` (> 0, < 0, 0), as ``solve_ivp``
-        (:mod:`rk4core.events`). A sign change over a step is located by
+        (:mod:`rk4h.events`). A sign change over a step is located by
         ``brentq`` on the step's dense-output polynomial; ``result.t_events``
         and ``result.y_events`` hold the findings, and a terminal event ends
         the run there with ``status = 1``, its time and state being the last
@@ -689,11 +689,11 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
         ``(t1 - t0) / N``, is ``result.h``.
     n_steps : int, keyword-only
         Number of steps. Exactly one of ``h`` and ``n_steps`` is given; the
-        count is at most ``rk4core.validate.MAX_STEPS`` (``10**10``), and the
+        count is at most ``rk4h.validate.MAX_STEPS`` (``10**10``), and the
         output array (``n_steps + 1`` rows, or ``len(t_eval)``, x n
         components x 8 bytes, 16 if complex; with events or dense output the
         ``2 (n_steps + 1)`` rows of states and slopes kept for the
-        interpolants) at most ``rk4core.validate.MAX_OUTPUT_BYTES``
+        interpolants) at most ``rk4h.validate.MAX_OUTPUT_BYTES``
         (``2**33`` bytes, 8 GiB), else ``ValueError`` naming ``h``,
         ``n_steps`` or ``t_eval``.
     max_growth : float or None, keyword-only
@@ -769,7 +769,7 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
     required; no ``rtol``/``atol``); unknown options are refused, not
     warned about; an empty ``y0`` is refused; ``t1 == t0`` returns the one
     point ``t0`` (``solve_ivp`` returns it twice); a zero of an event
-    function exactly on a grid point is recorded once (:mod:`rk4core.events`);
+    function exactly on a grid point is recorded once (:mod:`rk4h.events`);
     a run that becomes non-finite or grows past ``max_growth`` ends with
     ``status = -1`` where ``solve_ivp`` would shrink its step; an infinite
     ``t1`` needs a terminal event and stops after ``max_steps``; an empty
@@ -779,13 +779,13 @@ def solve(fun, t_span, y0, method="rk4", t_eval=None, dense_output=False, events
 
     Examples
     --------
-    >>> import numpy as np, rk4core
+    >>> import numpy as np, rk4h
 
     A ball thrown up at 10 m/s; ``args`` reach the event function too:
 
     >>> def hit_ground(t, y, g): return y[0]
     >>> hit_ground.terminal, hit_ground.direction = True, -1
-    >>> res = rk4core.solve(lambda t, y, g: [y[1], -g], (0.0, 10.0), [0.0, 10.0], args=(9.81,),
+    >>> res = rk4h.solve(lambda t, y, g: [y[1], -g], (0.0, 10.0), [0.0, 10.0], args=(9.81,),
     ...                     events=hit_ground, dense_output=True, h=0.01)
     >>> res.status, round(float(res.t_events[0][0]), 9), bool(res["t"][-1] == res.t_events[0][0])
     (1, 2.038735984, True)
@@ -1048,8 +1048,8 @@ def _emit(ys, ptr, idx, theta, i_step, y_new, y_old, step, fun, t0, t1, n, k, ta
     step ``i_step - 1`` (cubic Hermite on [y_old, y_new]) into ``ys``.
 
     The slopes at the step's ends come from its stages when the method has
-    them (:func:`~rk4core.methods.start_slope`: the first stage of every
-    built-in method; :func:`~rk4core.methods.end_slope`: the last stage of a
+    them (:func:`~rk4h.methods.start_slope`: the first stage of every
+    built-in method; :func:`~rk4h.methods.end_slope`: the last stage of a
     FSAL method), else from one call of ``fun`` each, made at most once per
     step and only for off-grid points.
 

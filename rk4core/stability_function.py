@@ -13,7 +13,7 @@ vol. II). On an undamped oscillator ``q'' = -w^2 q`` the eigenvalues are
 ``+-i w`` and the step is stable while ``|R(i h w)| <= 1``.
 
 Partitioned methods (``y = [q, v]``, ``q' = v``, ``v' = a(q)``; see
-:mod:`rk4core.methods`) have no scalar test equation. On ``q'' = -w^2 q`` one
+:mod:`rk4h.methods`) have no scalar test equation. On ``q'' = -w^2 q`` one
 step is a 2 x 2 matrix ``M(h w)`` acting on ``(q, h v)``
 (:func:`partitioned_step_matrix`), with entries polynomial in ``(h w)^2``;
 it is stable while both its eigenvalues lie in the closed unit disk, i.e.
@@ -22,7 +22,7 @@ D``. For the symplectic methods ``D = 1`` and the condition is ``|T| <= 2``
 (HLW sec. I.5).
 
 A tableau given to a finite precision (decimals printed to 8 places, floats:
-:attr:`rk4core.methods.Tableau.uncertainty`) is judged with the same
+:attr:`rk4h.methods.Tableau.uncertainty`) is judged with the same
 tolerance as its order conditions: each coefficient of the polynomial whose
 sign decides stability is set to zero when it is no larger than what
 coefficients that far off can produce (the same polynomial formed from the
@@ -307,7 +307,7 @@ def real_axis_boundary(tab) -> float:
 def _step_matrix_poly(tab):
     """One step on ``q'' = -w^2 q`` with ``h = 1``, ``w^2 = x``, as a 2 x 2
     matrix of exact polynomials in ``x`` acting on ``(q, h v)``; the stage
-    order of :func:`rk4core.methods.rk_step`."""
+    order of :func:`rk4h.methods.rk_step`."""
     A, b = tab.A_exact, tab.b_exact
     A_v, b_v = (tab.A_v_exact, tab.b_v_exact) if tab.partitioned else (A, b)
     return _step_matrix_of(tab, A, b, A_v, b_v, Fraction(-1))

@@ -1,8 +1,8 @@
 """Example ``python`` methods: step functions ``step(fun, t, y, h) -> y_next``.
 
-A scene names one with ``[methods.NAME] python = "rk4core.steppers:rk4_step"``
+A scene names one with ``[methods.NAME] python = "rk4h.steppers:rk4_step"``
 and its declared ``order``; the harness runs it on the generic loop of
-``references.solvers.stepper`` and measures it like any other method. Write
+``rk4h.references.solvers.stepper`` and measures it like any other method. Write
 your own in any importable module with the same signature.
 
 References

@@ -1,8 +1,8 @@
 """Argument validators, kept together. Each raises ``ValueError`` naming the
 argument and the offending value, in one line.
 
-Size caps of the fixed-step integrators (:func:`rk4core.solve`,
-:func:`rk4core.fast.solve_model`), checked before anything is allocated:
+Size caps of the fixed-step integrators (:func:`rk4h.solve`,
+:func:`rk4h.fast.solve_model`), checked before anything is allocated:
 
 * :data:`MAX_STEPS` -- at most ``10**10`` steps per run;
 * :data:`MAX_OUTPUT_BYTES` -- the output array (rows x components x 8 bytes
@@ -90,7 +90,7 @@ def float_list(name: str, value, *, length: int | None = None, min_length: int =
 def check_t_span(t_span, *, allow_backward: bool = False):
     """``(t0, t1)`` as two finite floats whose difference is finite.
 
-    ``t1 > t0`` is required unless ``allow_backward`` (:func:`rk4core.solve`:
+    ``t1 > t0`` is required unless ``allow_backward`` (:func:`rk4h.solve`:
     ``t1 < t0`` integrates backward, ``t1 == t0`` integrates nothing, as in
     ``scipy.integrate.solve_ivp``)."""
     try:
@@ -149,7 +149,7 @@ def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
         raise ValueError(f"`y0` must be a 1-D array of {kind}, got dtype {raw.dtype} ({_short(y0)})")
     if cplx and not allow_complex:
         raise ValueError(f"`y0` must be real here, got complex values ({_short(y0)}); only "
-                         f"rk4core.solve integrates a complex state")
+                         f"rk4h.solve integrates a complex state")
     try:
         y = np.array(raw, dtype=np.complex128 if cplx else np.float64)
     except (TypeError, ValueError, OverflowError):
@@ -203,7 +203,7 @@ def check_step_args(t0, t1, h, n_steps, step_count) -> int:
 
 
 def check_step_sign(h, t0, t1):
-    """``h`` of :func:`rk4core.solve` as the step's magnitude.
+    """``h`` of :func:`rk4h.solve` as the step's magnitude.
 
     ``h > 0`` is the magnitude whatever the direction of ``t_span``; a
     negative ``h`` is accepted when it matches a backward span (``t1 < t0``)

@@ -14,8 +14,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from validation import advise as advise_mod
-from validation.advise import SAMPLE_STEPS, _confirm_fixed, _Problem, advise, sample_steps
+from rk4h.validation import advise as advise_mod
+from rk4h.validation.advise import SAMPLE_STEPS, _confirm_fixed, _Problem, advise, sample_steps
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -114,17 +114,17 @@ def test_a_walk_that_never_meets_the_target_is_not_met():
 
 
 def _scene(name):
-    from validation.scenes import load_scenes
+    from rk4h.validation.scenes import load_scenes
 
     return load_scenes([name])[0]
 
 
 def _error(scene, method, setting):
     """Relative error of one run of ``method`` at ``setting``, integrated and
-    measured here (references.solvers.integrate against the scene's truth)."""
-    from references.solvers import integrate
-    from references.truth import reference_solution
-    from validation.execute import problem
+    measured here (rk4h.references.solvers.integrate against the scene's truth)."""
+    from rk4h.references.solvers import integrate
+    from rk4h.references.truth import reference_solution
+    from rk4h.validation.execute import problem
 
     model, y0 = problem(scene)
     t = scene.t_eval()
@@ -203,7 +203,7 @@ def test_the_text_says_the_time_is_measured_here():
 def _independent_truth(model, y0, t):
     """DOP853 at rtol 1e-13 (scipy, through the compiled right-hand side): a
     truth that shares no code with the heyoka real128 truth the advisor uses."""
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     run = integrate("dop853", model, y0, t, 1e-13)
     assert getattr(run.status, "value", run.status) == "ok"
@@ -217,9 +217,9 @@ def test_planar4_case2_rk4_step_meets_the_target_when_run_independently(target):
     N = 624 meets it): the recommended step, run with the project's integrate
     (rk4core's compiled loop), meets the target against the scene's truth and
     against an independent one, and its sample lies in [h/2, h]."""
-    from references.solvers import integrate
-    from references.truth import reference_solution
-    from validation.execute import problem
+    from rk4h.references.solvers import integrate
+    from rk4h.references.truth import reference_solution
+    from rk4h.validation.execute import problem
 
     scene = _scene("planar4-case2")
     adv = advise(scene, target)

@@ -1,13 +1,13 @@
-"""The advisor over a horizon with an energy target (validation.advise_energy)."""
+"""The advisor over a horizon with an energy target (rk4h.validation.advise_energy)."""
 import json
 import math
 
 import numpy as np
 import pytest
 
-from validation import advise, advise_energy, energy_time
-from validation.execute import problem
-from validation.scenes import load_scenes
+from rk4h.validation import advise, advise_energy, energy_time
+from rk4h.validation.execute import problem
+from rk4h.validation.scenes import load_scenes
 
 pytest.importorskip("numba")
 
@@ -33,9 +33,9 @@ def test_bad_input_is_one_line_exit_2(argv, says, capsys):
 
 def _recheck(scene, adv):
     """Run the recommendation again, independently, over the full horizon: its energy error."""
-    from references.solvers import integrate
-    from rk4core.energy import relative_energy_error
-    from rk4core.methods import METHODS
+    from rk4h.references.solvers import integrate
+    from rk4h.energy import relative_energy_error
+    from rk4h.methods import METHODS
 
     model, y0 = problem(scene)
     T = adv.horizon_s

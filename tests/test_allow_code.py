@@ -9,11 +9,11 @@ import sys
 
 import pytest
 
-from rk4core.models import MODELS
-from validation import advise
-from validation.cli import main as rk4h
-from validation.run_all import main as run_all
-from validation.scenes import (SCENE_DIR, SceneError, is_shipped, load_scene, load_scenes, scene_from_dict)
+from rk4h.models import MODELS
+from rk4h.validation import advise
+from rk4h.validation.cli import main as rk4h
+from rk4h.validation.run_all import main as run_all
+from rk4h.validation.scenes import (SCENE_DIR, SceneError, is_shipped, load_scene, load_scenes, scene_from_dict)
 
 BASE = '''
 name = "{name}"
@@ -93,10 +93,10 @@ def evil_modules(tmp_path, monkeypatch):
     step_sentinel, model_sentinel = tmp_path / "imported-step", tmp_path / "imported-model"
     (pkg / "rk4h_evil_step.py").write_text(
         f"open({str(step_sentinel)!r}, 'w').write('imported')\n"
-        "from rk4core.steppers import rk4_step\n")
+        "from rk4h.steppers import rk4_step\n")
     (pkg / "rk4h_evil_model.py").write_text(
         f"open({str(model_sentinel)!r}, 'w').write('imported')\n"
-        "from rk4core.models import Chain\n"
+        "from rk4h.models import Chain\n"
         "class EvilChain(Chain):\n    name = 'evil-chain-test'\n")
     monkeypatch.syspath_prepend(str(pkg))
     yield step_sentinel, model_sentinel
@@ -163,9 +163,9 @@ def test_shipped_scenes_with_code_load_and_a_copy_does_not(tmp_path, monkeypatch
 
 def test_a_document_built_in_python_is_the_callers_code(tmp_path):
     doc = {"name": "dict-step", "model": "chain", "params": {"masses": [1.0], "springs": [1.0, 1.0]},
-           "initial": {"x": [0.01]}, "methods": {"mine": {"python": "rk4core.steppers:rk4_step", "order": 4}},
+           "initial": {"x": [0.01]}, "methods": {"mine": {"python": "rk4h.steppers:rk4_step", "order": 4}},
            "run": {"t_end": 1.0, "h": [0.1], "solvers": ["rk4", "mine"], "outputs": ["state"]}}
-    assert scene_from_dict(doc).method("mine").target == "rk4core.steppers:rk4_step"
+    assert scene_from_dict(doc).method("mine").target == "rk4h.steppers:rk4_step"
     with pytest.raises(SceneError) as e:
         scene_from_dict(doc, allow_code=False)
     assert e.value.field == "methods.mine.python"

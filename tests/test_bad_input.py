@@ -12,9 +12,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from validation import budget
-from validation.run_all import main, run
-from validation.scenes import SCENE_DIR, SceneError, load_scene, load_scenes, scene_from_dict
+from rk4h.validation import budget
+from rk4h.validation.run_all import main, run
+from rk4h.validation.scenes import SCENE_DIR, SceneError, load_scene, load_scenes, scene_from_dict
 
 REPO = Path(__file__).resolve().parent.parent
 

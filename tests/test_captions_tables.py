@@ -15,8 +15,8 @@ import re
 import pandas as pd
 import pytest
 
-from validation import run_all
-from validation.stability._common import FREQUENCY_RATIO, stiffest_index
+from rk4h.validation import run_all
+from rk4h.validation.stability._common import FREQUENCY_RATIO, stiffest_index
 
 SCENE = """
 name = "cost-2dof"

@@ -4,8 +4,8 @@ import io
 
 import pytest
 
-from validation import run_all
-from validation.cli import _COMMANDS, main, version
+from rk4h.validation import run_all
+from rk4h.validation.cli import _COMMANDS, main, version
 
 
 def test_version_is_the_distributions(capsys):
@@ -67,7 +67,7 @@ def test_progress_off_a_terminal_prints_every_10_s_when_specs_are_slow(monkeypat
 @pytest.mark.parametrize("command, extra", [("run", "references"), ("advise", "fast"), ("compare", "report"),
                                             ("schema", "report")])
 def test_a_missing_extra_is_one_line_naming_it(command, extra, monkeypatch, capsys):
-    from validation import extras
+    from rk4h.validation import extras
 
     gone = set(extras.EXTRAS[extra])
     monkeypatch.setattr(extras, "_importable", lambda m: m not in gone)
@@ -78,7 +78,7 @@ def test_a_missing_extra_is_one_line_naming_it(command, extra, monkeypatch, caps
 
 
 def test_scheduler_needs_the_cluster_extra(monkeypatch, capsys):
-    from validation import extras
+    from rk4h.validation import extras
 
     monkeypatch.setattr(extras, "_importable", lambda m: m not in {"dask", "distributed"})
     assert main(["run", "--scheduler", "tcp://127.0.0.1:1", "--out", "/nonexistent/x"]) == 2
@@ -86,7 +86,7 @@ def test_scheduler_needs_the_cluster_extra(monkeypatch, capsys):
 
 
 def test_nothing_missing_here():
-    from validation import extras
+    from rk4h.validation import extras
 
     assert all(extras.missing(c) == [] for c in extras.NEEDS)
 
@@ -97,15 +97,15 @@ def test_rk4core_solves_without_any_extra():
     import subprocess
     import sys
 
-    from validation import extras
+    from rk4h.validation import extras
 
     blocked = [m for mods in extras.EXTRAS.values() for m in mods]
     code = (f"import sys\nfor m in {blocked!r}: sys.modules[m] = None\n"
-            "import numpy as np, rk4core\n"
-            "res = rk4core.solve(lambda t, y: [y[1], -y[0]], (0.0, 10.0), [1.0, 0.0], h=0.01)\n"
+            "import numpy as np, rk4h\n"
+            "res = rk4h.solve(lambda t, y: [y[1], -y[0]], (0.0, 10.0), [1.0, 0.0], h=0.01)\n"
             "assert abs(res.y[0, -1] - np.cos(10.0)) < 1e-8, res.y[0, -1]\n"
-            "m = rk4core.make_model('chain', {'masses': [1.0, 2.0], 'springs': [1.0, 2.0, 3.0]})\n"
-            "assert rk4core.solve(m.rhs, (0.0, 1.0), m.state([0.01, 0.0]), h=0.01).success\n"
+            "m = rk4h.make_model('chain', {'masses': [1.0, 2.0], 'springs': [1.0, 2.0, 3.0]})\n"
+            "assert rk4h.solve(m.rhs, (0.0, 1.0), m.state([0.01, 0.0]), h=0.01).success\n"
             "print('ok')\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]

@@ -1,4 +1,4 @@
-"""Typed tables: one declaration of every column (validation.columns), Parquet
+"""Typed tables: one declaration of every column (rk4h.validation.columns), Parquet
 beside CSV, columns.json in every report, docs/columns.md generated from it."""
 import json
 import math
@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import columns as C
-from validation import compare_reports, report
-from validation.stability import row as stability_row
+from rk4h.validation import columns as C
+from rk4h.validation import compare_reports, report
+from rk4h.validation.stability import row as stability_row
 
 from _scenes import one_mass
 
@@ -80,7 +80,7 @@ def test_cheapest_h_source_holds_categories_only(fresh):
     ch = pd.read_parquet(fresh / "cheapest.parquet")
     assert set(ch["h_source"]) <= set(C.H_SOURCES) | {""}
     assert ch["alt_h"].dtype == np.float64 and ch["alt_rtol"].dtype == np.float64
-    from references.registry import REFERENCES
+    from rk4h.references.registry import REFERENCES
 
     ref = ch["alternative"].astype(str).isin(REFERENCES)
     assert ch.loc[ref, "alt_rtol"].notna().all() and ch.loc[ref, "alt_h"].isna().all()
@@ -126,14 +126,14 @@ def test_every_column_of_every_table_is_declared_once():
 
 def test_docs_columns_md_is_current():
     committed = (REPO / "docs" / "columns.md").read_text(encoding="utf-8")
-    assert committed == C.markdown(), "docs/columns.md is stale: python -m validation.columns --markdown > docs/columns.md"
+    assert committed == C.markdown(), "docs/columns.md is stale: python -m rk4h.validation.columns --markdown > docs/columns.md"
 
 
 def test_cli_prints_markdown_and_json():
-    md = subprocess.run([sys.executable, "-m", "validation.columns", "--markdown"], cwd=REPO, capture_output=True,
+    md = subprocess.run([sys.executable, "-m", "rk4h.validation.columns", "--markdown"], cwd=REPO, capture_output=True,
                         text=True, timeout=120)
     assert md.returncode == 0 and md.stdout == C.markdown()
-    js = subprocess.run([sys.executable, "-m", "validation.columns", "--json"], cwd=REPO, capture_output=True,
+    js = subprocess.run([sys.executable, "-m", "rk4h.validation.columns", "--json"], cwd=REPO, capture_output=True,
                         text=True, timeout=120)
     assert js.returncode == 0 and "stability" in json.loads(js.stdout)["tables"]
 
@@ -182,8 +182,8 @@ def test_committed_tables_pass_through_the_typed_writer(tmp_path):
 
 
 def test_fresh_stability_run_writes_boolean_passed(tmp_path):
-    from validation import run_all
-    from validation.scenes import scene_from_dict
+    from rk4h.validation import run_all
+    from rk4h.validation.scenes import scene_from_dict
 
     doc = {"name": "columns-boundary", "model": "chain",
            "params": {"masses": [1.0, 2.0], "springs": [40.0, 140.0, 160.0], "walls": "both"},

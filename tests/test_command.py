@@ -1,4 +1,4 @@
-"""The command-method file protocol (rk4core.command, references.solvers.command),
+"""The command-method file protocol (rk4h.command, rk4h.references.solvers.command),
 driven by a small Python program written to tmp_path and run with sys.executable."""
 import json
 import os
@@ -8,11 +8,11 @@ import textwrap
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core.command import LAYOUT, PROTOCOL_VERSION, THESIS_CODE, expand_argv, run_command
-from rk4core.models import Chain, Planar4
-from references.solvers.base import Status
-from references.solvers.command import build_problem, run_command_method
+import rk4h
+from rk4h.command import LAYOUT, PROTOCOL_VERSION, THESIS_CODE, expand_argv, run_command
+from rk4h.models import Chain, Planar4
+from rk4h.references.solvers.base import Status
+from rk4h.references.solvers.command import build_problem, run_command_method
 
 # The program: explicit Euler on y' = [v, -M^-1 K q] built from problem.json's
 # stiffness_matrix and masses; its behaviour is chosen by argv[3].
@@ -90,7 +90,7 @@ def problem(t_eval=T, model=CHAIN, y0=Y0, h=H):
 def test_round_trip_matches_rk4core_euler(program):
     res = run_command(argv(program, "every-step"), problem())
     assert res.status == "ok", res.message
-    ref = rk4core.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler")
+    ref = rk4h.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler")
     assert res.t.tolist() == T.tolist()
     assert res.y.shape == (4, 21)
     assert np.max(np.abs(res.y - ref.y)) <= 1e-15
@@ -102,7 +102,7 @@ def test_t_eval_rows_and_subset(program):
     for mode in ("every-step", "teval"):
         res = run_command(argv(program, mode), problem(t_eval=t))
         assert res.status == "ok", res.message
-        ref = rk4core.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler", t_eval=t)
+        ref = rk4h.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler", t_eval=t)
         assert np.max(np.abs(res.y - ref.y)) <= 1e-15
 
 
@@ -210,7 +210,7 @@ def test_bad_problem_raises():
 
 def test_run_command_method(program):
     run = run_command_method("mine", argv(program, "every-step"), CHAIN, Y0, T, H)
-    ref = rk4core.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler")
+    ref = rk4h.solve(CHAIN.rhs, (0.0, T[-1]), Y0, n_steps=20, method="euler")
     assert run.status is Status.OK and run.n_steps == 20 and run.extra["h_used"] == pytest.approx(H)
     assert np.max(np.abs(run.y - ref.y)) <= 1e-15 and run.t is not None
     assert run.nfev == 0 and run.extra["nfev_source"] == "unknown" and "nfev is unknown" in run.extra["nfev_note"]

@@ -1,7 +1,7 @@
 """validation/compare_reports.py: what changed between two reports' tables."""
 import pandas as pd
 
-from validation.compare_reports import main
+from rk4h.validation.compare_reports import main
 
 
 def _write(d, rows):

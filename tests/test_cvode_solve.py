@@ -4,9 +4,9 @@ difference-quotient calls in ``nfev``, and the total step cap."""
 import numpy as np
 import pytest
 
-import rk4core
-from references.solvers import Status, absolute_tolerance
-from references.solvers import cvode
+import rk4h
+from rk4h.references.solvers import Status, absolute_tolerance
+from rk4h.references.solvers import cvode
 
 CASES = {
     "chain-2dof": ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]},
@@ -22,7 +22,7 @@ T = np.linspace(0.0, 5.0, 51)
 
 def case(name):
     model_name, params, x0, v0 = CASES[name]
-    model = rk4core.make_model(model_name, params)
+    model = rk4h.make_model(model_name, params)
     return model, model.state(x0, v0)
 
 
@@ -117,8 +117,8 @@ def test_step_cap_is_on_the_total(solver):
 def test_two_output_times_give_the_end_state_of_a_longer_grid(solver):
     # scikit-sundae's solve returns every internal step when given two times;
     # the wrapper asks for one midpoint more: same steps, same end state.
-    from references.solvers import integrate
-    from rk4core import make_model
+    from rk4h.references.solvers import integrate
+    from rk4h import make_model
 
     model = make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "both"})
     y0 = np.array([0.005, 0.005, 0.0, 0.0])

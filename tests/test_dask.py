@@ -12,8 +12,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from validation.plan import code_digest
-from validation.trust import TIMING_COLUMNS as TRUST_TIMING
+from rk4h.validation.plan import code_digest
+from rk4h.validation.trust import TIMING_COLUMNS as TRUST_TIMING
 
 from _scenes import one_mass
 
@@ -235,9 +235,10 @@ def test_a_worker_running_other_code_is_refused_and_named(tmp_path):
     digest: alone, the run ends with exit 3 naming it; beside a worker with
     this code, it is refused and named, and the run uses the other one."""
     other = tmp_path / "other"
-    for pkg in ("rk4core", "references", "validation"):
-        shutil.copytree(REPO / pkg, other / pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    with open(other / "rk4core" / "__init__.py", "a") as f:
+    # the installed layout: rk4core/ is rk4h/, holding references/ and validation/
+    for pkg, dest in (("rk4core", "rk4h"), ("references", "rk4h/references"), ("validation", "rk4h/validation")):
+        shutil.copytree(REPO / pkg, other / dest, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(other / "rk4h" / "__init__.py", "a") as f:
         f.write("# another version of the code\n")
     scene = tmp_path / "s.toml"
     scene.write_text(one_mass("dask-digest"))

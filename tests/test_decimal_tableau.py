@@ -1,5 +1,5 @@
 """Tableaux given as decimals are judged at the precision they were given with
-(one tolerance, rk4core.methods.Tableau.coefficient_tol): Ralston's
+(one tolerance, rk4h.methods.Tableau.coefficient_tol): Ralston's
 fourth-order method printed to 8 decimals has order 4 and RK4's stability
 boundary, in the tableau and in a scene run; a genuinely wrong coefficient
 still lowers the order."""
@@ -9,8 +9,8 @@ from fractions import Fraction as F
 import pandas as pd
 import pytest
 
-from rk4core.methods import EXACT_DECIMALS, METHODS, make_tableau
-from rk4core.stability_function import imaginary_axis_boundary, real_axis_boundary
+from rk4h.methods import EXACT_DECIMALS, METHODS, make_tableau
+from rk4h.stability_function import imaginary_axis_boundary, real_axis_boundary
 
 # Ralston (1962), the 4-stage 4th-order method with the least error bound, as
 # usually printed (8 decimals).
@@ -65,8 +65,8 @@ def test_ralston4_has_order_4_and_rk4s_boundary(which):
 def test_exact_arithmetic_or_a_round_off_tolerance_would_give_order_1_or_less():
     # what the precision fixes: read as exact (or with the former float tolerance, 2**-40 relative),
     # the 8-decimal residuals (~5e-9) fail order 2
-    from rk4core import order_conditions as oc
-    from rk4core.methods import ORDER_TOL
+    from rk4h import order_conditions as oc
+    from rk4h.methods import ORDER_TOL
 
     tab = make_tableau("r4", A8, B8, C8)
     assert oc.order(tab.A_exact, tab.b_exact) == 0  # the floats' binary sum of b is not exactly 1
@@ -126,8 +126,8 @@ def _scene_doc():
 
 @pytest.fixture(scope="module")
 def scene_report(tmp_path_factory):
-    from validation import run_all
-    from validation.scenes import scene_from_dict
+    from rk4h.validation import run_all
+    from rk4h.validation.scenes import scene_from_dict
 
     out = tmp_path_factory.mktemp("ralston4")
     scene = scene_from_dict(_scene_doc())

@@ -8,9 +8,9 @@ derived pieces must agree with each other:
 2. the stiffness matrix is the Hessian of V at the reference state q = 0
    (central differences of -F) and is symmetric;
 3. the numpy right-hand side ``model.rhs`` and the compiled one
-   (``rk4core.fast.compiled_rhs``: ``__call__``, ``checked``, ``permuted``);
+   (``rk4h.fast.compiled_rhs``: ``__call__``, ``checked``, ``permuted``);
 4. heyoka's equations (``model.heyoka_system()`` and the scaled system the
-   Taylor solver integrates, ``references.solvers.taylor.scaled_system``),
+   Taylor solver integrates, ``rk4h.references.solvers.taylor.scaled_system``),
    evaluated with heyoka's compiled functions (``heyoka.cfunc``);
 5. for linear models, ``model.modes()`` and the generalized eigenproblem
    ``scipy.linalg.eigh(K, M)``;
@@ -28,8 +28,8 @@ from typing import Callable
 import numpy as np
 import pytest
 
-import rk4core.fast as fast
-from rk4core.models import Chain, Network, Oscillator2D, Pendulums, Planar4, PotentialModel, Triangle
+import rk4h.fast as fast
+from rk4h.models import Chain, Network, Oscillator2D, Pendulums, Planar4, PotentialModel, Triangle
 
 EPS = np.finfo(float).eps  # 2.2e-16
 CBRT_EPS = EPS ** (1.0 / 3.0)  # 6.1e-6: the central-difference step that balances truncation and round-off
@@ -238,7 +238,7 @@ def _power_of_two(x):
 def test_heyoka_rhs_equals_numpy_rhs(case):
     import heyoka as hy
 
-    from references.solvers.taylor import scaled_system
+    from rk4h.references.solvers.taylor import scaled_system
 
     model = _model(case.id)
     n = model.n_dof
@@ -300,7 +300,7 @@ def test_generated_loop_equals_the_numpy_path(case):
     # code printed in the numpy path's order: the same numbers, bit for bit,
     # where only + - * / sqrt (correctly rounded everywhere) are involved; with
     # sin/cos/exp/log, numpy's and libm's may differ in the last bit.
-    import rk4core
+    import rk4h
 
     model = _model(case.id)
     kern = fast.force_kernel(model)
@@ -309,7 +309,7 @@ def test_generated_loop_equals_the_numpy_path(case):
     t_eval = np.array([0.0, 0.37, 0.5, 0.999, 1.0]) * n * step  # on and off the grid (Hermite)
     kw = dict(n_steps=n, t_eval=t_eval)
     res = fast.solve_model(model, (0.0, n * step), y0, **kw)
-    gen = rk4core.solve(model.rhs, (0.0, n * step), y0, **kw)
+    gen = rk4h.solve(model.rhs, (0.0, n * step), y0, **kw)
     assert res.success and gen.success and res.nfev == gen.nfev
     assert np.all(np.isfinite(gen.y)) and not np.array_equal(gen.y[:, -1], y0)
     hoisted, body = kern.scalar_lines([f"q{i}" for i in range(kern.n_dof)], [f"f{i}" for i in range(kern.n_dof)])
@@ -349,9 +349,9 @@ def test_fput_template_with_zero_coefficients_is_the_harmonic_tension(walls):
     # The general (anharmonic) form of the one spring-energy template, with
     # alpha = beta = 0 as numbers rather than substituted away: numpy's
     # tension and the compiled FPUT kernel give the linear chain bit for bit.
-    from rk4core.fast.solve import CompiledRHS
-    from rk4core.models.compiled import ChainKernel
-    from rk4core.models.network import spring_tension
+    from rk4h.fast.solve import CompiledRHS
+    from rk4h.models.compiled import ChainKernel
+    from rk4h.models.network import spring_tension
 
     linear, _ = _chain_pair(walls)
     rng = np.random.default_rng(6)

@@ -11,7 +11,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from validation import report
+from rk4h.validation import report
 
 from _scenes import one_mass
 

@@ -1,14 +1,14 @@
 """The monatomic-lattice dispersion relation (thesis sec. 2.2.2, eqs. 2.49-2.54)
 against the finite chain's eigenproblem and forces, and against a wave packet
-integrated by RK4 (references.wavepacket)."""
+integrated by RK4 (rk4h.references.wavepacket)."""
 import math
 
 import numpy as np
 import pytest
 
-import rk4core
-from references import dispersion as disp
-from references.wavepacket import measure_group_velocity, packet_state
+import rk4h
+from rk4h.references import dispersion as disp
+from rk4h.references.wavepacket import measure_group_velocity, packet_state
 
 M, K, D = disp.THESIS_LATTICE["m"], disp.THESIS_LATTICE["k"], disp.THESIS_LATTICE["d"]
 V0 = D * math.sqrt(K / M)
@@ -16,7 +16,7 @@ EPS = np.finfo(float).eps
 
 
 def _chain(N, m=M, k=K):
-    return rk4core.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1), "walls": "both"})
+    return rk4h.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1), "walls": "both"})
 
 
 @pytest.mark.parametrize("N", [1, 2, 3, 10, 100])

@@ -1,4 +1,4 @@
-"""validation.docs_gen: one command writes every generated document, and the
+"""rk4h.validation.docs_gen: one command writes every generated document, and the
 committed ones under docs/ are what it writes."""
 import os
 import subprocess
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from validation import docs_gen
+from rk4h.validation import docs_gen
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -20,7 +20,7 @@ def fresh():
 @pytest.mark.parametrize("name", sorted(docs_gen.DOCS))
 def test_committed_generated_docs_are_current(fresh, name):
     committed = (REPO / "docs" / name).read_text(encoding="utf-8")
-    assert committed == fresh[name], f"docs/{name} is stale: run python -m validation.docs_gen"
+    assert committed == fresh[name], f"docs/{name} is stale: run python -m rk4h.validation.docs_gen"
 
 
 def test_the_registry_covers_every_generated_doc():
@@ -57,6 +57,6 @@ def test_bad_out_is_one_line_and_exit_2(tmp_path, capsys):
 
 def test_python_m_check_on_the_repository():
     env = {**os.environ, "PYTHONPATH": str(REPO)}
-    r = subprocess.run([sys.executable, "-m", "validation.docs_gen", "--check"], cwd=REPO, env=env,
+    r = subprocess.run([sys.executable, "-m", "rk4h.validation.docs_gen", "--check"], cwd=REPO, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr

@@ -1,5 +1,5 @@
-"""The compiled DOP853 loop (rk4core.fast.dop853, references.solvers.run_dop853_compiled)
-against scipy's DOP853 (references.solvers.run_dop853): same steps, same
+"""The compiled DOP853 loop (rk4h.fast.dop853, rk4h.references.solvers.run_dop853_compiled)
+against scipy's DOP853 (rk4h.references.solvers.run_dop853): same steps, same
 right-hand-side calls, states and errors equal to round-off, same statuses.
 
 The two differ only in how the stage sums are formed (BLAS ``np.dot`` in
@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from references.solvers import absolute_tolerance, integrate, integrate_compiled
-from references.solvers.base import Status
-from references.solvers.dop853 import run_dop853, run_dop853_compiled
-from validation.execute import problem
-from validation.scenes import load_scene
+from rk4h.references.solvers import absolute_tolerance, integrate, integrate_compiled
+from rk4h.references.solvers.base import Status
+from rk4h.references.solvers.dop853 import run_dop853, run_dop853_compiled
+from rk4h.validation.execute import problem
+from rk4h.validation.scenes import load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "validation" / "scenes"
 EPS = np.finfo(float).eps
@@ -122,7 +122,7 @@ def test_integrate_compiled_runs_the_compiled_loop_only_for_dop853():
 
 
 def test_a_loop_that_cannot_be_built_falls_back_to_scipy(monkeypatch):
-    import rk4core.fast.dop853 as fd
+    import rk4h.fast.dop853 as fd
 
     def broken(kern):
         raise RuntimeError("no compiler here")
@@ -138,9 +138,9 @@ def test_a_loop_that_cannot_be_built_falls_back_to_scipy(monkeypatch):
 
 def test_a_confirmation_run_of_dop853_runs_the_compiled_loop_and_its_row_says_so(tmp_path):
     from _scenes import one_mass
-    from validation import confirm
-    from validation.execute import execute
-    from validation.plan import RunSpec, scene_digest
+    from rk4h.validation import confirm
+    from rk4h.validation.execute import execute
+    from rk4h.validation.plan import RunSpec, scene_digest
 
     path = tmp_path / "dop.toml"
     path.write_text(one_mass("dop-confirm", t_end=4.0))
@@ -161,8 +161,8 @@ def test_a_confirmation_run_of_dop853_runs_the_compiled_loop_and_its_row_says_so
 def test_the_trust_note_names_a_compiled_alternative():
     import math
 
-    from references.registry import BUILTIN
-    from validation import trust
+    from rk4h.references.registry import BUILTIN
+    from rk4h.validation import trust
 
     rk4 = [dict(solver="rk4", setting=h, error_rel=1e3 * h**4, nfev=4 * round(100 / h), n_steps=round(100 / h),
                 wall_s=1e-3, wall_min=1e-3, wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0)

@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from rk4core.energy import energy_scale, motion_energy, rest_energy
-from rk4core.models import Network
-from validation import execute as X
-from validation import metrics
-from validation.plan import plan
-from validation.scenes import load_scene
+from rk4h.energy import energy_scale, motion_energy, rest_energy
+from rk4h.models import Network
+from rk4h.validation import execute as X
+from rk4h.validation import metrics
+from rk4h.validation.plan import plan
+from rk4h.validation.scenes import load_scene
 
 DUFFING = """
 name = "duffing{tag}"
@@ -75,7 +75,7 @@ def test_pre_tension_is_not_motion():
     E0 = float(net.energy(y0))
     assert energy_scale(net, E0) == pytest.approx(k * 0.01 ** 2, rel=1e-9)  # 2 springs, k x^2 / 2 each
     t = np.linspace(0.0, 2.0, 201)
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     run = integrate("rk4", net, y0, t, 0.05)
     drift = metrics.energy_drift_max(net, run.y)

@@ -1,7 +1,7 @@
 """Energy over time: growth exponents, RK4's per-step energy factor, phase errors.
 
-The long runs use the compiled loops (rk4core.fast). Every symplectic method
-of the registry (rk4core.methods.METHODS; ``energy_time.is_symplectic``)
+The long runs use the compiled loops (rk4h.fast). Every symplectic method
+of the registry (rk4h.methods.METHODS; ``energy_time.is_symplectic``)
 takes part, so methods added to the registry join these checks.
 """
 import math
@@ -9,13 +9,13 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast
-from rk4core.energy import relative_energy_error
-from rk4core.methods import METHODS, RK4
-from validation import energy_study
-from validation import energy_time as et
-from validation.metrics import rk4_energy_factor
+import rk4h
+import rk4h.fast
+from rk4h.energy import relative_energy_error
+from rk4h.methods import METHODS, RK4
+from rk4h.validation import energy_study
+from rk4h.validation import energy_time as et
+from rk4h.validation.metrics import rk4_energy_factor
 
 pytest.importorskip("numba")
 
@@ -25,7 +25,7 @@ H_RK4 = 0.004  # s: theta = 0.065 on the fast mode; RK4 loses ~1.7e-4 of the ene
 
 def _chain(x0=(0.005, 0.005)):
     """The 2-DOF chain; the thesis' initial state excites almost only the slow mode."""
-    m = rk4core.make_model("chain", {"masses": MASSES, "springs": SPRINGS})
+    m = rk4h.make_model("chain", {"masses": MASSES, "springs": SPRINGS})
     return m, m.state(list(x0))
 
 
@@ -46,12 +46,12 @@ def test_growth_exponent_recovers_known_laws():
 
 def test_rk4_energy_factor_per_step_on_a_harmonic_oscillator():
     """One mass between two walls: E_{n} / E_0 = (1 - theta^6/72 + theta^8/576)^n."""
-    m = rk4core.make_model("chain", {"masses": [2.0], "springs": [3.0, 5.0]})
+    m = rk4h.make_model("chain", {"masses": [2.0], "springs": [3.0, 5.0]})
     omega = float(m.modes()[0][0])
     y0 = m.state([0.01])
     for h in (0.05, 0.2, 0.5):
         theta = omega * h
-        res = rk4core.fast.solve_model(m, (0.0, 200 * h), y0, n_steps=200, method="rk4")
+        res = rk4h.fast.solve_model(m, (0.0, 200 * h), y0, n_steps=200, method="rk4")
         E = np.asarray(m.energy(res.y), float)
         per_step = (E[-1] / E[0]) ** (1.0 / 200)
         factor = 1 - theta ** 6 / 72 + theta ** 8 / 576
@@ -61,12 +61,12 @@ def test_rk4_energy_factor_per_step_on_a_harmonic_oscillator():
 
 def test_rk4_energy_factor_per_step_in_modal_coordinates():
     """The 2-DOF chain: each mode's energy shrinks by its own factor every step."""
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     m, y0 = _chain((0.005, -0.002))  # both modes excited
     ms = modal_solution(m, y0)
     h, n = 0.02, 500
-    res = rk4core.fast.solve_model(m, (0.0, n * h), y0, n_steps=n, method="rk4")
+    res = rk4h.fast.solve_model(m, (0.0, n * h), y0, n_steps=n, method="rk4")
     M = np.asarray(m.mass)[:, None]
     eta, deta = ms.phi.T @ (M * res.y[:2]), ms.phi.T @ (M * res.y[2:])
     Ej = 0.5 * (deta ** 2 + (ms.omega[:, None] * eta) ** 2)
@@ -99,7 +99,7 @@ def _check_long(periods):
         else:
             assert s["energy_growth_exponent"] < 0.1, (name, s)
     # RK4's loss over the run: every step multiplies each mode's energy by its factor.
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     res, _ = out["rk4"]
     ms = modal_solution(m, y0)
@@ -128,11 +128,11 @@ def test_growth_exponent_fails_on_rk4_if_called_bounded():
 
 
 def test_phase_error_of_rk4_matches_its_lag_and_grows_linearly():
-    from validation.metrics import phase_lag
+    from rk4h.validation.metrics import phase_lag
 
     m, y0 = _chain((0.005, -0.002))
     h, n = 0.01, 20000
-    res = rk4core.fast.solve_model(m, (0.0, n * h), y0, n_steps=n, method="rk4", record_every=10)
+    res = rk4h.fast.solve_model(m, (0.0, n * h), y0, n_steps=n, method="rk4", record_every=10)
     ph = et.phase_errors(m, y0, res.t, res.y)
     assert ph.shape == (2, res.t.size)
     omega = np.sort(m.modes()[0])
@@ -144,7 +144,7 @@ def test_phase_error_of_rk4_matches_its_lag_and_grows_linearly():
 
 
 def test_no_error_and_nonlinear_model_give_nan():
-    m = rk4core.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]})
+    m = rk4h.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]})
     t = np.linspace(0, 1, 5)
     s = et.summary(m, m.state([0.1, 0.0]), t, np.tile(m.state([0.1, 0.0])[:, None], (1, 5)))
     assert math.isnan(s["energy_growth_exponent"])  # a constant state: no error to fit

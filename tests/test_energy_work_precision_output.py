@@ -7,10 +7,10 @@ import math
 import pandas as pd
 import pytest
 
-from validation import outputs, run_all
-from validation.measure import SceneTables
-from validation.outputs import energy_work_precision as ewp
-from validation.scenes import SceneError, default_outputs, scene_from_dict
+from rk4h.validation import outputs, run_all
+from rk4h.validation.measure import SceneTables
+from rk4h.validation.outputs import energy_work_precision as ewp
+from rk4h.validation.scenes import SceneError, default_outputs, scene_from_dict
 
 HH = {
     "name": "ewp-hh",

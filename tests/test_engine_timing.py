@@ -1,4 +1,4 @@
-"""Where the engine places timed runs (``validation.engine._pool``).
+"""Where the engine places timed runs (``rk4h.validation.engine._pool``).
 
 The pools are thread pools standing in for the worker processes and the
 execution is a stub that records which pool ran a spec and when, so the tests
@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from validation import engine
+from rk4h.validation import engine
 
 
 class _ThreadPools:
@@ -99,7 +99,7 @@ def test_exclusive_timing_runs_timed_runs_alone_in_the_lane(schedule):
 
 
 def test_exclusive_timing_with_a_scheduler_is_refused(tmp_path, capsys):
-    from validation import run_all
+    from rk4h.validation import run_all
 
     rc = run_all.main(["--quick", "--out", str(tmp_path / "r"), "--exclusive-timing",
                        "--scheduler", "tcp://127.0.0.1:1"])

@@ -1,4 +1,4 @@
-"""rk4core.ensemble: per instance, the batch equals rk4core.solve on that
+"""rk4h.ensemble: per instance, the batch equals rk4h.solve on that
 instance (numba: bit for bit; jax on CPU: 1e-13 relative), diverging
 instances stop alone with their t_fail, bad input is one clear ValueError."""
 import subprocess
@@ -7,20 +7,20 @@ import sys
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core import ensemble
+import rk4h
+from rk4h import ensemble
 
 pytest.importorskip("numba", reason="numba is not installed (the fast extra)")
 
 SPRINGS = [41.5, 138.0, 157.8]
-RALSTON2 = rk4core.make_tableau("ralston2", [["0", "0"], ["2/3", "0"]], ["1/4", "3/4"])  # as methods_2dof.toml
+RALSTON2 = rk4h.make_tableau("ralston2", [["0", "0"], ["2/3", "0"]], ["1/4", "3/4"])  # as methods_2dof.toml
 METHODS = ["rk4", RALSTON2, "stormer-verlet"]
 T_SPAN = (0.0, 1.5)
 H = 0.01
 
 
 def chain(masses):
-    return rk4core.make_model("chain", {"masses": list(masses), "springs": SPRINGS})
+    return rk4h.make_model("chain", {"masses": list(masses), "springs": SPRINGS})
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +33,7 @@ def batch():
 
 
 def scalar(masses, y0, method, **kw):
-    return rk4core.solve(chain(masses).rhs, T_SPAN, y0, h=H, method=method, **kw)
+    return rk4h.solve(chain(masses).rhs, T_SPAN, y0, h=H, method=method, **kw)
 
 
 def _name(m):
@@ -49,7 +49,7 @@ def test_numba_equals_solve_bit_for_bit(batch, method):
     for b in range(y0.shape[0]):
         ref = scalar(masses[b], y0[b], method)
         np.testing.assert_array_equal(res.t, ref.t)
-        assert np.array_equal(res.y[b], ref.y.T), f"instance {b} differs from rk4core.solve"
+        assert np.array_equal(res.y[b], ref.y.T), f"instance {b} differs from rk4h.solve"
 
 
 def _rel(a, ref):
@@ -88,7 +88,7 @@ def test_diverging_instances_stop_alone(backend):
     res = ensemble(chain([1.0, 1.0]), y0, span, h=h, params={"masses": masses}, backend=backend)
     assert list(res.status) == [0, -1, 0, -1, 0]
     for b in range(5):
-        ref = rk4core.solve(chain(masses[b]).rhs, span, y0[b], h=h)
+        ref = rk4h.solve(chain(masses[b]).rhs, span, y0[b], h=h)
         assert res.status[b] == ref.status
         rows = ref.y.shape[1]
         assert res.n_steps[b] == ref.n_steps
@@ -106,7 +106,7 @@ def test_diverging_instances_stop_alone(backend):
 def test_array_loop_and_off_grid_output_bit_for_bit():
     # five masses: the array loop (beyond the straight-line size); t_eval off the grid: Hermite
     rng = np.random.default_rng(3)
-    base = rk4core.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6})
+    base = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6})
     B = 4
     y0 = rng.uniform(-0.1, 0.1, (B, 10))
     springs = rng.uniform(5.0, 50.0, (B, 6))
@@ -115,27 +115,27 @@ def test_array_loop_and_off_grid_output_bit_for_bit():
         res = ensemble(base, y0, (0.0, 1.0), h=0.03, params={"springs": springs}, t_eval=t_eval, backend="numba",
                        method=method)
         for b in range(B):
-            m = rk4core.make_model("chain", {"masses": [1.0] * 5, "springs": list(springs[b])})
-            ref = rk4core.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03, t_eval=t_eval, method=method)
+            m = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": list(springs[b])})
+            ref = rk4h.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03, t_eval=t_eval, method=method)
             assert np.array_equal(res.y[b], ref.y.T), (method, b)
 
 
 def test_nonlinear_chain_equals_the_scalar_compiled_path():
-    # FPUT-beta chain: the batch runs the loop of rk4core.fast.solve_model, so
-    # it equals that bit for bit (rk4core.fast itself agrees with the numpy
+    # FPUT-beta chain: the batch runs the loop of rk4h.fast.solve_model, so
+    # it equals that bit for bit (rk4h.fast itself agrees with the numpy
     # path to round-off where numba's and numpy's arithmetic differ)
-    import rk4core.fast
+    import rk4h.fast
 
     rng = np.random.default_rng(4)
-    base = rk4core.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": 50.0})
+    base = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": 50.0})
     y0 = rng.uniform(-0.1, 0.1, (3, 10))
     beta = rng.uniform(0.0, 100.0, 3)
     res = ensemble(base, y0, (0.0, 1.0), h=0.03, params={"beta": beta}, backend="numba")
     for b in range(3):
-        m = rk4core.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": float(beta[b])})
-        ref = rk4core.fast.solve_model(m, (0.0, 1.0), y0[b], h=0.03)
+        m = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": float(beta[b])})
+        ref = rk4h.fast.solve_model(m, (0.0, 1.0), y0[b], h=0.03)
         assert np.array_equal(res.y[b], ref.y.T)
-        assert _rel(res.y[b:b + 1], rk4core.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03).y.T[None]) <= 1e-13
+        assert _rel(res.y[b:b + 1], rk4h.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03).y.T[None]) <= 1e-13
 
 
 def test_element_parameter_and_chunks(batch):
@@ -181,14 +181,14 @@ def test_bad_y0_shape():
 
 
 def test_import_loads_neither_numba_nor_jax():
-    code = ("import sys, rk4core; rk4core.ensemble; "
+    code = ("import sys, rk4h; rk4h.ensemble; "
             "print('numba' in sys.modules, 'jax' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "False"]
 
 
 def test_stability_map_boundary_is_2_8284_along_the_mass_ratio_axis():
-    from rk4core.batch.maps import RK4_IMAGINARY_LIMIT, stability_map
+    from rk4h.batch.maps import RK4_IMAGINARY_LIMIT, stability_map
 
     model = chain([0.815, 3.099])
     values = 0.815 * np.geomspace(0.1, 10.0, 12)  # masses[1] over masses[0] from 0.1 to 10
@@ -207,7 +207,7 @@ def test_stability_map_boundary_is_2_8284_along_the_mass_ratio_axis():
 
 def test_float32_floor_grows_like_sqrt_n_eps32():
     pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
-    from rk4core.batch.maps import float32_floor
+    from rk4h.batch.maps import float32_floor
 
     y0 = np.random.default_rng(1).uniform(-0.01, 0.01, (16, 4))
     n = np.array([100, 10000])
@@ -226,14 +226,14 @@ def test_float32_floor_grows_like_sqrt_n_eps32():
 ])
 def test_every_two_dof_model_per_instance(name, params, swept):
     # the exact (nonlinear) planar models and the potential-defined ones: each
-    # instance with its own parameter, against rk4core.solve on that instance
-    model = rk4core.make_model(name, params)
+    # instance with its own parameter, against rk4h.solve on that instance
+    model = rk4h.make_model(name, params)
     rng = np.random.default_rng(2)
     y0 = rng.uniform(-0.1, 0.1, (4, 2 * model.n_dof))
     values = rng.uniform(0.5, 2.0, 4)
     values[2] = params[swept]  # equal numbers can print another force (shared constants): a second structure
     # every other parameter as model.params() gives it (pendulums: the separation the base length implied)
-    ref = np.stack([rk4core.solve(rk4core.make_model(name, {**model.params(), swept: values[b]}).rhs, (0.0, 1.0), y0[b],
+    ref = np.stack([rk4h.solve(rk4h.make_model(name, {**model.params(), swept: values[b]}).rhs, (0.0, 1.0), y0[b],
                                   h=0.01, method="stormer-verlet").y.T for b in range(4)])
     res = ensemble(model, y0, (0.0, 1.0), h=0.01, method="stormer-verlet", params={swept: values}, backend="numba")
     assert np.array_equal(res.y, ref)

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import run_all
-from validation.outputs import stability_map as smap_output
-from validation.scenes import SceneError, scene_from_dict
+from rk4h.validation import run_all
+from rk4h.validation.outputs import stability_map as smap_output
+from rk4h.validation.scenes import SceneError, scene_from_dict
 
 pytest.importorskip("numba", reason="numba is not installed (the fast extra)")
 
@@ -92,8 +92,8 @@ def test_cli_exit_2_one_line(tmp_path):
 
 
 def test_chunks_of_instances_give_the_same_statistics(monkeypatch):
-    from validation.outputs import ensemble as ens_output
-    from validation.plan import plan
+    from rk4h.validation.outputs import ensemble as ens_output
+    from rk4h.validation.plan import plan
 
     scene = scene_from_dict(copy.deepcopy(DOC))
     spec = next(s for s in plan(scene) if s.purpose == "ensemble")
@@ -104,7 +104,7 @@ def test_chunks_of_instances_give_the_same_statistics(monkeypatch):
 
 
 def test_the_budget_counts_every_instance():
-    from validation import budget
+    from rk4h.validation import budget
 
     doc = copy.deepcopy(DOC)
     doc["ensemble"]["size"] = 10 ** 8

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-import rk4core
-from validation.ensemble import draw_instances, error_statistics, stability_map_figure
+import rk4h
+from rk4h.validation.ensemble import draw_instances, error_statistics, stability_map_figure
 
 pytest.importorskip("numba", reason="numba is not installed (the fast extra)")
 
@@ -11,7 +11,7 @@ SPRINGS = [41.5, 138.0, 157.8]
 
 
 def chain():
-    return rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": SPRINGS})
+    return rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": SPRINGS})
 
 
 def test_draws_follow_their_distributions_and_the_seed():
@@ -66,7 +66,7 @@ def test_error_statistics_against_the_modal_solution():
     y0, params = draw_instances(table, chain(), [0.005, 0.005])
     stats = {}
     for h in (0.01, 0.005):
-        res = rk4core.ensemble(chain(), y0, (0.0, 2.0), h=h, params=params, backend="numba")
+        res = rk4h.ensemble(chain(), y0, (0.0, 2.0), h=h, params=params, backend="numba")
         stats[h] = error_statistics(chain(), res, y0, params)
     s = stats[0.01]
     assert s["failed"] == 0
@@ -77,7 +77,7 @@ def test_error_statistics_against_the_modal_solution():
 
 
 def test_stability_map_figure(tmp_path):
-    from rk4core.batch.maps import RK4_IMAGINARY_LIMIT, stability_map
+    from rk4h.batch.maps import RK4_IMAGINARY_LIMIT, stability_map
 
     smap = stability_map(chain(), "masses[1]", [1.0, 3.0], np.linspace(0.05, 0.2, 6), y0=[0.005, -0.003, 0, 0],
                          n_steps=200)

@@ -6,8 +6,8 @@ import numpy as np
 
 import pytest
 
-from references import closed_forms as cf
-from references import errata
+from rk4h.references import closed_forms as cf
+from rk4h.references import errata
 
 K_TAB, M_TAB = 41.5, 0.815  # thesis' mass (kg) and spring (N/m), Tables 4.4-4.6 and sec. 4.2
 
@@ -78,8 +78,8 @@ def test_items3_and_4_planar4_force(rows):
 def test_item4_is_an_assumption_with_both_readings_computed(rows):
     import numpy as np
 
-    import rk4core
-    from references.thesis_code import printed_code03_rhs
+    import rk4h
+    from rk4h.references.thesis_code import printed_code03_rhs
 
     item4 = [r for r in rows if r["item"] == 4]
     assert len(item4) == 3
@@ -89,7 +89,7 @@ def test_item4_is_an_assumption_with_both_readings_computed(rows):
     y0 = np.array([0.005, 0.03, 0.0, 0.0])
     want = []
     for L in (1.0, 0.01):
-        res = rk4core.solve(printed_code03_rhs(M_TAB, K_TAB, L), (0.0, 3.0), y0, n_steps=300, method="rk4")
+        res = rk4h.solve(printed_code03_rhs(M_TAB, K_TAB, L), (0.0, 3.0), y0, n_steps=300, method="rk4")
         want.append(res.y[1, -1] / y0[1])
     row = _find(rows, 4, "Code 03 as printed")
     assert (row["thesis"], row["corrected"]) == pytest.approx(want, rel=1e-12)
@@ -99,7 +99,7 @@ def test_item4_is_an_assumption_with_both_readings_computed(rows):
 
 
 def test_printed_code03_default_reading_is_the_digit_one():
-    from references.thesis_code import printed_code03_rhs
+    from rk4h.references.thesis_code import printed_code03_rhs
 
     y = [0.004, -0.002, 0.1, 0.2]
     assert np.array_equal(printed_code03_rhs(M_TAB, K_TAB)(0.0, y), printed_code03_rhs(M_TAB, K_TAB, 1.0)(0.0, y))

@@ -1,6 +1,6 @@
 """Exact references: the 2-DOF closed forms (thesis eqs. 2.28, 2.31, Table 4.3),
 the 2-D oscillator closed forms (eqs. 2.86-2.87, Table 4.6) and modal
-superposition (references.exact)."""
+superposition (rk4h.references.exact)."""
 import math
 from decimal import Decimal, getcontext
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy.linalg import eigh, expm
 
-import rk4core
-from references import closed_forms as cf
-from references.exact import modal_solution
+import rk4h
+from rk4h.references import closed_forms as cf
+from rk4h.references.exact import modal_solution
 
 EPS = np.finfo(float).eps
 
@@ -188,7 +188,7 @@ def test_table_4_6_recomputed():
 
 
 def test_planar4_small_oscillation_is_the_linear_model_frequency():
-    model = rk4core.make_model("planar4", {"m": 0.815, "k": 41.5, "l": 0.01, "linear": True})
+    model = rk4h.make_model("planar4", {"m": 0.815, "k": 41.5, "l": 0.01, "linear": True})
     omega, _ = model.modes()
     w, _ = cf.planar4_small_oscillation(0.815, 41.5)
     assert omega == pytest.approx([w, w], rel=1e-14)
@@ -200,7 +200,7 @@ def test_oscillator2d_closed_form_matches_modal_solution(Delta, kx_over_ky):
     # kx/ky = 4: omega_x = 2 omega_y (Fig. 4.19); kx/ky = 2: omega_x = sqrt(2) omega_y (Fig. 4.20)
     m, ky = 0.815, 83.0
     A, B = 0.02, 0.01
-    model = rk4core.make_model("oscillator2d", {"m": m, "kx": kx_over_ky * ky, "ky": ky})
+    model = rk4h.make_model("oscillator2d", {"m": m, "kx": kx_over_ky * ky, "ky": ky})
     wx, wy = cf.oscillator2d_frequencies(m, kx_over_ky * ky, ky)
     y0 = cf.oscillator2d_initial_state(A, B, wy, Delta)
     t = np.linspace(0.0, 5.0, 101)
@@ -225,7 +225,7 @@ def test_isotropic_quarter_phase_is_an_axis_aligned_ellipse():
     assert np.max(np.abs((x / A) ** 2 + (y / B) ** 2 - 1)) < 1e-14
 
 
-# -- modal superposition (references.exact) --------------------------------------
+# -- modal superposition (rk4h.references.exact) --------------------------------------
 
 LINEAR_MODELS = [
     ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "both"}),
@@ -252,7 +252,7 @@ def _linear_propagator(model, tau):
     "chain-both", "chain-left", "chain-right", "co2-free", "oscillator2d", "planar4-linear",
     "pendulums-linear", "triangle-linearized"])
 def test_modal_solution_is_the_matrix_exponential_flow(name, params):
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     rng = np.random.default_rng(2)
     y0 = rng.standard_normal(2 * model.n_dof) * 1e-2
     sol = modal_solution(model, y0)
@@ -266,7 +266,7 @@ def test_modal_solution_is_the_matrix_exponential_flow(name, params):
 
 def test_modal_solution_free_chain_translates():
     # walls "none": a uniform velocity is a zero mode, q(t) = q0 + v t exactly
-    model = rk4core.make_model("chain", {"masses": [16.0, 12.0, 16.0], "springs": [5.0, 5.0], "walls": "none"})
+    model = rk4h.make_model("chain", {"masses": [16.0, 12.0, 16.0], "springs": [5.0, 5.0], "walls": "none"})
     y0 = model.state([0.1, 0.1, 0.1], [0.3, 0.3, 0.3])
     t = np.array([0.0, 1.0, 10.0])
     y = modal_solution(model, y0)(t)
@@ -277,7 +277,7 @@ def test_modal_solution_free_chain_translates():
 def test_modal_solution_linearized_triangle_rotates_uniformly():
     # Linearized rigid rotation about the centroid c: v_i = w e_z x (r_i - c), a zero
     # mode of the linearization, so q(t) = v t (no restoring force to first order).
-    model = rk4core.make_model("triangle", {"m": 1.0, "k": 3.0, "side": 1.0})
+    model = rk4h.make_model("triangle", {"m": 1.0, "k": 3.0, "side": 1.0})
     r = np.array(model.rest)
     c = r.mean(axis=0)
     w = 0.2

@@ -1,4 +1,4 @@
-"""Tests of rk4core.expr: the parser (valid values, precedence, refusals with
+"""Tests of rk4h.expr: the parser (valid values, precedence, refusals with
 their columns), symbolic differentiation, the numpy/math/heyoka evaluators and
 the digest.
 
@@ -11,8 +11,8 @@ import re
 import numpy as np
 import pytest
 
-from rk4core import expr as ex
-from rk4core.expr import ExprError, diff, lambdify, parse, to_heyoka, to_source, to_text
+from rk4h import expr as ex
+from rk4h.expr import ExprError, diff, lambdify, parse, to_heyoka, to_source, to_text
 
 NAMES = ["x", "y", "z"]
 CONSTS = {"k": 2.5}
@@ -457,7 +457,7 @@ def test_digest_is_stable_and_discriminating():
     # pinned: the canonical text "0.5*(x**2 + y**2)" under version tag 1
     assert d == ex.digest(parse("0.5*(x**2 + y**2)", NAMES))
     import hashlib
-    assert d == hashlib.sha256(b"rk4core.expr/1\n0.5*(x**2 + y**2)").hexdigest()
+    assert d == hashlib.sha256(b"rk4h.expr/1\n0.5*(x**2 + y**2)").hexdigest()
     others = ["(x^2 + y^2)/3", "(x^2 - y^2)/2", "(x^3 + y^2)/2", "(x^2 + z^2)/2", "k*(x^2 + y^2)/2"]
     digests = {ex.digest(parse(t, NAMES, CONSTS)) for t in others}
     assert len(digests) == len(others) and d not in digests

@@ -1,4 +1,4 @@
-"""Expression cost is bounded before it is paid: the limits of rk4core.expr
+"""Expression cost is bounded before it is paid: the limits of rk4h.expr
 (factors per product, exact-folding size, derivative work) refuse or defuse an
 expression in seconds, naming the limit, where it used to take minutes."""
 import math
@@ -8,8 +8,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from rk4core import expr as ex
-from rk4core.models.potential import PotentialModel
+from rk4h import expr as ex
+from rk4h.models.potential import PotentialModel
 
 
 def _timed_refusal(text, coordinates=("x",)):

@@ -1,4 +1,4 @@
-"""The compiled fast path (rk4core.fast) against the generic rk4core.solve.
+"""The compiled fast path (rk4h.fast) against the generic rk4h.solve.
 
 The fast path repeats the generic path's floating-point operations in the same
 order, so the numbers must agree bit for bit where only + - * / sqrt are
@@ -9,9 +9,9 @@ including where and how a run blows up.
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from rk4core.methods import Tableau
+import rk4h
+import rk4h.fast as fast
+from rk4h.methods import Tableau
 
 CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]}
 
@@ -38,7 +38,7 @@ METHODS = ["rk4", "euler", "symplectic-euler"]
 
 def _model(case):
     _, name, params, x0, v0 = case
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     return model, model.state(x0, v0)
 
 
@@ -80,7 +80,7 @@ def test_fast_equals_generic_every_step(case, method):
     model, y0 = _model(case)
     assert fast.supports(model)
     kw = dict(h=0.01, method=method)
-    _assert_same(fast.solve_model(model, (0.0, 1.5), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.5), y0, **kw),
+    _assert_same(fast.solve_model(model, (0.0, 1.5), y0, **kw), rk4h.solve(model.rhs, (0.0, 1.5), y0, **kw),
                  exact=_exact(model))
 
 
@@ -93,7 +93,7 @@ def test_fast_equals_generic_t_eval(case):
     kw = dict(h=0.01, t_eval=t_eval)
     res = fast.solve_model(model, (0.0, 1.5), y0, **kw)
     assert res.dense == "hermite"
-    _assert_same(res, rk4core.solve(model.rhs, (0.0, 1.5), y0, **kw), exact=_exact(model))
+    _assert_same(res, rk4h.solve(model.rhs, (0.0, 1.5), y0, **kw), exact=_exact(model))
 
 
 def test_t_eval_on_grid_is_returned_exactly():
@@ -111,18 +111,18 @@ def test_custom_tableau_is_data_not_code():
     heun = Tableau("heun", np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2)
     model, y0 = _model(MODEL_CASES[6])
     kw = dict(n_steps=120, method=heun)
-    _assert_same(fast.solve_model(model, (0.0, 1.2), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.2), y0, **kw))
+    _assert_same(fast.solve_model(model, (0.0, 1.2), y0, **kw), rk4h.solve(model.rhs, (0.0, 1.2), y0, **kw))
 
 
 def test_large_chain_equals_generic():
     # O(N) tridiagonal kernel on a random 2000-mass chain, free ends.
     rng = np.random.default_rng(5)
     N = 2000
-    model = rk4core.make_model("chain", {"masses": list(rng.uniform(0.5, 2.0, N)),
+    model = rk4h.make_model("chain", {"masses": list(rng.uniform(0.5, 2.0, N)),
                                          "springs": list(rng.uniform(1.0, 3.0, N - 1)), "walls": "none"})
     y0 = np.concatenate([rng.normal(0, 1e-3, N), rng.normal(0, 1e-3, N)])
     kw = dict(n_steps=50, method="rk4")
-    _assert_same(fast.solve_model(model, (0.0, 1.0), y0, **kw), rk4core.solve(model.rhs, (0.0, 1.0), y0, **kw))
+    _assert_same(fast.solve_model(model, (0.0, 1.0), y0, **kw), rk4h.solve(model.rhs, (0.0, 1.0), y0, **kw))
 
 
 # Blow-ups: RK4 on an undamped mode is stable for h omega < 2 sqrt(2) and
@@ -154,7 +154,7 @@ def test_blow_up_same_as_generic(case_i, method, h, with_t_eval, reason, rule):
     kw = dict(h=h, method=method, **rule)
     if with_t_eval:
         kw["t_eval"] = np.linspace(*t_span, 1001)
-    gen = rk4core.solve(model.rhs, t_span, y0, **kw)
+    gen = rk4h.solve(model.rhs, t_span, y0, **kw)
     assert not gen.success  # the case must actually blow up
     res = fast.solve_model(model, t_span, y0, **kw)
     assert res.status == -1 and res.reason == gen.reason == reason
@@ -187,7 +187,7 @@ def test_growth_stop_bit_identical_to_generic(name, scale):
     model, y0, t_span, kw = GROWTH_CASES[name]()
     if scale == "given":  # per-group scales: positions 5 mm, velocities 0.1 m/s
         kw["y_scale"] = [0.005, 0.005, 0.1, 0.1]
-    gen = rk4core.solve(model.rhs, t_span, y0, **kw)
+    gen = rk4h.solve(model.rhs, t_span, y0, **kw)
     res = fast.solve_model(model, t_span, y0, **kw)
     assert gen.reason == res.reason == "growth" and gen.status == res.status == -1
     assert f"its {scale} scale" in res.message
@@ -200,7 +200,7 @@ def test_growth_stop_bit_identical_to_generic(name, scale):
 def test_symplectic_euler_stable_below_its_limit():
     # Symplectic Euler on x'' = -w^2 x is stable for h w < 2 (trace of the
     # one-step matrix is 2 - (h w)^2): just below the limit no blow-up.
-    model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})
+    model = rk4h.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})
     res = fast.solve_model(model, (0.0, 2000.0), model.state([1.0, 0.5]), h=1.99, method="symplectic-euler",
                            record_every=1000)
     assert res.success
@@ -209,7 +209,7 @@ def test_symplectic_euler_stable_below_its_limit():
 @pytest.mark.parametrize("every", [1, 7, 150])
 def test_record_every_keeps_every_kth_step_and_the_last(every):
     model, y0 = _model(MODEL_CASES[4])
-    full = rk4core.solve(model.rhs, (0.0, 1.0), y0, n_steps=100)
+    full = rk4h.solve(model.rhs, (0.0, 1.0), y0, n_steps=100)
     res = fast.solve_model(model, (0.0, 1.0), y0, n_steps=100, record_every=every)
     cols = sorted(set(range(0, 101, every)) | {100})
     np.testing.assert_array_equal(res.t, full.t[cols])
@@ -247,7 +247,7 @@ def test_bad_arguments_raise_value_error_naming_them(kwargs, name):
 
 
 def test_warm_up_reports_compile_time_apart_and_signatures_stay_few():
-    from rk4core.fast import codegen
+    from rk4h.fast import codegen
 
     assert fast.warm_up() >= 0.0
     assert fast.compile_time() is not None and fast.compile_time() >= 0.0
@@ -270,18 +270,18 @@ def test_one_generated_loop_per_method_and_structure(same, other):
     # The loop's text depends on the definition's structure, not its numbers (except
     # that a factor 1 or a term 0 simplifies away, as length = 1 and k/2 = 1 here):
     # a model of the same structure with other parameters reuses it.
-    from rk4core.fast import codegen
+    from rk4h.fast import codegen
 
     heun = Tableau("heun", np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([0.5, 0.5]), np.array([0.0, 1.0]), 2)
     first = {"chain": MODEL_CASES[0], "pendulums": MODEL_CASES[6]}[same[0]]
     model, y0 = _model(first)
     fast.solve_model(model, (0.0, 0.1), y0, n_steps=3, method=heun)
     before = codegen.compiled_kernels()
-    twin = rk4core.make_model(*same)
+    twin = rk4h.make_model(*same)
     assert fast.force_kernel(twin).key() == fast.force_kernel(model).key()
     res = fast.solve_model(twin, (0.0, 0.1), y0, n_steps=3, method=heun)
     assert codegen.compiled_kernels() == before
-    np.testing.assert_array_equal(res.y, rk4core.solve(twin.rhs, (0.0, 0.1), y0, n_steps=3, method=heun).y)
+    np.testing.assert_array_equal(res.y, rk4h.solve(twin.rhs, (0.0, 0.1), y0, n_steps=3, method=heun).y)
     other_model, y0o = _model(other)
     fast.solve_model(other_model, (0.0, 0.1), y0o, n_steps=3, method=heun)
     assert codegen.compiled_kernels() == before + 1
@@ -290,8 +290,8 @@ def test_one_generated_loop_per_method_and_structure(same, other):
 def test_generated_source_skips_zero_coefficients():
     # RK4 has 3 nonzero a_ij and 4 nonzero b_i: one product h * coefficient
     # for each and each half (q, v) of the state, and no other.
-    from rk4core.fast import _kernels, codegen
-    from rk4core.methods import RK4
+    from rk4h.fast import _kernels, codegen
+    from rk4h.methods import RK4
 
     model, _ = _model(MODEL_CASES[0])
     text = codegen.source(RK4, fast.force_kernel(model))
@@ -308,7 +308,7 @@ def _kernel_args(model):
 
 
 def _array_loop(kern, fp, ip, mass, y0, step, n, tab, *rest):
-    from rk4core.fast import codegen
+    from rk4h.fast import codegen
 
     return codegen.array_kernel(tab, kern)(fp, ip, mass, np.zeros(kern.work_size), y0, 0.0, step, n, *rest)
 
@@ -318,9 +318,9 @@ def test_straight_line_loop_is_bit_identical_to_array_loop(method):
     # The two generated forms of one (method, force) pair -- scalar locals and
     # arrays -- do the same arithmetic in the same order. (The chain's array
     # loop is the one longer chains run, so this compiles nothing extra.)
-    from rk4core.fast import codegen
-    from rk4core.fast.solve import _output_points
-    from rk4core.methods import get_method
+    from rk4h.fast import codegen
+    from rk4h.fast.solve import _output_points
+    from rk4h.methods import get_method
 
     model, y0 = _model(MODEL_CASES[0])
     kern, (fp, ip, mass) = _kernel_args(model)
@@ -345,9 +345,9 @@ KERNEL_STOPS = [("tight-bound", 1e4, 0.0), ("pending-scale", np.finfo(float).max
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("stop, bound0, pending", KERNEL_STOPS, ids=[k[0] for k in KERNEL_STOPS])
 def test_generated_loop_stops_where_generic_loop_stops(stop, bound0, pending, method):
-    from rk4core.fast import codegen
-    from rk4core.fast.solve import _output_points
-    from rk4core.methods import get_method
+    from rk4h.fast import codegen
+    from rk4h.fast.solve import _output_points
+    from rk4h.methods import get_method
 
     model, y0 = _model(MODEL_CASES[0])  # chain case 1, at omega_max h = 3: unstable for every method here
     kern, (fp, ip, mass) = _kernel_args(model)
@@ -376,12 +376,12 @@ def test_generated_loop_stops_where_generic_loop_stops(stop, bound0, pending, me
 def test_finite_state_whose_sum_overflows_is_not_a_blow_up():
     # The loop tests finiteness on the sum of the state; two finite
     # components of 1.5e308 sum to inf, which must not stop the run.
-    model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1e-300, "ky": 1e-300})
+    model = rk4h.make_model("oscillator2d", {"m": 1.0, "kx": 1e-300, "ky": 1e-300})
     y0 = np.array([1.5e308, 1.5e308, 0.0, 0.0])
     kw = dict(n_steps=10, method="euler")
     res = fast.solve_model(model, (0.0, 1.0), y0, **kw)
     assert res.success
-    _assert_same(res, rk4core.solve(model.rhs, (0.0, 1.0), y0, **kw))
+    _assert_same(res, rk4h.solve(model.rhs, (0.0, 1.0), y0, **kw))
 
 
 def test_second_process_loads_the_loops_from_the_disk_cache():
@@ -392,9 +392,9 @@ def test_second_process_loads_the_loops_from_the_disk_cache():
 
     model, y0 = _model(MODEL_CASES[0])
     fast.warm_up(model, "rk4")
-    code = ("import rk4core, rk4core.fast as fast\n"
-            "from rk4core.fast import _kernels, codegen\n"
-            f"m = rk4core.make_model('chain', {CASE1!r})\n"
+    code = ("import rk4h, rk4h.fast as fast\n"
+            "from rk4h.fast import _kernels, codegen\n"
+            f"m = rk4h.make_model('chain', {CASE1!r})\n"
             "fast.warm_up(m, 'rk4')\n"
             "(loop,) = codegen._KERNELS.values()\n"
             "print(sum(loop.stats.cache_misses.values()), sum(loop.stats.cache_hits.values()))\n")
@@ -407,8 +407,8 @@ def test_same_array_text_other_edge_list_gets_its_own_loop():
     # Two one-mass networks: the same array source (dim 2, harmonic springs)
     # but different edge lists, so different straight-line loops; each must
     # equal its own generic-path run (a shared loop would be wrong for one).
-    a = rk4core.make_model("planar4", {"m": 0.5, "k": 20.0, "l": 1.0})
-    b = rk4core.make_model("network", {"dim": 2, "masses": [0.5], "positions": [0.0, 0.0],
+    a = rk4h.make_model("planar4", {"m": 0.5, "k": 20.0, "l": 1.0})
+    b = rk4h.make_model("network", {"dim": 2, "masses": [0.5], "positions": [0.0, 0.0],
                                        "anchors": [-1.0, 0.0, 0.0, 2.0, 1.5, -1.0],
                                        "springs": [[0, 1, 20.0], [0, 2, 7.0], [0, 3, 3.0]]})
     assert fast.force_kernel(a).key() == fast.force_kernel(b).key()
@@ -416,16 +416,16 @@ def test_same_array_text_other_edge_list_gets_its_own_loop():
     for model in (a, b):
         y0 = model.state([0.1, -0.05], [0.0, 0.2])
         np.testing.assert_array_equal(fast.solve_model(model, (0.0, 1.0), y0, h=0.01).y,
-                                      rk4core.solve(model.rhs, (0.0, 1.0), y0, h=0.01).y)
+                                      rk4h.solve(model.rhs, (0.0, 1.0), y0, h=0.01).y)
 
 
 def test_a_force_patched_onto_the_class_disables_the_compiled_path(monkeypatch):
     # The compiled kernels are printed from the definition; a force or
     # right-hand side assigned onto the class afterwards is not in them.
-    from rk4core.models.chain import Chain
+    from rk4h.models.chain import Chain
 
     model, y0 = _model(MODEL_CASES[1])
     assert fast.supports(model)
     monkeypatch.setattr(Chain, "_force", lambda self, q, ops: 0.0 * q)
-    patched = rk4core.make_model("chain", dict(MODEL_CASES[1][2]))
+    patched = rk4h.make_model("chain", dict(MODEL_CASES[1][2]))
     assert not fast.supports(patched)

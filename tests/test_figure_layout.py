@@ -30,13 +30,13 @@ from matplotlib.collections import Collection
 from matplotlib.patches import Rectangle
 from matplotlib.text import Text
 
-import rk4core
-import validation.stability as S
-from references.exact import modal_solution
-from validation import draw as D
-from validation import figures
-from validation.execute import modal_content
-from validation.outputs import energy_work_precision as EWP
+import rk4h
+import rk4h.validation.stability as S
+from rk4h.references.exact import modal_solution
+from rk4h.validation import draw as D
+from rk4h.validation import figures
+from rk4h.validation.execute import modal_content
+from rk4h.validation.outputs import energy_work_precision as EWP
 
 MIN_PT = 8.0
 
@@ -95,7 +95,7 @@ def _conv_methods(out):
     """methods-2dof (the quick report): the scene's own methods (rk38, heun3,
     ralston2, hand-rk4) beside built-ins, four expected orders (4, 3, 2, 1),
     so four slope guides, drawn in the scene's registry styles."""
-    from validation.scenes import load_scene, resolve_scene
+    from rk4h.validation.scenes import load_scene, resolve_scene
 
     reg = load_scene(resolve_scene("methods-2dof")).registry
     h4, h1 = np.array([0.0121, 0.00606, 0.00303, 0.00151]), np.array([6.14e-4, 3.07e-4, 1.53e-4, 7.67e-5])
@@ -179,22 +179,22 @@ def _stability_plots():
 def _region_plot():
     """geometric-2dof's stability region: classical and partitioned methods,
     one with no colour of its own (heun3)."""
-    from rk4core.methods import METHODS
-    from validation.stability.region import region_plot
+    from rk4h.methods import METHODS
+    from rk4h.validation.stability.region import region_plot
 
     names = ("rk4", "heun3", "euler", "stormer-verlet", "forest-ruth", "yoshida4")
     return region_plot("geometric-2dof", [METHODS[n] for n in names], n=81)
 
 
 def _exact_run(name, params, x0, v0=None, t_end=20.0, m=2001):
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     t = np.linspace(0.0, t_end, m)
     return model, t, modal_solution(model, model.state(x0, v0))(t)
 
 
 def _rk4_run(name, params, x0, v0=None, t_end=5.0, h=0.005):
-    model = rk4core.make_model(name, params)
-    res = rk4core.solve(model.rhs, (0.0, t_end), model.state(x0, v0), h=h)
+    model = rk4h.make_model(name, params)
+    res = rk4h.solve(model.rhs, (0.0, t_end), model.state(x0, v0), h=h)
     assert res.success
     return model, res.t, res.y
 
@@ -236,7 +236,7 @@ BUILDERS = {
                                  0.15 * np.sin(np.linspace(0, np.pi, 600)) ** 2])},
         np.array([0.0952, 0.19, 0.285]))],
     "dispersion": lambda out: [figures.dispersion(
-        out, 0.815, 41.5, 0.01, 100, rk4core.make_model("chain", LATTICE).modes()[0],
+        out, 0.815, 41.5, 0.01, 100, rk4h.make_model("chain", LATTICE).modes()[0],
         [(0.3 * math.pi / 0.01, 0.063272), (0.6 * math.pi / 0.01, 0.041737)], scene_name="lattice100")],
     "crossover": lambda out: [figures.crossover(out, pd.DataFrame([
         {"scene": f"scene-number-{i:02d}" + ("@masses1=0.8150" if i % 5 == 0 else ""), "target_error": te,

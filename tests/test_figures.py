@@ -1,6 +1,6 @@
 """The report's figures (validation/figures/): files, sizes, what is drawn.
 
-Inputs are realistic but short: real RK4 trajectories (rk4core.solve) and the
+Inputs are realistic but short: real RK4 trajectories (rk4h.solve) and the
 modal exact solution of the seed's models. Each figure is inspected just
 before it is written through ``figures.style.SAVE_HOOK``.
 """
@@ -12,10 +12,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import rk4core
-from references.exact import modal_solution
-from validation import figures
-from validation.execute import modal_content
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.validation import figures
+from rk4h.validation.execute import modal_content
 
 PX = (round(figures.SIZE[1] * figures.DPI), round(figures.SIZE[0] * figures.DPI))  # (rows, cols)
 PX_TALL = (round(figures.SIZE_TALL[1] * figures.DPI), round(figures.SIZE_TALL[0] * figures.DPI))
@@ -60,8 +60,8 @@ def scene_figures(out_dir, scene_name, model, t, y, **kw):
 
 
 def rk4_run(name, params, x, v=None, t_end=3.0, h=0.01):
-    model = rk4core.make_model(name, params)
-    res = rk4core.solve(model.rhs, (0.0, t_end), model.state(x, v), h=h)
+    model = rk4h.make_model(name, params)
+    res = rk4h.solve(model.rhs, (0.0, t_end), model.state(x, v), h=h)
     assert res.success
     return model, res.t, res.y
 
@@ -174,7 +174,7 @@ def test_sentences_quote_the_drawing(tmp_path, monkeypatch):
     assert all("(Fig 9.99)" in s for s in sentences.values())
     assert "a custom reading hint" in sentences["q_trajectory.png"]
     assert "a custom rest note" in sentences["q_springs.png"]
-    shipped_model = rk4core.make_model("planar4", {"m": 0.815, "k": 41.5, "l": 0.01})
+    shipped_model = rk4h.make_model("planar4", {"m": 0.815, "k": 41.5, "l": 0.01})
     shipped = {p.name: s for p, s in scene_figures(tmp_path, "p", shipped_model, t, y, title="p")}
     # a model does not know whether a scene reproduces a thesis figure: the scene says so
     assert not any("(thesis" in s for s in shipped.values())
@@ -227,7 +227,7 @@ def test_planar4_spring_elongation_is_length_minus_l(tmp_path, captured):
 
 
 def test_lissajous_is_drawn_with_equal_axes(tmp_path, captured):
-    model = rk4core.make_model("oscillator2d", {"m": 0.815, "kx": 4 * 41.5, "ky": 41.5})
+    model = rk4h.make_model("oscillator2d", {"m": 0.815, "kx": 4 * 41.5, "ky": 41.5})
     t = np.linspace(0.0, 2.0, 401)
     y = modal_solution(model, model.state([0.0, 1.0], [7.0, 0.0]))(t)
     scene_figures(tmp_path, "liss", model, t, y, title="lissajous")
@@ -240,7 +240,7 @@ def test_lissajous_is_drawn_with_equal_axes(tmp_path, captured):
 
 
 def test_scene_figures_draw_a_blown_up_run_with_a_gap(tmp_path, captured):
-    # A failed run is NaN from the blow-up on (references.solvers.base); +-inf may come from a user.
+    # A failed run is NaN from the blow-up on (rk4h.references.solvers.base); +-inf may come from a user.
     model, t, y = rk4_run("chain", CASE1, [0.005, 0.0], t_end=2.0)
     y = y.copy()
     y[:, t.size // 2:] = np.nan
@@ -386,7 +386,7 @@ def test_energy_error_log_axes_from_first_step(tmp_path, captured):
 # -- dispersion ------------------------------------------------------------------------
 def test_dispersion_curves_points_and_zone(tmp_path, captured):
     m, k, d, N = 0.815, 41.5, 0.01, 8
-    chain = rk4core.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
+    chain = rk4h.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
     finite = chain.modes()[0]
     packets = [(0.3 * math.pi / d, 0.066), (0.6 * math.pi / d, 0.05)]
     path, sentence = figures.dispersion(tmp_path, m, k, d, N, finite, packets)

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import rk4core
-from references.exact import modal_solution
-from validation import execute, figures, records
-from validation.figures import style
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.validation import execute, figures, records
+from rk4h.validation.figures import style
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "validation" / "figures"
@@ -79,7 +79,7 @@ CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "bo
 
 
 def test_modal_content_of_a_single_mode_start():
-    model = rk4core.make_model("chain", CASE1)
+    model = rk4h.make_model("chain", CASE1)
     omega, phi = model.modes()
     k = int(np.argmin(omega))
     q0 = 0.005 * phi[:, k] / np.max(np.abs(phi[:, k]))
@@ -95,8 +95,8 @@ def test_modal_content_of_a_single_mode_start():
 
 
 def test_the_figure_record_holds_the_modal_numbers_and_the_job_carries_them(tmp_path):
-    from validation import measure, plan
-    from validation.scenes import load_scenes
+    from rk4h.validation import measure, plan
+    from rk4h.validation.scenes import load_scenes
 
     scene = load_scenes(["thesis-2dof-case1"])[0]
     (spec,) = [s for s in plan.plan(scene) if s.grid == "figure"]
@@ -115,7 +115,7 @@ def test_the_figure_record_holds_the_modal_numbers_and_the_job_carries_them(tmp_
 
 
 def test_scene_figures_quote_the_recorded_modes_without_an_eigensolve(tmp_path, monkeypatch):
-    model = rk4core.make_model("chain", CASE1)
+    model = rk4h.make_model("chain", CASE1)
     t = np.linspace(0.0, 20.0, 2001)
     y = modal_solution(model, model.state([0.005, 0.0]))(t)
     modal = execute.modal_content(model, t, y)

@@ -3,10 +3,10 @@ model with at least two modes; thesis figure labels only on the scenes that
 reproduce a thesis figure (the scene's `thesis_figures`)."""
 import pytest
 
-from rk4core.models import Chain
-from validation import run_all
-from validation.measure import recurrence_applies
-from validation.scenes import SCENE_DIR, load_scenes
+from rk4h.models import Chain
+from rk4h.validation import run_all
+from rk4h.validation.measure import recurrence_applies
+from rk4h.validation.scenes import SCENE_DIR, load_scenes
 
 CHAIN3 = """
 name = "{name}"

@@ -10,19 +10,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast.solve as fast_solve
-from references import truth
-from references.solvers import integrate
-from references.solvers.cvode import _linear_jacobian_once, interleave, linear_jacobian
-from rk4core.models import base
+import rk4h
+import rk4h.fast.solve as fast_solve
+from rk4h.references import truth
+from rk4h.references.solvers import integrate
+from rk4h.references.solvers.cvode import _linear_jacobian_once, interleave, linear_jacobian
+from rk4h.models import base
 
 T = np.array([0.0, 0.05, 0.1])
 
 
 def _chain(masses, springs=None, **extra):
     springs = [1.0] * (len(masses) + 1) if springs is None else springs
-    return rk4core.make_model("chain", {"masses": list(masses), "springs": list(springs), **extra})
+    return rk4h.make_model("chain", {"masses": list(masses), "springs": list(springs), **extra})
 
 
 @pytest.fixture(autouse=True)
@@ -76,7 +76,7 @@ def test_a_new_model_at_a_freed_address_gets_its_own_constants():
 def test_kept_modes_have_eighs_layout_and_give_the_same_truth():
     # A C-ordered copy of eigh's Fortran-ordered phi changes BLAS's path in
     # phi.T @ x and so the last bits of the exact-modal truth.
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     model = _chain([0.5, 1.0, 2.0, 1.5, 0.7], [3.0, 1.0, 2.0, 5.0, 1.0, 4.0])
     fresh_w, fresh_phi = model._compute_modes()
@@ -150,7 +150,7 @@ def test_cvode_jacobian_kept_read_only_and_equal_to_a_fresh_one():
 
 
 def test_truth_versions_read_once_and_not_shared():
-    from rk4core import distributions
+    from rk4h import distributions
 
     v = truth._versions()
     misses = distributions.version.cache_info().misses
@@ -163,13 +163,13 @@ def test_warm_up_runs_a_loop_once_and_gives_the_same_numbers():
     model = _chain([1.0] * 5, alpha=0.5)
     y0 = model.state([0.01 * i for i in range(5)])
     fast_solve._WARMED.clear()
-    rk4core.fast.warm_up(model, "rk4")
+    rk4h.fast.warm_up(model, "rk4")
     loop = fast_solve._loop_of(model, "rk4")
     assert fast_solve._WARMED == {id(loop): loop}
-    rk4core.fast.warm_up(model, "rk4")
+    rk4h.fast.warm_up(model, "rk4")
     assert len(fast_solve._WARMED) == 1
-    a = rk4core.fast.solve_model(model, (0.0, 0.1), y0, h=0.01)
-    b = rk4core.solve(model.rhs, (0.0, 0.1), y0, h=0.01)
+    a = rk4h.fast.solve_model(model, (0.0, 0.1), y0, h=0.01)
+    b = rk4h.solve(model.rhs, (0.0, 0.1), y0, h=0.01)
     np.testing.assert_allclose(a.y, b.y, rtol=0, atol=1e-14)
 
 

@@ -6,17 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from references.solvers import integrate
-from references.solvers.fixed import MAX_GROWTH
-from references.solvers.tolerances import state_scale
-from rk4core.fast import solve as fast_solve
-from rk4core.validate import check_output_times, check_y0
+import rk4h
+import rk4h.fast as fast
+from rk4h.references.solvers import integrate
+from rk4h.references.solvers.fixed import MAX_GROWTH
+from rk4h.references.solvers.tolerances import state_scale
+from rk4h.fast import solve as fast_solve
+from rk4h.validate import check_output_times, check_y0
 
 
 def _chain(n, **extra):
-    return rk4core.make_model("chain", {"masses": [1.0 + 0.1 * i for i in range(n)],
+    return rk4h.make_model("chain", {"masses": [1.0 + 0.1 * i for i in range(n)],
                                         "springs": [1.0 + 0.05 * i for i in range(n + 1)], **extra})
 
 

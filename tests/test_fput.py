@@ -3,11 +3,11 @@ broadcast of uniform chains."""
 import numpy as np
 import pytest
 
-import rk4core
-from references.solvers import integrate
-from rk4core.models import Chain
-from validation.execute import modal_energies
-from validation.metrics import fit_order
+import rk4h
+from rk4h.references.solvers import integrate
+from rk4h.models import Chain
+from rk4h.validation.execute import modal_energies
+from rk4h.validation.metrics import fit_order
 
 N = 8
 
@@ -26,8 +26,8 @@ def test_zero_anharmonicity_is_the_linear_chain_bit_for_bit():
     zero = fput()
     assert zero.linear and zero.params() == lin.params()
     y0 = _state()
-    a = rk4core.solve(lin.rhs, (0.0, 20.0), y0, h=0.05)
-    b = rk4core.solve(zero.rhs, (0.0, 20.0), y0, h=0.05)
+    a = rk4h.solve(lin.rhs, (0.0, 20.0), y0, h=0.05)
+    b = rk4h.solve(zero.rhs, (0.0, 20.0), y0, h=0.05)
     assert np.array_equal(a.y, b.y)
 
 
@@ -59,7 +59,7 @@ def test_rk4_is_fourth_order_on_fput(alpha, beta):
     t = np.linspace(0.0, T, 9)
     ref = integrate("heyoka", m, y0, t, 1e-15).y
     hs = [T / n for n in (64, 128, 256, 512)]
-    errs = [np.max(np.abs(rk4core.solve(m.rhs, (0.0, T), y0, h=h, t_eval=t).y - ref)) for h in hs]
+    errs = [np.max(np.abs(rk4h.solve(m.rhs, (0.0, T), y0, h=h, t_eval=t).y - ref)) for h in hs]
     fit = fit_order(hs, errs, float(np.max(np.abs(ref))))
     assert abs(fit.order - 4.0) <= 0.1, (fit.order, errs)
 
@@ -80,7 +80,7 @@ def test_modal_energies_sum_to_the_energy_of_a_linear_chain():
 ], ids=["no-n", "n-disagrees", "n-zero", "n-float", "alpha-nan"])
 def test_bad_broadcast_or_coefficients_are_refused(params, says):
     with pytest.raises(ValueError) as info:
-        rk4core.make_model("chain", params)
+        rk4h.make_model("chain", params)
     assert says in str(info.value)
 
 

@@ -1,5 +1,5 @@
-"""Splitting and composition methods as data (rk4core.geometric), their
-stability regions (validation.stability.region) and principal error
+"""Splitting and composition methods as data (rk4h.geometric), their
+stability regions (rk4h.validation.stability.region) and principal error
 coefficients (issue 30).
 
 Measured convergence orders are least-squares slopes of the end-point error
@@ -11,11 +11,11 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core import geometric as G
-from rk4core import order_conditions as oc
-from rk4core.methods import METHODS, STORMER_VERLET
-from rk4core.stability_function import imaginary_axis_boundary
+import rk4h
+from rk4h import geometric as G
+from rk4h import order_conditions as oc
+from rk4h.methods import METHODS, STORMER_VERLET
+from rk4h.stability_function import imaginary_axis_boundary
 
 CHAIN = ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "both"},
          [0.005, 0.005, 0.0, 0.0], 2.0)
@@ -58,10 +58,10 @@ def test_composition_equals_its_splitting_and_the_hand_written_steps():
     g0 = 1 - 2 * g1
     split = G.splitting_tableau("y4-split", [0, g1, g0, g1], [g1 / 2, (g1 + g0) / 2, (g0 + g1) / 2, g1 / 2])
     assert split.order == 4 and split.nfev_per_step == 3 and split.fsal
-    model = rk4core.make_model(CHAIN[0], CHAIN[1])
+    model = rk4h.make_model(CHAIN[0], CHAIN[1])
     y0 = np.array(CHAIN[2])
-    a = rk4core.solve(model.rhs, (0, 0.5), y0, method="yoshida4", n_steps=25).y[:, -1]
-    b = rk4core.solve(model.rhs, (0, 0.5), y0, method=split, n_steps=25).y[:, -1]
+    a = rk4h.solve(model.rhs, (0, 0.5), y0, method="yoshida4", n_steps=25).y[:, -1]
+    b = rk4h.solve(model.rhs, (0, 0.5), y0, method=split, n_steps=25).y[:, -1]
     q, v, h = y0[:2].copy(), y0[2:].copy(), 0.02
     acc = lambda q: model.rhs(0.0, np.concatenate([q, v]))[2:]  # noqa: E731 - a(q) needs no v
     for _ in range(25):
@@ -76,12 +76,12 @@ def test_composition_equals_its_splitting_and_the_hand_written_steps():
 
 
 def test_compiled_loop_runs_a_composition():
-    """rk4core.fast generates its loop from the same tableau: it agrees with
+    """rk4h.fast generates its loop from the same tableau: it agrees with
     the generic stepper (issue 5's round-off bound)."""
-    fast = pytest.importorskip("rk4core.fast")
-    model = rk4core.make_model(CHAIN[0], CHAIN[1])
+    fast = pytest.importorskip("rk4h.fast")
+    model = rk4h.make_model(CHAIN[0], CHAIN[1])
     y0 = np.array(CHAIN[2])
-    a = rk4core.solve(model.rhs, (0, 1.0), y0, method="yoshida4", n_steps=50).y[:, -1]
+    a = rk4h.solve(model.rhs, (0, 1.0), y0, method="yoshida4", n_steps=50).y[:, -1]
     b = fast.solve_model(model, (0, 1.0), y0, method="yoshida4", n_steps=50).y[:, -1]
     assert np.max(np.abs(a - b)) <= 1e-14 * np.max(np.abs(a))
 
@@ -91,10 +91,10 @@ def _measured_order(case, method):
     from scipy.integrate import solve_ivp
 
     name, params, y0, T = case
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     ref = solve_ivp(model.rhs, (0, T), y0, method="DOP853", rtol=1e-14, atol=1e-18).y[:, -1]
     ns = np.array([40, 80, 160])
-    errs = [np.max(np.abs(rk4core.solve(model.rhs, (0, T), y0, method=method, n_steps=int(n)).y[:, -1] - ref))
+    errs = [np.max(np.abs(rk4h.solve(model.rhs, (0, T), y0, method=method, n_steps=int(n)).y[:, -1] - ref))
             for n in ns]
     assert min(errs) > 1e-12 * np.max(np.abs(ref))  # above the reference's own error
     return np.polyfit(np.log(T / ns), np.log(errs), 1)[0]
@@ -123,7 +123,7 @@ CONTRACT = {
 
 
 def test_scene_tables_of_the_contract():
-    from references.registry import Kind, methods_from_tables
+    from rk4h.references.registry import Kind, methods_from_tables
 
     got = methods_from_tables(CONTRACT)
     fr, y4 = got["forest-ruth"], got["yoshida4"]
@@ -148,7 +148,7 @@ def test_scene_tables_of_the_contract():
     ({"a": [1], "b": [1]}, "kind", "is missing"),
 ])
 def test_bad_tables_name_the_key(table, field, text):
-    from references.registry import MethodError, method_from_table
+    from rk4h.references.registry import MethodError, method_from_table
 
     with pytest.raises(MethodError) as e:
         method_from_table("m", table)
@@ -166,7 +166,7 @@ def test_scene_file_error_names_the_key(tmp_path):
     assert bad != text
     path = tmp_path / "bad.toml"
     path.write_text(bad, encoding="utf-8")
-    from validation.scenes import SceneError, load_scene
+    from rk4h.validation.scenes import SceneError, load_scene
 
     with pytest.raises(SceneError, match=r"methods\.yoshida4\.gamma.*must sum to 1"):
         load_scene(path)
@@ -214,7 +214,7 @@ def test_coefficients_exact_or_high_precision():
 
 # -- stability regions and error coefficients ---------------------------------------------------------
 def test_boundary_crosses_the_imaginary_axis():
-    from validation.stability.region import axis_crossing
+    from rk4h.validation.stability.region import axis_crossing
 
     assert axis_crossing(METHODS["rk4"]) == pytest.approx(2.8284271, abs=1e-6)
     assert axis_crossing(METHODS["heun3"]) == pytest.approx(math.sqrt(3), abs=1e-6)
@@ -223,7 +223,7 @@ def test_boundary_crosses_the_imaginary_axis():
 
 @pytest.mark.slow
 def test_drawn_crossing_equals_the_exact_boundary_for_every_method():
-    from validation.stability.region import axis_crossing
+    from rk4h.validation.stability.region import axis_crossing
 
     # the drawn function against the exact boundary (Sturm sequences in exact arithmetic: 21 s of this
     # test's 30 are blanes-moan6's, whose 15-digit decimals make large rationals)
@@ -232,7 +232,7 @@ def test_drawn_crossing_equals_the_exact_boundary_for_every_method():
 
 
 def test_partitioned_amplification_on_the_axis_and_off_it():
-    from validation.stability.region import amplification, axis_crossing
+    from rk4h.validation.stability.region import amplification, axis_crossing
 
     for name in ("stormer-verlet", "yoshida4", "blanes-moan6"):
         tab = METHODS[name]
@@ -245,7 +245,7 @@ def test_partitioned_amplification_on_the_axis_and_off_it():
 
 def test_region_figure(tmp_path):
     pytest.importorskip("matplotlib")
-    from validation.stability.region import draw_regions, main
+    from rk4h.validation.stability.region import draw_regions, main
 
     names = ["rk4", "heun3", "stormer-verlet", "yoshida4"]
     path, caption = draw_regions([METHODS[n] for n in names], tmp_path / "regions.png", n=81)
@@ -263,13 +263,13 @@ def test_principal_error_coefficient():
 
 
 def test_methods_table_has_the_error_coefficient():
-    """validation.measure's methods table: one error coefficient per method,
+    """rk4h.validation.measure's methods table: one error coefficient per method,
     on every order row, equal to the tableau's."""
     from types import SimpleNamespace
 
-    from references.registry import methods_from_tables
-    from validation import measure
-    from validation.tables import COLUMNS
+    from rk4h.references.registry import methods_from_tables
+    from rk4h.validation import measure
+    from rk4h.validation.tables import COLUMNS
 
     own = methods_from_tables(CONTRACT)
     rows = []

@@ -1,5 +1,5 @@
-"""Hostile inputs to ``rk4core.solve`` and the compiled fast path
-(``rk4core.fast.solve_model``): each is refused with a one-line
+"""Hostile inputs to ``rk4h.solve`` and the compiled fast path
+(``rk4h.fast.solve_model``): each is refused with a one-line
 ``ValueError`` naming the argument, or handled correctly; statuses say what
 happened; the generated-loop cache trusts nothing it has not verified.
 
@@ -24,16 +24,16 @@ import warnings
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from rk4core.validate import MAX_OUTPUT_BYTES, MAX_STEPS, check_model_y0
+import rk4h
+import rk4h.fast as fast
+from rk4h.validate import MAX_OUTPUT_BYTES, MAX_STEPS, check_model_y0
 
 CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]}
 DBL_MAX = np.finfo(float).max
 
 
 def case1():
-    model = rk4core.make_model("chain", CASE1)
+    model = rk4h.make_model("chain", CASE1)
     return model, model.state([0.005, 0.005])
 
 
@@ -79,7 +79,7 @@ def test_tbound_respected_small_interval(t_span, h, method):
     # A point inside the last step needs the end slope, evaluated at t1.
     t_eval = [t0, t1 - 0.3 * h, t1]
     for kw in ({}, {"t_eval": t_eval}):
-        res = rk4core.solve(fun, t_span, [1.0, 0.5], h=h, method=method, **kw)
+        res = rk4h.solve(fun, t_span, [1.0, 0.5], h=h, method=method, **kw)
         assert res.success, res.message
         assert res.t[-1] == t1 and res.t.max() <= t1
     if method == "rk4":  # its last stage and the end slope are at t1 itself
@@ -103,7 +103,7 @@ def test_tbound_respected_random_spans():
             return np.zeros(1)  # stable at every step size: only the times matter
 
         step = t1 / n
-        res = rk4core.solve(fun, (0.0, t1), [1.0], n_steps=int(n), t_eval=[0.0, t1 - 0.5 * step, t1])
+        res = rk4h.solve(fun, (0.0, t1), [1.0], n_steps=int(n), t_eval=[0.0, t1 - 0.5 * step, t1])
         if seen or not res.success or res.t[-1] != t1:
             bad.append((t1, int(n), seen[:1]))
     assert bad == [], f"{len(bad)} of 2000 (t1, n) pairs evaluated fun outside t_span, e.g. {bad[:3]}"
@@ -114,7 +114,7 @@ def test_grid_ends_exactly_at_t1_and_never_passes_it(path):
     model, y0 = case1()
     for t1, n in [(0.3, 10), (0.1, 3), (1e-13, 7), (0.05, 11)]:
         if path == "generic":
-            res = rk4core.solve(model.rhs, (0.0, t1), y0, n_steps=n)
+            res = rk4h.solve(model.rhs, (0.0, t1), y0, n_steps=n)
         else:
             res = fast.solve_model(model, (0.0, t1), y0, n_steps=n)
         assert res.t[-1] == t1 and np.all(res.t <= t1) and np.all(np.diff(res.t) >= 0)
@@ -143,7 +143,7 @@ def test_complex_y0_is_integrated_with_its_imaginary_part(make_y0, with_t_eval):
     kw = {"t_eval": np.linspace(0.0, math.pi, 7) + 0.01} if with_t_eval else {}
     if with_t_eval:
         kw["t_eval"][-1] = math.pi
-    res = rk4core.solve(lambda t, y: -1j * w * y, (0.0, math.pi), y0, h=0.025, **kw)
+    res = rk4h.solve(lambda t, y: -1j * w * y, (0.0, math.pi), y0, h=0.025, **kw)
     assert res.success and res.y.dtype == np.complex128
     exact = y0_exact[:, None] * np.exp(-1j * w * res.t)[None, :]
     assert np.max(np.abs(res.y - exact)) < 1e-5 * np.max(np.abs(y0_exact))
@@ -179,9 +179,9 @@ BAD_Y0 = [
 @pytest.mark.parametrize("path", ["generic", "fast"])
 def test_string_and_bool_y0_refused(y0, path):
     if path == "generic":
-        raises_one_line("y0", lambda: rk4core.solve(lambda t, y: -y, (0.0, 1.0), y0, h=0.1))
+        raises_one_line("y0", lambda: rk4h.solve(lambda t, y: -y, (0.0, 1.0), y0, h=0.1))
     else:
-        model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})
+        model = rk4h.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})
         raises_one_line("y0", lambda: fast.solve_model(model, (0.0, 1.0), y0, h=0.1))
 
 
@@ -216,7 +216,7 @@ BAD_FUN = [
 @pytest.mark.parametrize("with_t_eval", [False, True], ids=["grid", "t_eval"])
 def test_bad_fun_return_refused_naming_fun(value, what, good_calls, with_t_eval):
     kw = {"t_eval": [0.0, 0.33, 1.0]} if with_t_eval else {}
-    msg = raises_one_line("fun", lambda: rk4core.solve(_calls_then(value, good_calls), (0.0, 1.0), [1.0, 2.0],
+    msg = raises_one_line("fun", lambda: rk4h.solve(_calls_then(value, good_calls), (0.0, 1.0), [1.0, 2.0],
                                                        h=0.1, **kw))
     assert what in msg and "expected an array of shape (2,) and dtype float64" in msg
     assert "non-finite" not in msg
@@ -226,12 +226,12 @@ def test_bad_fun_return_refused_naming_fun(value, what, good_calls, with_t_eval)
                                    lambda y: np.array([1.0, 2.0], dtype=np.float32), lambda y: (y[1], -y[0])],
                          ids=["list", "int-array", "float32-array", "tuple"])
 def test_array_like_fun_returns_still_work(value):
-    res = rk4core.solve(lambda t, y: value(y), (0.0, 1.0), [1.0, 0.0], n_steps=10)
+    res = rk4h.solve(lambda t, y: value(y), (0.0, 1.0), [1.0, 0.0], n_steps=10)
     assert res.success and res.y.dtype == np.float64
 
 
 def test_real_fun_for_complex_state_is_fine():
-    res = rk4core.solve(lambda t, y: np.zeros(2), (0.0, 1.0), [1.0 + 1.0j, 2.0], n_steps=10)
+    res = rk4h.solve(lambda t, y: np.zeros(2), (0.0, 1.0), [1.0 + 1.0j, 2.0], n_steps=10)
     assert res.success and np.all(res.y == np.array([[1.0 + 1.0j], [2.0]]))
 
 
@@ -261,14 +261,14 @@ SIZE_CASES = [
 _SIZE_CHILD = """
 import json, resource, sys, time
 resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
-import numpy as np, rk4core, rk4core.fast as fast
-model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 2.0, 3.0]})
+import numpy as np, rk4h, rk4h.fast as fast
+model = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 2.0, 3.0]})
 y0 = [0.01, 0.0, 0.0, 0.0]
 for case, path, t_span, kw in json.loads(sys.argv[1]):
     start = time.perf_counter()
     try:
         if path == "generic":
-            rk4core.solve(model.rhs, tuple(t_span), y0, **kw)
+            rk4h.solve(model.rhs, tuple(t_span), y0, **kw)
         else:
             fast.solve_model(model, tuple(t_span), y0, **kw)
         out = {"type": None, "message": ""}
@@ -330,7 +330,7 @@ def test_bad_times_refused_naming_them(kw, name, path):
     t_span = kw.pop("t_span", (0.0, 1.0))
     model, y0 = case1()
     if path == "generic":
-        raises_one_line(name, lambda: rk4core.solve(model.rhs, t_span, y0, **kw))
+        raises_one_line(name, lambda: rk4h.solve(model.rhs, t_span, y0, **kw))
     else:
         raises_one_line(name, lambda: fast.solve_model(model, t_span, y0, **kw))
 
@@ -366,7 +366,7 @@ def test_unbounded_growth_stops_the_run(fun, y0, kw, reason, t_fail, bound, with
         kw = dict(kw, t_eval=np.linspace(0.0, 40.0, 13))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = rk4core.solve(fun, (0.0, 40.0), y0, h=h, **kw)
+        res = rk4h.solve(fun, (0.0, 40.0), y0, h=h, **kw)
     assert not res.success and res.status == -1 and res.reason == reason
     assert res.t_fail == pytest.approx(t_fail, abs=1.01 * h)
     assert f"t = {res.t_fail:.6g}" in res.message and f"step {res.n_steps + 1} of 4000" in res.message
@@ -379,20 +379,20 @@ def test_unbounded_growth_stops_the_run(fun, y0, kw, reason, t_fail, bound, with
 
 
 def test_growth_message_names_component_value_and_bound():
-    res = rk4core.solve(exp_growth, (0.0, 40.0), [1.0, 1e-3], h=0.01, y_scale=[1.0, 1e-6])
+    res = rk4h.solve(exp_growth, (0.0, 40.0), [1.0, 1e-3], h=0.01, y_scale=[1.0, 1e-6])
     assert res.reason == "growth" and "its given scale (|y[1]| = " in res.message
     y_fail = res.message.split("|y[1]| = ")[1].split(" > ")
     assert float(y_fail[0]) > float(y_fail[1].split(")")[0]) == pytest.approx(1e8 * 1e-6)
 
 
 def test_growth_test_off_keeps_old_behaviour():
-    res = rk4core.solve(exp_growth, (0.0, 40.0), [1.0], h=0.01, max_growth=None)
+    res = rk4h.solve(exp_growth, (0.0, 40.0), [1.0], h=0.01, max_growth=None)
     assert res.success and res.reason == "ok" and res.y[0, -1] == pytest.approx(math.exp(40.0), rel=1e-6)
 
 
 def test_success_reason_is_ok():
     model, y0 = case1()
-    for res in (rk4core.solve(model.rhs, (0.0, 1.0), y0, h=0.01), fast.solve_model(model, (0.0, 1.0), y0, h=0.01)):
+    for res in (rk4h.solve(model.rhs, (0.0, 1.0), y0, h=0.01), fast.solve_model(model, (0.0, 1.0), y0, h=0.01)):
         assert res.success and res.status == 0 and res.reason == "ok"
 
 
@@ -431,7 +431,7 @@ def test_growth_stop_same_on_both_paths(case, extra, reason, with_t_eval):
     kw = dict(kw, **extra)
     if with_t_eval:
         kw["t_eval"] = np.linspace(*t_span, 777)
-    gen = rk4core.solve(model.rhs, t_span, y0, **kw)
+    gen = rk4h.solve(model.rhs, t_span, y0, **kw)
     res = fast.solve_model(model, t_span, y0, **kw)
     assert not gen.success and gen.status == res.status == -1 and gen.reason == res.reason == reason
     assert res.t_fail == gen.t_fail and res.message == gen.message
@@ -464,7 +464,7 @@ BAD_GROWTH_ARGS = [
 def test_bad_growth_arguments_refused(kw, name, path):
     model, y0 = case1()
     if path == "generic":
-        raises_one_line(name, lambda: rk4core.solve(model.rhs, (0.0, 1.0), y0, h=0.1, **kw))
+        raises_one_line(name, lambda: rk4h.solve(model.rhs, (0.0, 1.0), y0, h=0.1, **kw))
     else:
         raises_one_line(name, lambda: fast.solve_model(model, (0.0, 1.0), y0, h=0.1, **kw))
 
@@ -473,7 +473,7 @@ def test_all_zero_state_on_both_paths_is_fine():
     # An equilibrium stays exactly zero: the scale is never set, the run succeeds.
     model, _ = case1()
     y0 = np.zeros(4)
-    gen = rk4core.solve(model.rhs, (0.0, 10.0), y0, h=0.01)
+    gen = rk4h.solve(model.rhs, (0.0, 10.0), y0, h=0.01)
     res = fast.solve_model(model, (0.0, 10.0), y0, h=0.01)
     assert gen.success and res.success and np.all(gen.y == 0) and np.all(res.y == 0)
 
@@ -481,18 +481,18 @@ def test_all_zero_state_on_both_paths_is_fine():
 # -- 4. division by zero in the compiled kernels ---------------------------------
 
 def _on_anchor():
-    model = rk4core.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
+    model = rk4h.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
     return model, model.state(list(model.anchors[1]))  # spring 1 has length 0
 
 
 def _on_anchor_below():
-    model = rk4core.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
+    model = rk4h.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
     return model, model.state(list(model.anchors[2]), [0.0, 0.0])
 
 
 def _triangle_coincident():
     # Mass 1 displaced onto mass 0: bond (0, 1) has length 0.
-    model = rk4core.make_model("triangle", {"m": 1.0, "k": 10.0, "side": 1.0})
+    model = rk4h.make_model("triangle", {"m": 1.0, "k": 10.0, "side": 1.0})
     return model, model.state([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])
 
 
@@ -510,7 +510,7 @@ def test_zero_spring_length_is_status_minus_one_on_both_paths(case, method, with
         kw["t_eval"] = [0.0, 0.1, 1.0]
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        gen = rk4core.solve(model.rhs, (0.0, 1.0), y0, **kw)
+        gen = rk4h.solve(model.rhs, (0.0, 1.0), y0, **kw)
         res = fast.solve_model(model, (0.0, 1.0), y0, **kw)  # no ZeroDivisionError
     assert gen.status == res.status == -1 and gen.reason == res.reason == "non-finite"
     assert res.t_fail == gen.t_fail == 0.25 and res.message == gen.message
@@ -518,8 +518,8 @@ def test_zero_spring_length_is_status_minus_one_on_both_paths(case, method, with
 
 
 def test_every_kernel_divides_as_numpy():
-    from rk4core.fast import _kernels, codegen
-    from rk4core.methods import RK4
+    from rk4h.fast import _kernels, codegen
+    from rk4h.methods import RK4
 
     dispatchers = [v for v in vars(_kernels).values() if hasattr(v, "targetoptions")]
     assert len(dispatchers) >= 2
@@ -542,7 +542,7 @@ SENTINEL_CODE = ("import pathlib\n"
 @pytest.fixture
 def fresh_codegen(monkeypatch):
     """No generated loop loaded in this process (restored afterwards)."""
-    from rk4core.fast import codegen
+    from rk4h.fast import codegen
 
     before = {k for k in sys.modules if k.startswith("_rk4core_fast_gen_")}
     monkeypatch.setattr(codegen, "_KERNELS", {})
@@ -554,7 +554,7 @@ def fresh_codegen(monkeypatch):
 
 
 def _euler_name(codegen):
-    from rk4core.methods import EULER
+    from rk4h.methods import EULER
 
     text = codegen.source(EULER, fast.force_kernel(case1()[0]))
     return codegen.module_name(text), text
@@ -563,7 +563,7 @@ def _euler_name(codegen):
 def _run_euler():
     model, y0 = case1()
     res = fast.solve_model(model, (0.0, 0.5), y0, h=0.01, method="euler")
-    gen = rk4core.solve(model.rhs, (0.0, 0.5), y0, h=0.01, method="euler")
+    gen = rk4h.solve(model.rhs, (0.0, 0.5), y0, h=0.01, method="euler")
     assert res.success
     np.testing.assert_array_equal(res.y, gen.y)
 
@@ -637,7 +637,7 @@ def _plant_group_writable(path, sentinel):
 
 
 def _plant_right_text_group_writable(path, sentinel):
-    from rk4core.fast import codegen
+    from rk4h.fast import codegen
 
     path.write_text(_euler_name(codegen)[1])
     os.chmod(path, 0o664)
@@ -654,8 +654,8 @@ PLANTED_FILES = {"other-content": _plant_other_content, "symlink-to-attacker-fil
 
 @pytest.mark.parametrize("plant", sorted(PLANTED_FILES))
 def test_untrusted_generated_file_is_replaced_not_executed(plant, fresh_codegen, tmp_path, monkeypatch):
-    from rk4core.cachedir import private_dir
-    from rk4core.methods import EULER
+    from rk4h.cachedir import private_dir
+    from rk4h.methods import EULER
 
     codegen = fresh_codegen
     root = tmp_path / "cache"
@@ -719,7 +719,7 @@ def test_trusted_cache_layout_is_private(numba_cache_dir, fresh_codegen, tmp_pat
 
 def test_generated_files_no_longer_in_package_or_tmp(fresh_codegen, tmp_path, monkeypatch):
     import tempfile
-    from rk4core.methods import EULER
+    from rk4h.methods import EULER
 
     codegen = fresh_codegen
     monkeypatch.setenv("RK4H_CACHE", str(tmp_path / "cache"))

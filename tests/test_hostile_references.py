@@ -24,18 +24,18 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-import rk4core
-import references.truth as truth_mod
-from references.registry import BUILTIN, REFERENCES, UNDER_TEST
-from references.solvers import Status, integrate
-from references.solvers import taylor
-from references.truth import TruthCacheWarning, cache_dir, clear_memory_cache, reference_solution
-from rk4core.models import Planar4
-from validation import metrics
-from validation.stability import PARAMS, estimate_steps, params_table_markdown, validate_params
-from validation.stability import _common as SC
-from validation.stability import boundary as B
-from validation.stability import long_horizon as LHm
+import rk4h
+import rk4h.references.truth as truth_mod
+from rk4h.references.registry import BUILTIN, REFERENCES, UNDER_TEST
+from rk4h.references.solvers import Status, integrate
+from rk4h.references.solvers import taylor
+from rk4h.references.truth import TruthCacheWarning, cache_dir, clear_memory_cache, reference_solution
+from rk4h.models import Planar4
+from rk4h.validation import metrics
+from rk4h.validation.stability import PARAMS, estimate_steps, params_table_markdown, validate_params
+from rk4h.validation.stability import _common as SC
+from rk4h.validation.stability import boundary as B
+from rk4h.validation.stability import long_horizon as LHm
 
 REPO = Path(__file__).resolve().parent.parent
 PEND = ("pendulums", {"m": 1.0, "length": 1.0, "g": 9.81, "k": 2.0})
@@ -75,7 +75,7 @@ def cache(tmp_path, monkeypatch):
 
 
 def _pend():
-    model = rk4core.make_model(*PEND)
+    model = rk4h.make_model(*PEND)
     return model, model.state(PEND_X0, PEND_V0)
 
 
@@ -326,7 +326,7 @@ BAD_MODELS = [
 @pytest.mark.parametrize("name, params, field", [c[1:] for c in BAD_MODELS], ids=[c[0] for c in BAD_MODELS])
 def test_model_refuses_unphysical_parameters(name, params, field):
     with pytest.raises(ValueError) as info:
-        rk4core.make_model(name, params)
+        rk4h.make_model(name, params)
     assert field in str(info.value) and "\n" not in str(info.value)
 
 
@@ -341,10 +341,10 @@ HANGING_STARTS = {  # each of these never returned from DOP853 before
 def test_singular_or_overflowing_y0_is_refused_naming_y0_by_every_solver(case):
     name, params, x0 = HANGING_STARTS[case]
     out = run_bounded(f"""
-        import json, numpy as np, rk4core
-        from references.solvers import FIXED_STEP, SOLVER_NAMES, integrate
-        from references.truth import reference_solution
-        m = rk4core.make_model({name!r}, {params!r}); y0 = m.state({x0!r})
+        import json, numpy as np, rk4h
+        from rk4h.references.solvers import FIXED_STEP, SOLVER_NAMES, integrate
+        from rk4h.references.truth import reference_solution
+        m = rk4h.make_model({name!r}, {params!r}); y0 = m.state({x0!r})
         out = {{}}
         for s in SOLVER_NAMES:
             try:
@@ -367,14 +367,14 @@ def test_singular_or_overflowing_y0_is_refused_naming_y0_by_every_solver(case):
 def test_subnormal_mass_model_built_around_the_check_still_ends(solver):
     # the constructor check bypassed (object built by hand): the solvers' own guards end the run
     out = run_bounded(f"""
-        import json, numpy as np, rk4core
-        from references.solvers import integrate
-        from references.solvers.dop853 import run_dop853
-        from references.solvers.cvode import run_cvode
-        from references.solvers.taylor import run_heyoka
-        m = rk4core.make_model("chain", {{"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]}})
+        import json, numpy as np, rk4h
+        from rk4h.references.solvers import integrate
+        from rk4h.references.solvers.dop853 import run_dop853
+        from rk4h.references.solvers.cvode import run_cvode
+        from rk4h.references.solvers.taylor import run_heyoka
+        m = rk4h.make_model("chain", {{"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]}})
         m.mass = np.array([5e-324, 1.0])
-        from references.solvers.tolerances import absolute_tolerance
+        from rk4h.references.solvers.tolerances import absolute_tolerance
         y0 = m.state([0.01, 0.0]); t = np.linspace(0, 1, 5)
         atol = absolute_tolerance(m, y0, 1e-6)  # as integrate() would: inf for the velocities here
         run = {{"dop853": lambda: run_dop853(m, y0, t, 1e-6, atol),
@@ -403,10 +403,10 @@ def test_dop853_guards_end_at_once(case):
     # (stands in for any model whose equations fail at or right after the start)
     body, status, words = DOP853_GUARDS[case]
     out = run_bounded(f"""
-        import json, time, numpy as np, rk4core
-        from references.solvers.dop853 import EVALS_PER_STEP, run_dop853
+        import json, time, numpy as np, rk4h
+        from rk4h.references.solvers.dop853 import EVALS_PER_STEP, run_dop853
 
-        class Broken(rk4core.models.Chain):
+        class Broken(rk4h.models.Chain):
             def rhs(self, t, y):
                 {body}
 
@@ -429,7 +429,7 @@ def test_dop853_guards_end_at_once(case):
 
 @pytest.mark.parametrize("solver", ["dop853", "cvode-adams", "heyoka"])
 def test_step_cap_is_a_failed_status(solver):
-    model = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+    model = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
     y0 = model.state([0.005, 0.005])
     run = integrate(solver, model, y0, np.linspace(0.0, 10.0, 11), 1e-10, max_steps=20)
     assert run.status is Status.FAILED and "step cap" in run.message and "max_steps = 20" in run.message
@@ -577,7 +577,7 @@ def test_stability_value_out_of_bounds_names_the_field(key, value):
     ("n_values", "[1e12]", "must lie in [2, 1000000] masses (got 1000000000000.0)"),
 ], ids=["bisection_rtol", "long_periods", "n_values"])
 def test_scene_file_error_is_one_line_with_the_stability_field(tmp_path, key, value, problem):
-    from validation.scenes import SCENE_DIR, SceneError, load_scene
+    from rk4h.validation.scenes import SCENE_DIR, SceneError, load_scene
 
     text = (SCENE_DIR / "stability_2dof.toml").read_text() + f"{key} = {value}\n"
     path = tmp_path / "bad.toml"
@@ -603,9 +603,9 @@ def test_bounds_table_covers_every_key_and_its_defaults():
 
 def test_bisection_ends_for_any_rtol():
     out = run_bounded("""
-        import json, math, rk4core
-        from validation.stability import boundary as B
-        m = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+        import json, math, rk4h
+        from rk4h.validation.stability import boundary as B
+        m = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
         h, probes = B.largest_stable_step(m, "rk4", rtol=1e-300)
         w = float(m.modes()[0][-1])
         print(json.dumps({"ratio": h * w / (2 * math.sqrt(2)), "probes": probes}))
@@ -615,7 +615,7 @@ def test_bisection_ends_for_any_rtol():
 
 
 def test_study_run_beyond_the_work_cap_is_refused_before_it_starts():
-    model = rk4core.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]})
     t0 = time.perf_counter()
     with pytest.raises(SC.StudyCapError, match="cap"):
         SC.integrate_fixed(model, (0.0, 1e13), model.state([0.01, 0.0]), h=1e-3)
@@ -628,14 +628,14 @@ STABILITY_SCENES = ["stability_2dof", "stability_stiff_chain", "stability_large_
 @pytest.fixture
 def step_counter(monkeypatch):
     """Count every integration step the stability study takes: fixed-step runs
-    (``res.n_steps``), ``references.solvers.integrate`` runs, the large-N
+    (``res.n_steps``), ``rk4h.references.solvers.integrate`` runs, the large-N
     CVODE and tracemalloc runs, and the bisection's one-step-map probes."""
-    import references.solvers as RS
-    from validation.stability import geometry as G
-    from validation.stability import large_n as LN
-    from validation.stability import long_horizon as LH
-    from validation.stability import stiffness as ST
-    from validation.stability import studies as S
+    import rk4h.references.solvers as RS
+    from rk4h.validation.stability import geometry as G
+    from rk4h.validation.stability import large_n as LN
+    from rk4h.validation.stability import long_horizon as LH
+    from rk4h.validation.stability import stiffness as ST
+    from rk4h.validation.stability import studies as S
 
     tally = collections.Counter()
     fixed, integ = SC.integrate_fixed, RS.integrate
@@ -682,8 +682,8 @@ def test_estimate_steps_matches_the_steps_taken(name, step_counter, tmp_path):
     # Factor 2 on the total: fixed-step counts are the studies' own step rules on exact
     # frequencies (measured 0-5 % apart), adaptive counts a per-period model calibrated
     # on these scenes (0.5x-4x per solver); totals measured 0.7x-1.0x.
-    from validation.scenes import SCENE_DIR, load_scene
-    from validation.stability import run
+    from rk4h.validation.scenes import SCENE_DIR, load_scene
+    from rk4h.validation.stability import run
 
     scene = load_scene(SCENE_DIR / f"{name}.toml")
     t0 = time.perf_counter()
@@ -700,7 +700,7 @@ def test_estimate_steps_matches_the_steps_taken(name, step_counter, tmp_path):
 
 
 def test_estimate_steps_needs_no_dense_eigensolve_of_the_scene(monkeypatch):
-    from validation.scenes import scene_from_dict
+    from rk4h.validation.scenes import scene_from_dict
 
     N = 20000
     doc = {"name": "big_chain", "model": "chain",
@@ -713,7 +713,7 @@ def test_estimate_steps_needs_no_dense_eigensolve_of_the_scene(monkeypatch):
     def refuse(self):
         raise AssertionError("dense eigensolve")
 
-    monkeypatch.setattr(rk4core.models.Model, "modes", refuse)
+    monkeypatch.setattr(rk4h.models.Model, "modes", refuse)
     t0 = time.perf_counter()
     d = estimate_steps(scene, quick=True, detail=True)
     assert time.perf_counter() - t0 < 5.0
@@ -790,7 +790,7 @@ def test_phase_argument_is_continuous_through_sqrt6():
 def test_the_stability_parameter_document_is_current():
     from pathlib import Path
 
-    from validation.stability.params import params_document
+    from rk4h.validation.stability.params import params_document
 
     doc = Path(__file__).resolve().parents[1] / "docs" / "stability-params.md"
-    assert doc.read_text() == params_document(), "run: python -m validation.stability.params > docs/stability-params.md"
+    assert doc.read_text() == params_document(), "run: python -m rk4h.validation.stability.params > docs/stability-params.md"

@@ -1,5 +1,5 @@
-"""scipy's own ``solve_ivp`` driving rk4core's methods (:mod:`rk4core.ivp`),
-and the ``solve_ivp`` gaps of :func:`rk4core.solve` found by scipy's
+"""scipy's own ``solve_ivp`` driving rk4core's methods (:mod:`rk4h.ivp`),
+and the ``solve_ivp`` gaps of :func:`rk4h.solve` found by scipy's
 ``test_ivp.py`` (issue 28, item 5): an infinite ``t_span`` end with a
 terminal event, and an empty ``res.t``.
 
@@ -18,14 +18,14 @@ import test_solve_ivp as base
 from numpy.testing import assert_allclose, assert_array_equal, assert_equal
 from scipy.integrate import OdeSolver, solve_ivp
 
-import rk4core
-from rk4core import ivp
-from rk4core.methods import rk_step
-from rk4core.solver import REFUSED_OPTIONS
+import rk4h
+from rk4h import ivp
+from rk4h.methods import rk_step
+from rk4h.solver import REFUSED_OPTIONS
 
 EPS = np.finfo(float).eps
-CLASSICAL = sorted(m for m in rk4core.METHODS if not rk4core.METHODS[m].partitioned)
-PARTITIONED = sorted(m for m in rk4core.METHODS if rk4core.METHODS[m].partitioned)
+CLASSICAL = sorted(m for m in rk4h.METHODS if not rk4h.METHODS[m].partitioned)
+PARTITIONED = sorted(m for m in rk4h.METHODS if rk4h.METHODS[m].partitioned)
 
 
 def via_scipy(fun, t_span, y0, method="rk4", **kw):
@@ -34,10 +34,10 @@ def via_scipy(fun, t_span, y0, method="rk4", **kw):
 
 
 def via_rk4core(fun, t_span, y0, method="rk4", **kw):
-    return rk4core.solve(fun, t_span, y0, method=method, **kw)
+    return rk4h.solve(fun, t_span, y0, method=method, **kw)
 
 
-DRIVERS = {"solve_ivp+rk4core.ivp": via_scipy, "rk4core.solve": via_rk4core}
+DRIVERS = {"solve_ivp+rk4h.ivp": via_scipy, "rk4h.solve": via_rk4core}
 
 
 def close(a, b, scale=1.0):
@@ -69,7 +69,7 @@ def test_scipy_driver_equals_rk4core_solve(fun, t_span, y0, h, method):
     assert a.t.shape == b.t.shape
     close(a.t, b.t, max(abs(t_span[0]), abs(t_span[1])))
     close(a.y, b.y, np.max(np.abs(b.y)))
-    assert a.nfev == b.nfev == rk4core.nfev_count(rk4core.METHODS[method], b.n_steps)
+    assert a.nfev == b.nfev == rk4h.nfev_count(rk4h.METHODS[method], b.n_steps)
 
 
 @pytest.mark.parametrize("method", PARTITIONED)
@@ -88,7 +88,7 @@ def test_scipy_driver_equals_rk4core_solve_partitioned(method, t_span):
 def test_dense_output_and_events_equal_rk4core_solve(method, t_span):
     fun = base.fun_rational
     y0 = [1 / 3, 2 / 9] if t_span[0] == 5.0 else [4 / 9, 20 / 81]
-    if rk4core.METHODS[method].partitioned:
+    if rk4h.METHODS[method].partitioned:
         fun, y0 = oscillator, [1.0, 0.0]
     events = (base.event_rational_1, base.event_rational_2) if fun is base.fun_rational else (
         lambda t, y: y[0], lambda t, y: y[1])
@@ -105,7 +105,7 @@ def test_dense_output_and_events_equal_rk4core_solve(method, t_span):
 
 
 def test_uneven_h_lands_on_t_bound_with_a_shorter_last_step():
-    # 1 / 0.3: three steps of 0.3, then one of 0.1 (rk4core.solve would take 4 steps of 0.25)
+    # 1 / 0.3: three steps of 0.3, then one of 0.1 (rk4h.solve would take 4 steps of 0.25)
     calls = []
 
     def fun(t, y):
@@ -119,7 +119,7 @@ def test_uneven_h_lands_on_t_bound_with_a_shorter_last_step():
     k = np.empty((4, 2))
     for t, t_next in zip(a.t[:-1], a.t[1:]):
         step = 0.3 if t_next < 1.0 else 1.0 - t
-        y = rk_step(base.fun_linear, t, y, step, rk4core.RK4, k)
+        y = rk_step(base.fun_linear, t, y, step, rk4h.RK4, k)
     assert_array_equal(a.y[:, -1], y)
 
 
@@ -164,7 +164,7 @@ def test_infinite_span_with_t_eval(driver, method):
     exact = np.array([[10 * t - 9.81 * t * t / 2 for t in t_eval[:3]], [10 - 9.81 * t for t in t_eval[:3]]])
     # RK4 and Stormer-Verlet are exact under a constant acceleration, and so is the cubic Hermite interpolant
     assert_allclose(res.y, exact, rtol=0, atol=1e-12)
-    other = via_rk4core if driver != "rk4core.solve" else via_scipy
+    other = via_rk4core if driver != "rk4h.solve" else via_scipy
     close(res.y, other(_ball, (0.0, np.inf), [0.0, 10.0], method, h=0.01, events=_hit_ground, t_eval=t_eval).y)
 
 
@@ -193,12 +193,12 @@ def test_infinite_span_without_an_event_stops_at_max_steps(driver):
 
 def test_infinite_span_refused_without_a_terminal_event():
     with pytest.raises(ValueError, match="terminal event") as info:
-        rk4core.solve(_ball, (0.0, np.inf), [0.0, 10.0], h=0.01)
+        rk4h.solve(_ball, (0.0, np.inf), [0.0, 10.0], h=0.01)
     assert "\n" not in str(info.value)
     with pytest.raises(ValueError, match="`h`"):
-        rk4core.solve(_ball, (0.0, np.inf), [0.0, 10.0], n_steps=10, events=_hit_ground)
+        rk4h.solve(_ball, (0.0, np.inf), [0.0, 10.0], n_steps=10, events=_hit_ground)
     with pytest.raises(ValueError, match="`max_steps`"):
-        rk4core.solve(_ball, (0.0, np.inf), [0.0, 10.0], h=0.01, events=_hit_ground, max_steps=0)
+        rk4h.solve(_ball, (0.0, np.inf), [0.0, 10.0], h=0.01, events=_hit_ground, max_steps=0)
 
 
 # -- empty results -------------------------------------------------------------------------------------
@@ -226,10 +226,10 @@ def test_empty_t_is_an_ndarray_that_is_false():
         return t - 7
 
     early_event.terminal = True
-    res = rk4core.solve(base.fun_rational, [5, 9], [1 / 3, 2 / 9], h=0.01, t_eval=[8.0], events=early_event)
+    res = rk4h.solve(base.fun_rational, [5, 9], [1 / 3, 2 / 9], h=0.01, t_eval=[8.0], events=early_event)
     assert isinstance(res.t, np.ndarray) and res.t.shape == (0,) and res.y.shape == (2, 0)
     assert not bool(res.t)
-    full = rk4core.solve(base.fun_rational, [5, 9], [1 / 3, 2 / 9], h=0.01, t_eval=[6.0])
+    full = rk4h.solve(base.fun_rational, [5, 9], [1 / 3, 2 / 9], h=0.01, t_eval=[6.0])
     assert type(full.t) is np.ndarray  # a non-empty output is a plain ndarray
 
 
@@ -237,7 +237,7 @@ def test_empty_t_is_an_ndarray_that_is_false():
 
 @pytest.mark.parametrize("name", sorted(REFUSED_OPTIONS))
 def test_tolerance_options_refused_by_name(name):
-    with pytest.raises(ValueError, match=f"`{name}` does not apply to rk4core.ivp") as info:
+    with pytest.raises(ValueError, match=f"`{name}` does not apply to rk4h.ivp") as info:
         solve_ivp(base.fun_linear, (0, 1), [0.0, 2.0], method=ivp.RK4, h=0.1, **{name: 1e-3})
     assert "\n" not in str(info.value)
 
@@ -252,9 +252,9 @@ def test_bad_options_refused(kw, match):
 
 
 def test_factory_names_and_tableaux():
-    assert ivp.RK4.tableau is rk4core.RK4
+    assert ivp.RK4.tableau is rk4h.RK4
     assert issubclass(ivp.RK4, OdeSolver)
-    for name, tab in rk4core.METHODS.items():
+    for name, tab in rk4h.METHODS.items():
         assert ivp.solver_class(name).tableau is tab
     with pytest.raises(ValueError, match="`method`"):
         ivp.solver_class("rk45")
@@ -408,7 +408,7 @@ def _scipy_test_no_integration(drive):
 
 def _scipy_test_no_integration_class(drive):
     if drive is via_rk4core:
-        pytest.skip("an OdeSolver class test: only the rk4core.ivp classes are OdeSolvers")
+        pytest.skip("an OdeSolver class test: only the rk4h.ivp classes are OdeSolvers")
     solver = ivp.RK4(lambda t, y: -y, 0.0, [10.0, 0.0], 0.0, h=0.1)
     solver.step()
     assert_equal(solver.status, "finished")
@@ -419,7 +419,7 @@ def _scipy_test_no_integration_class(drive):
 
 def _scipy_test_empty(drive):
     if drive is via_rk4core:
-        pytest.skip("rk4core.solve refuses an empty y0 (documented difference)")
+        pytest.skip("rk4h.solve refuses an empty y0 (documented difference)")
     for t_span in ([0, 10], [0, np.inf]):
         kw = {"events": _never_terminal(), "max_steps": 5} if np.isinf(t_span[1]) else {}
         res = drive(lambda t, y: np.zeros((0,)), t_span, np.zeros((0,)), h=1.0, dense_output=True, **kw)

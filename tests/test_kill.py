@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from validation import atomic
+from rk4h.validation import atomic
 
 from _scenes import one_mass
 
@@ -178,9 +178,9 @@ def test_a_swallowed_signal_stops_the_run_at_the_next_unit(tmp_path, capsys):
     # dropped exception is not printed as a traceback.
     import types
 
-    from validation import interrupt
-    from validation.run_all import Interrupted, _Signals, run
-    from validation.scenes import load_scene
+    from rk4h.validation import interrupt
+    from rk4h.validation.run_all import Interrupted, _Signals, run
+    from rk4h.validation.scenes import load_scene
 
     (tmp_path / "b.toml").write_text(SCENE_B)
     scene = load_scene(tmp_path / "b.toml")
@@ -211,7 +211,7 @@ def test_an_interrupted_run_exits_even_when_a_thread_would_hold_the_exit(code):
     non-daemon thread that never returns, here) must not keep it alive. CI saw
     a SIGTERM'd run print its line and then hang for 120 s."""
     prog = ("import threading, sys; sys.path.insert(0, '.');"
-            "from validation.run_all import exit_process;"
+            "from rk4h.validation.run_all import exit_process;"
             "threading.Thread(target=threading.Event().wait).start();"
             f"print('settled', flush=True); exit_process({code})")
     r = subprocess.run([sys.executable, "-c", prog], cwd=REPO, capture_output=True, text=True, timeout=60)

@@ -6,10 +6,10 @@ from types import SimpleNamespace
 
 import pytest
 
-from references.registry import methods_from_tables
-from rk4core.methods import METHODS
-from validation import measure
-from validation.tables import COLUMNS
+from rk4h.references.registry import methods_from_tables
+from rk4h.methods import METHODS
+from rk4h.validation import measure
+from rk4h.validation.tables import COLUMNS
 
 
 def _rows(solvers, own=None):

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-from references.exact import modal_solution
-from validation import metrics
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.validation import metrics
 
 
 def test_error_max_and_final_definitions():
@@ -31,10 +31,10 @@ def test_rk4_energy_factor_is_abs_R_squared(theta):
 def test_rk4_drift_theory_matches_an_rk4_run(h):
     # Thesis case 1 (two modes): RK4 multiplies each mode's energy by g(omega_j h) per step,
     # so the total relative change after n steps is sum_j f_j (g_j^n - 1) exactly.
-    model = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+    model = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
     y0 = model.state([0.005, 0.005])
     T = 20.0
-    res = rk4core.solve(model.rhs, (0.0, T), y0, h=h)
+    res = rk4h.solve(model.rhs, (0.0, T), y0, h=h)
     ms = modal_solution(model, y0)
     theory = metrics.rk4_drift_theory(ms.omega, ms.eta0, ms.deta0, res.h, res.n_steps, T)
     measured = metrics.drift_per_time(model, res.t, res.y)

@@ -10,19 +10,19 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from rk4core.models import (BUILTIN_CLASSES, MODELS, Param, declared, example_parameters, make_model,
+from rk4h.models import (BUILTIN_CLASSES, MODELS, Param, declared, example_parameters, make_model,
                             model_parameters, register_model)
-from validation import scene_schema
-from validation.run_all import main
-from validation.scenes import SceneError, load_scene
+from rk4h.validation import scene_schema
+from rk4h.validation.run_all import main
+from rk4h.validation.scenes import SceneError, load_scene
 
 REPO = Path(__file__).resolve().parent.parent
 
 #: One file: a 1-DOF Morse oscillator, declared, defined by its potential.
 MORSE_FILE = '''
 """A particle in a Morse well: V = D (1 - exp(-a x))^2."""
-from rk4core import Defined, PotentialModel
-from rk4core.models import Param, ParamRule
+from rk4h import Defined, PotentialModel
+from rk4h.models import Param, ParamRule
 
 
 class Morse(Defined):
@@ -167,12 +167,12 @@ def test_a_new_builtin_model_is_one_file_and_one_registry_line(tmp_path):
     (tmp_path / "morse_model.py").write_text(MORSE_FILE)
     code = textwrap.dedent("""
         import json, sys
-        import rk4core.models as M
+        import rk4h.models as M
         from morse_model import Morse
         M.BUILTIN_CLASSES = M.BUILTIN_CLASSES + (Morse,)
         M.register_model(Morse)
-        from validation import scene_schema as S
-        from validation.scenes import scene_points_from_dict
+        from rk4h.validation import scene_schema as S
+        from rk4h.validation.scenes import scene_points_from_dict
         doc = {"name": "m", "model": "morse-test", "params": {"m": 1.0, "D": 2.0}, "initial": {"x": [0.1]},
                "run": {"t_end": 1.0, "h": [0.1], "solvers": ["rk4"], "outputs": ["state"]}}
         scene_points_from_dict(doc, "m.toml")

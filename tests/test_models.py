@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core.models import BUILTIN_CLASSES, MODELS, example_parameters
+import rk4h
+from rk4h.models import BUILTIN_CLASSES, MODELS, example_parameters
 
 # (id, model name, params, coordinate scale of a typical non-equilibrium state)
 MODEL_CASES = [
@@ -41,7 +41,7 @@ CASE_IDS = [c[0] for c in MODEL_CASES]
 
 def build(case):
     _, name, params, scale = case
-    return rk4core.make_model(name, params), scale
+    return rk4h.make_model(name, params), scale
 
 
 def random_q(model, scale, seed, m=None):
@@ -95,7 +95,7 @@ def test_jacobian_matches_complex_step(case):
     # to round-off for these analytic forces (no subtraction). model.jacobian uses
     # central differences with step eps = 1e-6 (states below 1 m / 1 rad): error
     # ~ (eps / length scale)^2 <= (1e-6 / 4e-3)^2 ~ 1e-7 here; tolerance 1e-6.
-    from rk4core.models import NUMPY
+    from rk4h.models import NUMPY
 
     model, scale = build(case)
     n = model.n_dof
@@ -176,7 +176,7 @@ def test_linear_energy_follows_modal_amplification(case, theta):
     h = theta / omega.max()
     n = 100
     y0 = random_y(model, scale, seed=5)
-    res = rk4core.solve(model.rhs, (0.0, n * h), y0, n_steps=n)
+    res = rk4h.solve(model.rhs, (0.0, n * h), y0, n_steps=n)
     q0, v0 = y0[: model.n_dof], y0[model.n_dof:]
     eta, deta = phi.T @ (model.mass * q0), phi.T @ (model.mass * v0)
     e_modes = 0.5 * (deta**2 + omega**2 * eta**2)
@@ -205,7 +205,7 @@ def test_nonlinear_energy_drift_between_fourth_and_fifth_order(case):
     hs = 0.1 / w / 2.0 ** np.arange(4)
     used, drift = [], []
     for h in hs:
-        res = rk4core.solve(model.rhs, (0.0, t_end), y0, h=h)
+        res = rk4h.solve(model.rhs, (0.0, t_end), y0, h=h)
         assert res.success
         used.append(res.h)
         drift.append(np.max(np.abs(model.energy(res.y) - e0)) / abs(e0))
@@ -219,7 +219,7 @@ def test_nonlinear_energy_drift_between_fourth_and_fifth_order(case):
 def test_equal_chain_between_walls_frequencies(N):
     # omega_n = 2 sqrt(k/m) sin(n pi / (2 (N + 1))), n = 1..N (thesis sec. 2.2).
     m, k = 0.3, 7.0
-    model = rk4core.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
+    model = rk4h.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
     n = np.arange(1, N + 1)
     expected = 2 * np.sqrt(k / m) * np.sin(n * np.pi / (2 * (N + 1)))
     np.testing.assert_allclose(model.modes()[0], expected, rtol=1e-12)
@@ -228,7 +228,7 @@ def test_equal_chain_between_walls_frequencies(N):
 def test_equal_chain_mode_shapes_are_sines():
     # Mode n of the chain between walls: phi_j ∝ sin(j n pi / (N + 1)).
     N, m, k = 6, 0.3, 7.0
-    model = rk4core.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
+    model = rk4h.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1)})
     _, phi = model.modes()
     j = np.arange(1, N + 1)[:, None]
     n = np.arange(1, N + 1)[None, :]
@@ -241,7 +241,7 @@ def test_triangle_linearized_frequencies():
     # Three rigid motions (two translations, a rotation), a degenerate pair at
     # sqrt(3k / (2m)) and the breathing mode at sqrt(3k / m).
     m, k = 1.3, 5.0
-    model = rk4core.make_model("triangle", {"m": m, "k": k, "side": 0.7})
+    model = rk4h.make_model("triangle", {"m": m, "k": k, "side": 0.7})
     w = np.sqrt(k / m)
     np.testing.assert_allclose(model.modes()[0], [0, 0, 0, math.sqrt(1.5) * w, math.sqrt(1.5) * w,
                                                   math.sqrt(3) * w], rtol=1e-12, atol=1e-12 * w)
@@ -251,7 +251,7 @@ def test_co2_frequencies():
     # Free chain M - m - M with two springs k: 0 (translation), sqrt(k/M)
     # (symmetric stretch, carbon at rest) and sqrt(k/M (1 + 2M/m)) (asymmetric).
     M, m, k = 16.0, 12.0, 5.0
-    model = rk4core.make_model("chain", {"masses": [M, m, M], "springs": [k, k], "walls": "none"})
+    model = rk4h.make_model("chain", {"masses": [M, m, M], "springs": [k, k], "walls": "none"})
     expected = [0.0, math.sqrt(k / M), math.sqrt(k / M * (1 + 2 * M / m))]
     np.testing.assert_allclose(model.modes()[0], expected, rtol=1e-12, atol=1e-12)
 
@@ -259,7 +259,7 @@ def test_co2_frequencies():
 def test_three_blocks_four_springs_frequencies():
     # Equal m and k: K/k = tridiag(-1, 2, -1), eigenvalues 2 - sqrt2, 2, 2 + sqrt2.
     m, k = 0.4, 9.0
-    model = rk4core.make_model("chain", {"masses": [m] * 3, "springs": [k] * 4})
+    model = rk4h.make_model("chain", {"masses": [m] * 3, "springs": [k] * 4})
     w = math.sqrt(k / m)
     expected = [w * math.sqrt(2 - math.sqrt(2)), w * math.sqrt(2), w * math.sqrt(2 + math.sqrt(2))]
     np.testing.assert_allclose(model.modes()[0], expected, rtol=1e-12)
@@ -269,19 +269,19 @@ def test_three_blocks_four_springs_frequencies():
 def test_pendulums_frequencies(linear):
     # In phase: sqrt(g/L) (spring unstretched); anti-phase: sqrt(g/L + 2k/m).
     m, L, g, k = 0.2, 0.5, 9.81, 1.0
-    model = rk4core.make_model("pendulums", {"m": m, "length": L, "g": g, "k": k, "linear": linear})
+    model = rk4h.make_model("pendulums", {"m": m, "length": L, "g": g, "k": k, "linear": linear})
     np.testing.assert_allclose(model.modes()[0], [math.sqrt(g / L), math.sqrt(g / L + 2 * k / m)], rtol=1e-12)
 
 
 @pytest.mark.parametrize("linear", [True, False])
 def test_planar4_frequencies(linear):
     # m x'' = -2 k x in each direction: a degenerate pair at sqrt(2k/m).
-    model = rk4core.make_model("planar4", {"m": 0.5, "k": 25.0, "l": 0.01, "linear": linear})
+    model = rk4h.make_model("planar4", {"m": 0.5, "k": 25.0, "l": 0.01, "linear": linear})
     np.testing.assert_allclose(model.modes()[0], [10.0, 10.0], rtol=1e-12)
 
 
 def test_chain_sparse_stiffness_equals_dense():
-    model = rk4core.make_model("chain", {"masses": [1.0, 2.0, 3.0, 4.0], "springs": [1.0, 2.0, 3.0], "walls": "none"})
+    model = rk4h.make_model("chain", {"masses": [1.0, 2.0, 3.0, 4.0], "springs": [1.0, 2.0, 3.0], "walls": "none"})
     K = model.stiffness_matrix(sparse=True)
     assert K.shape == (4, 4) and K.nnz == 10
     np.testing.assert_array_equal(K.toarray(), model.stiffness_matrix())
@@ -304,8 +304,8 @@ def test_linearized_force_agrees_to_second_order(name, params, scale, direction)
     # = V(q) by the anchors' symmetry; pendulums: cos is even and the spring's
     # extension is L (th2 - th1) + O(th^3)), so F_exact - F_linear = O(A^3):
     # relative agreement to second order in the amplitude A.
-    exact = rk4core.make_model(name, {**params, "linear": False})
-    lin = rk4core.make_model(name, {**params, "linear": True})
+    exact = rk4h.make_model(name, {**params, "linear": False})
+    lin = rk4h.make_model(name, {**params, "linear": True})
     amps = scale * np.array([0.04, 0.02, 0.01, 0.005])
     u = np.array(direction)
     diff = [np.max(np.abs(exact.force(a * u) - lin.force(a * u))) for a in amps]
@@ -318,8 +318,8 @@ def test_linearized_trajectory_agrees_to_second_order(name, params, scale, direc
     # Over a fixed time the trajectories differ by O(A^3) (relative O(A^2)).
     # RK4's error (400 steps, theta = 0.03: n theta^5 / 120 ~ 1e-7 relative) is
     # far below the smallest difference (~1e-4 relative at A = 0.02 scale).
-    exact = rk4core.make_model(name, {**params, "linear": False})
-    lin = rk4core.make_model(name, {**params, "linear": True})
+    exact = rk4h.make_model(name, {**params, "linear": False})
+    lin = rk4h.make_model(name, {**params, "linear": True})
     w = lin.modes()[0].max()
     t_end = 4 * np.pi / w
     amps = scale * np.array([0.08, 0.04, 0.02])
@@ -327,8 +327,8 @@ def test_linearized_trajectory_agrees_to_second_order(name, params, scale, direc
     diff = []
     for a in amps:
         y0 = exact.state(a * u)
-        ye = rk4core.solve(exact.rhs, (0.0, t_end), y0, n_steps=400).y
-        yl = rk4core.solve(lin.rhs, (0.0, t_end), y0, n_steps=400).y
+        ye = rk4h.solve(exact.rhs, (0.0, t_end), y0, n_steps=400).y
+        yl = rk4h.solve(lin.rhs, (0.0, t_end), y0, n_steps=400).y
         diff.append(np.max(np.abs(ye[:2] - yl[:2])))
     p = np.polyfit(np.log(amps), np.log(diff), 1)[0]
     assert abs(p - 3) < 0.15, (p, diff)
@@ -336,7 +336,7 @@ def test_linearized_trajectory_agrees_to_second_order(name, params, scale, direc
 
 def test_triangle_force_linearization_error_is_second_order():
     # The triangle has cubic terms in V, so F + K q = O(A^2).
-    model = rk4core.make_model("triangle", {"m": 1.0, "k": 5.0, "side": 1.0})
+    model = rk4h.make_model("triangle", {"m": 1.0, "k": 5.0, "side": 1.0})
     K = model.stiffness_matrix()
     u = np.array([0.3, -0.2, 0.1, 0.5, -0.4, 0.2])
     amps = np.array([0.04, 0.02, 0.01, 0.005])
@@ -349,7 +349,7 @@ def test_triangle_force_linearization_error_is_second_order():
 def test_triangle_rigid_motions_cost_no_energy(which):
     # Exact geometry: a rigid translation or rotation, of any size, leaves
     # every spring at its natural length: V = 0 and F = 0.
-    model = rk4core.make_model("triangle", {"m": 1.0, "k": 5.0, "side": 1.0})
+    model = rk4h.make_model("triangle", {"m": 1.0, "k": 5.0, "side": 1.0})
     rest = np.array(model.rest)
     if which == "translation":
         q = np.tile([0.7, -1.3], 3)
@@ -405,7 +405,7 @@ BAD_PARAMS = [
 @pytest.mark.parametrize("name, params, field", [c[1:] for c in BAD_PARAMS], ids=[c[0] for c in BAD_PARAMS])
 def test_bad_parameters_raise_value_error_naming_the_field(name, params, field):
     with pytest.raises(ValueError) as info:
-        rk4core.make_model(name, params)
+        rk4h.make_model(name, params)
     msg = str(info.value)
     assert field in msg and "\n" not in msg
 
@@ -419,8 +419,8 @@ FIRST_ORDER_CASES = {"ode": {"variables": ["u", "v"], "equations": ["a*u - u*v",
 def test_params_round_trip(name):
     # A model rebuilt from its own params() is the same model.
     if name in FIRST_ORDER_CASES:
-        model = rk4core.make_model(name, FIRST_ORDER_CASES[name])
-        again = rk4core.make_model(name, model.params())
+        model = rk4h.make_model(name, FIRST_ORDER_CASES[name])
+        again = rk4h.make_model(name, model.params())
         assert again.params() == model.params()
         y = np.random.default_rng(7).uniform(0.5, 2.0, (model.n_state, 5))
         np.testing.assert_array_equal(again.rhs(0.3, y), model.rhs(0.3, y))
@@ -428,7 +428,7 @@ def test_params_round_trip(name):
         return
     case = next(c for c in MODEL_CASES if c[1] == name)
     model, scale = build(case)
-    again = rk4core.make_model(name, model.params())
+    again = rk4h.make_model(name, model.params())
     assert again.params() == model.params()
     q = random_q(model, scale, seed=7)
     np.testing.assert_array_equal(again.force(q), model.force(q))

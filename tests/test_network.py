@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core.models import Chain, Network, Planar4, Triangle
+import rk4h
+from rk4h.models import Chain, Network, Planar4, Triangle
 
 A = 0.3  # triangle side (m)
 L = 0.5  # planar4 anchor distance (m)
@@ -58,8 +58,8 @@ def test_network_equals_the_special_case_on_trajectories(case):
     model, net, scale = PAIRS[case]()
     y0 = np.concatenate([_states(model.n_dof, scale, m=1, seed=3)[:, 0], np.zeros(model.n_dof)])
     t = np.linspace(0.0, 2.0, 201)
-    a = rk4core.solve(model.rhs, (0.0, 2.0), y0, h=0.001, t_eval=t)
-    b = rk4core.solve(net.rhs, (0.0, 2.0), y0, h=0.001, t_eval=t)
+    a = rk4h.solve(model.rhs, (0.0, 2.0), y0, h=0.001, t_eval=t)
+    b = rk4h.solve(net.rhs, (0.0, 2.0), y0, h=0.001, t_eval=t)
     assert a.success and b.success
     np.testing.assert_allclose(b.y, a.y, rtol=0, atol=1e-13 * np.max(np.abs(a.y)) * 10)
 
@@ -119,5 +119,5 @@ def test_bad_network_is_refused_naming_the_field(case, change, says):
                   anchors=[2.0, 0.0])
     params.update(change)
     with pytest.raises(ValueError) as info:
-        rk4core.make_model("network", params)
+        rk4h.make_model("network", params)
     assert says in str(info.value) and "\n" not in str(info.value), str(info.value)

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from rk4core.models.compiled import ForceKernel, SpringKernel
+import rk4h
+import rk4h.fast as fast
+from rk4h.models.compiled import ForceKernel, SpringKernel
 
 
 def _random_network(dim, n, n_anchors, seed):
@@ -27,7 +27,7 @@ def _random_network(dim, n, n_anchors, seed):
         if rng.random() < 0.3:  # pre-stressed
             spring.append(float(rng.uniform(0.1, 1.0)))
         springs.append(spring)
-    model = rk4core.make_model("network", {"dim": dim, "masses": rng.uniform(0.2, 2.0, n).tolist(),
+    model = rk4h.make_model("network", {"dim": dim, "masses": rng.uniform(0.2, 2.0, n).tolist(),
                                            "positions": positions, "springs": springs, "anchors": anchors})
     y = np.concatenate([0.05 * rng.standard_normal(model.n_dof), rng.standard_normal(model.n_dof)])
     return model, y
@@ -35,7 +35,7 @@ def _random_network(dim, n, n_anchors, seed):
 
 def _default_slope_module(kern):
     """The kernel's module built with the base class's two-pass slope (force, then v and F / m)."""
-    from rk4core.fast.codegen import _module, model_source
+    from rk4h.fast.codegen import _module, model_source
 
     class TwoPass(SpringKernel):
         slope_source = ForceKernel.slope_source
@@ -66,7 +66,7 @@ def test_network_loop_equals_python_loop(dim, n, n_anchors, seed):
     y[model.n_dof:] *= 0.01
     t = np.linspace(0.0, 0.2, 7)
     res = fast.solve_model(model, (0.0, 0.2), y, h=0.01, t_eval=t)
-    ref = rk4core.solve(model.rhs, (0.0, 0.2), y, h=0.01, t_eval=t)
+    ref = rk4h.solve(model.rhs, (0.0, 0.2), y, h=0.01, t_eval=t)
     assert res.success and ref.success
     np.testing.assert_array_equal(res.y, ref.y)
 

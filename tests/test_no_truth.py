@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from references.solvers import integrate
-from references.truth import reference_solution
-from rk4core.models import Chain
-from validation import execute as X
-from validation import run_all
+from rk4h.references.solvers import integrate
+from rk4h.references.truth import reference_solution
+from rk4h.models import Chain
+from rk4h.validation import execute as X
+from rk4h.validation import run_all
 
 # x_n = sin(n pi / 5), n = 1..4: sin(3 pi/5) = sin(2 pi/5) and sin(4 pi/5) = sin(pi/5),
 # written as the same doubles so that the middle spring's extension is exactly 0.

@@ -1,4 +1,4 @@
-"""Any ODE: a typed ``model = "ode"`` (rk4core.models.OdeModel) and a plain
+"""Any ODE: a typed ``model = "ode"`` (rk4h.models.OdeModel) and a plain
 ``fun(t, y)`` (FunctionOde) go through the solvers, the truth, the
 convergence study, the work-precision and trust tables and the advisor."""
 import math
@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from references import ode_truth
-from references.solvers import integrate
-from references.truth import reference_solution
-from rk4core.models import FunctionOde, OdeModel
-from validation.metrics import energy_drift_max
-from validation.scenes import SCENE_DIR, SceneError, load_scene, scene_from_dict
+from rk4h.references import ode_truth
+from rk4h.references.solvers import integrate
+from rk4h.references.truth import reference_solution
+from rk4h.models import FunctionOde, OdeModel
+from rk4h.validation.metrics import energy_drift_max
+from rk4h.validation.scenes import SCENE_DIR, SceneError, load_scene, scene_from_dict
 
 A, B, C, D = 1.5, 1.0, 3.0, 1.0
 LV = dict(variables=["u", "v"], equations=["a*u - b*u*v", "-c*v + d*u*v"], constants=dict(a=A, b=B, c=C, d=D),
@@ -113,7 +113,7 @@ def test_invariant_drift_is_relative_to_the_initial_invariant():
 # -- the pipeline on a plain function ------------------------------------------------------
 @pytest.fixture(scope="module")
 def lv_study():
-    from validation.ode import ode_scene, study
+    from rk4h.validation.ode import ode_scene, study
 
     scene = ode_scene(lv, (0.0, 10.0), [1.0, 1.0], h=[0.1, 0.05, 0.02], tolerances=[1e-6, 1e-9],
                       invariant=lv_invariant, name="lv-python")
@@ -137,7 +137,7 @@ def test_a_plain_function_gives_rk4_order_4_and_a_work_precision_table(lv_study)
 
 
 def test_the_advisor_accepts_a_plain_function(lv_study):
-    from validation.advise import advise
+    from rk4h.validation.advise import advise
 
     adv = advise(lv_study[0], 1e-6)
     best = adv.to_json()
@@ -192,7 +192,7 @@ def test_a_mechanical_model_refuses_initial_y():
 
 @pytest.mark.slow
 def test_the_shipped_scene_runs_end_to_end_with_every_expectation_held(tmp_path):
-    from validation.run_all import main as run_all
+    from rk4h.validation.run_all import main as run_all
 
     out = tmp_path / "out"
     assert run_all(["--scene", "lotka-volterra", "--out", str(out), "--workers", "1", "--repeats", "1"]) == 0

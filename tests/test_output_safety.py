@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pytest
 
-from validation import atomic
-from validation.run_all import main
+from rk4h.validation import atomic
+from rk4h.validation.run_all import main
 
 from _scenes import one_mass
 
@@ -348,12 +348,12 @@ import json, os, sys
 sys.path.insert(0, sys.argv[1])
 uid, gid = int(sys.argv[2]), int(sys.argv[3])
 warm_up, code = json.loads(sys.argv[4]), sys.argv[5]
-from validation import atomic
-from validation.run_all import main
+from rk4h.validation import atomic
+from rk4h.validation.run_all import main
 if warm_up:  # one run as the starting user imports all that a run imports
     assert main(warm_up) == 0
 import importlib  # and what the extras check looks for: root's install is closed to the user
-from validation import extras
+from rk4h.validation import extras
 for m in sorted({m for x in extras.NEEDS["run"] for m in extras.EXTRAS[x]}):
     importlib.import_module(m)
 if os.getuid() != uid:
@@ -549,7 +549,7 @@ def test_a_record_store_marker_cut_short_does_not_disown_the_next_run(tmp_path, 
     import errno
     import pathlib
 
-    from validation import records
+    from rk4h.validation import records
 
     def full(*_a, **_k):
         raise OSError(errno.ENOSPC, "No space left on device")

@@ -1,4 +1,4 @@
-"""Outputs as units (validation.outputs): the registry is discovered from the
+"""Outputs as units (rk4h.validation.outputs): the registry is discovered from the
 package's modules, the schema, the defaults, the scene reference and the
 report's tables are derived from it, a new output registered from one file
 runs through the pipeline, and the ``trajectory`` output's netCDF file holds
@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import columns, execute, outputs, plan, run_all, scene_schema, tables
-from validation.scenes import load_scene_points
+from rk4h.validation import columns, execute, outputs, plan, run_all, scene_schema, tables
+from rk4h.validation.scenes import load_scene_points
 
 from _scenes import one_mass
 
@@ -73,10 +73,10 @@ def test_every_table_belongs_to_an_output_or_the_scene():
 
 
 def test_a_model_output_that_applies_is_a_default():
-    from validation.scenes import default_outputs
-    import rk4core
+    from rk4h.validation.scenes import default_outputs
+    import rk4h
 
-    chain = rk4core.make_model("chain", {"masses": [1.0, 1.0, 1.0], "springs": [2.0] * 4})
+    chain = rk4h.make_model("chain", {"masses": [1.0, 1.0, 1.0], "springs": [2.0] * 4})
     facts = outputs.ModelFacts(chain)
     assert default_outputs(chain) == [n for n, o in outputs.OUTPUTS.items() if o.applies(facts)]
     assert "trajectory" not in default_outputs(chain) and "thesis_code" not in default_outputs(chain)
@@ -138,7 +138,7 @@ def test_a_new_output_in_one_file_runs_through_the_pipeline(tmp_path, new_output
 
 
 def test_an_unknown_output_is_still_refused(tmp_path):
-    from validation.scenes import SceneError
+    from rk4h.validation.scenes import SceneError
 
     with pytest.raises(SceneError) as info:
         load_scene_points(_scene(tmp_path, "unknown", ["state", "initial_energy"]))

@@ -13,10 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation.trust import TIMING_COLUMNS as TRUST_TIMING
+from rk4h.validation.trust import TIMING_COLUMNS as TRUST_TIMING
 
-from validation import budget, engine, execute, plan, records
-from validation.scenes import SCENE_DIR, load_scene_points, load_scenes
+from rk4h.validation import budget, engine, execute, plan, records
+from rk4h.validation.scenes import SCENE_DIR, load_scene_points, load_scenes
 
 from _scenes import one_mass
 

@@ -1,4 +1,4 @@
-"""The local worker processes (``validation.engine.LocalPools``) as the CLI
+"""The local worker processes (``rk4h.validation.engine.LocalPools``) as the CLI
 uses them: started and warmed before planning, handed to ``run_all.run``
 (which then leaves them open for their owner), drawing figures however
 ``run_all`` was started, and ending without the interpreter's teardown."""
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from validation import engine, run_all
-from validation.scenes import load_scene
+from rk4h.validation import engine, run_all
+from rk4h.validation.scenes import load_scene
 
 from _scenes import one_mass
 
@@ -64,7 +64,7 @@ def test_warm_starts_every_worker_and_run_uses_the_callers_pools_and_leaves_them
 def test_figures_are_drawn_in_workers_when_run_all_is_not_the_main_module(tmp_path):
     """Under ``python -m cProfile`` the main module is cProfile's: a figure
     job submitted as a function of ``run_all`` run as a script could not be
-    pickled (every figure failed); ``validation.draw.draw_job`` pickles by
+    pickled (every figure failed); ``rk4h.validation.draw.draw_job`` pickles by
     module name."""
     args = [a for p in _scenes(tmp_path) for a in ("--scene", str(p))]
     out = tmp_path / "out"
@@ -78,8 +78,8 @@ def test_figures_are_drawn_in_workers_when_run_all_is_not_the_main_module(tmp_pa
 
 
 def test_draw_job_draws_nothing_into_a_directory_that_is_gone(tmp_path):
-    from validation.draw import draw_job
-    from validation.measure import FigureJob
+    from rk4h.validation.draw import draw_job
+    from rk4h.validation.measure import FigureJob
 
     gone = tmp_path / "gone"
     with pytest.raises(FileNotFoundError, match="gone"):
@@ -93,7 +93,7 @@ def test_exit_now_flushes_what_the_worker_wrote(stream):
     flush of buffered output: it must flush first (a pipe is block-buffered
     unless PYTHONUNBUFFERED is set, so the child runs without it)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
-    code = (f"import sys; from validation import engine; sys.{stream}.write('unterminated'); "
+    code = (f"import sys; from rk4h.validation import engine; sys.{stream}.write('unterminated'); "
             "engine._exit_now(); print('not reached')")
     p = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60, env=env)
     assert p.returncode == 0

@@ -1,5 +1,5 @@
-"""Tests of the `potential` model (rk4core.models.potential.PotentialModel):
-a potential typed as text, parsed by rk4core.expr, everything else derived.
+"""Tests of the `potential` model (rk4h.models.potential.PotentialModel):
+a potential typed as text, parsed by rk4h.expr, everything else derived.
 
 Henon-Heiles (V = (x^2 + y^2)/2 + x^2 y - y^3/3) is the nonlinear case; two
 masses on three springs written as text must equal rk4core's Chain model.
@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core.models import Chain
-from rk4core.models.potential import PotentialModel
+import rk4h
+from rk4h.models import Chain
+from rk4h.models.potential import PotentialModel
 
 HH = {"coordinates": ["x", "y"], "masses": 1.0,
       "potential": "(x^2 + y^2)/2 + lam*(x^2*y - y^3/3)", "constants": {"lam": 1.0}}
@@ -130,7 +130,7 @@ def test_linear_only_for_positive_semidefinite_quadratic_forms(potential, linear
 def test_rk4_converges_at_order_four_on_henon_heiles():
     # Error at T = 20 against heyoka at tol 1e-15 (its error ~1e-15, far below
     # RK4's 3e-9 at the smallest step); least-squares slope of log error vs log h.
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     model = hh()
     y0 = model.state([0.0, 0.1], [math.sqrt(59 / 375), 0.0])
@@ -138,7 +138,7 @@ def test_rk4_converges_at_order_four_on_henon_heiles():
     ref = integrate("heyoka", model, y0, np.array([0.0, T]), 1e-15)
     assert ref.status.name == "OK"
     hs = np.array([0.1, 0.05, 0.025, 0.0125])
-    errs = [np.max(np.abs(rk4core.solve(model.rhs, (0.0, T), y0, h=h).y[:, -1] - ref.y[:, -1])) for h in hs]
+    errs = [np.max(np.abs(rk4h.solve(model.rhs, (0.0, T), y0, h=h).y[:, -1] - ref.y[:, -1])) for h in hs]
     assert min(errs) > 1e3 * 1e-15
     order = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert abs(order - 4.0) <= 0.1, (order, errs)
@@ -269,8 +269,8 @@ def test_henon_heiles_scene_builds_the_model_at_energy_one_twelfth():
 
 
 def test_henon_heiles_scene_loads_once_the_model_is_registered(monkeypatch):
-    from rk4core.models import MODELS
-    from validation.scenes import load_scene
+    from rk4h.models import MODELS
+    from rk4h.validation.scenes import load_scene
 
     monkeypatch.setitem(MODELS, "potential", PotentialModel)
     scene = load_scene(SCENE)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from validation.scenes import scene_from_dict, scene_points_from_dict
+from rk4h.validation.scenes import scene_from_dict, scene_points_from_dict
 
 REPO = Path(__file__).resolve().parent.parent
 README = REPO / "README.md"

@@ -13,8 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import engine, plan, provenance, records, run_all
-from validation.scenes import load_scenes
+from rk4h.validation import engine, plan, provenance, records, run_all
+from rk4h.validation.scenes import load_scenes
 
 from _scenes import one_mass
 from test_pipeline import _deterministic as _tables
@@ -112,14 +112,14 @@ def test_the_key_covers_library_versions_and_the_blas_kernel(monkeypatch):
     scene = load_scenes(["thesis-2dof-case1"])[0]
     keys = [s.key for s in plan.plan(scene)]
     assert dict(provenance.library_versions()).keys() == {"numpy", "scipy", "heyoka", "scikit-sundae", "numba"}
-    import validation.report
+    import rk4h.validation.report
 
     monkeypatch.setattr(provenance, "library_versions", lambda: (("numpy", "0.0-other"),))
     provenance.environment_digest.cache_clear()
     try:
         assert not set(keys) & {s.key for s in plan.plan(scene)}
         monkeypatch.undo()
-        monkeypatch.setattr(validation.report, "blas_kernel", lambda: "SomeOtherKernel")
+        monkeypatch.setattr(rk4h.validation.report, "blas_kernel", lambda: "SomeOtherKernel")
         provenance.environment_digest.cache_clear()
         assert not set(keys) & {s.key for s in plan.plan(scene)}
     finally:
@@ -170,7 +170,7 @@ def test_a_fifo_as_a_record_is_not_read(tmp_path):
     path.unlink()
     os.mkfifo(path)
     # in a child: a blocking open of the FIFO would hang, not fail
-    code = (f"from validation import records; s = records.RecordStore({str(tmp_path / 'out')!r}, resume=True); "
+    code = (f"from rk4h.validation import records; s = records.RecordStore({str(tmp_path / 'out')!r}, resume=True); "
             f"print(s.get({rec.key!r}), sorted(s.keys()))")
     r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stdout.strip() == "None []", r.stderr
@@ -183,7 +183,7 @@ def test_an_arrays_file_linked_to_dev_zero_is_not_read(tmp_path):
     path.symlink_to("/dev/zero")
     # in a child under a 3 GiB address-space limit: reading /dev/zero would end in MemoryError
     code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (2**30 * 3, 2**30 * 3)); "
-            f"from validation import records; s = records.RecordStore({str(tmp_path / 'out')!r}, resume=True); "
+            f"from rk4h.validation import records; s = records.RecordStore({str(tmp_path / 'out')!r}, resume=True); "
             f"print(s.get({rec.key!r}))")
     r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stdout.strip() == "None", r.stderr
@@ -259,7 +259,7 @@ def test_a_crash_keeps_the_records_and_says_where(tmp_path, monkeypatch):
     paths = _scenes(tmp_path)[1:]
     out = tmp_path / "out"
     code = (
-        "import sys; from validation import execute, run_all\n"
+        "import sys; from rk4h.validation import execute, run_all\n"
         "real, n = execute.execute, [0]\n"
         "def boom(scene, spec, quick=False):\n"
         "    n[0] += 1\n"

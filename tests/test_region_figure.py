@@ -7,13 +7,13 @@ from types import SimpleNamespace
 
 import pytest
 
-from rk4core.methods import METHODS
-from validation import outputs
-from validation.figures import GENERIC_CAPTIONS
-from validation.measure import FigureJob
-from validation.scenes import load_scene, resolve_scene
-from validation.stability import draw
-from validation.stability.region import region_plot
+from rk4h.methods import METHODS
+from rk4h.validation import outputs
+from rk4h.validation.figures import GENERIC_CAPTIONS
+from rk4h.validation.measure import FigureJob
+from rk4h.validation.scenes import load_scene, resolve_scene
+from rk4h.validation.stability import draw
+from rk4h.validation.stability.region import region_plot
 
 
 def test_region_plot_holds_each_method_once_with_its_exact_interval():
@@ -41,7 +41,7 @@ def test_the_caption_quotes_the_crossings(tmp_path):
     ("geometric-2dof", ["rk4", "stormer-verlet", "forest-ruth", "yoshida4", "symplectic-euler", "euler"]),
 ])
 def test_region_methods_of_shipped_scenes(scene, expected):
-    from validation.outputs.stability import region_methods
+    from rk4h.validation.outputs.stability import region_methods
 
     assert region_methods(load_scene(resolve_scene(scene))) == expected
 
@@ -61,8 +61,8 @@ def test_the_stability_output_draws_the_region_of_the_scenes_own_methods(tmp_pat
 
 
 def test_measure_adds_one_region_job_per_stability_scene(monkeypatch):
-    import validation.measure as M
-    from validation.outputs import stability as out
+    import rk4h.validation.measure as M
+    from rk4h.validation.outputs import stability as out
 
     studied = []
     monkeypatch.setattr(M, "measure_stability", lambda scene, specs, *a: studied.append(specs))

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from references import registry
-from references.registry import Kind
-from references.solvers import Status, integrate
-from rk4core import make_model
-from validation import metrics
-from validation.scenes import SceneError, scene_from_dict
+from rk4h.references import registry
+from rk4h.references.registry import Kind
+from rk4h.references.solvers import Status, integrate
+from rk4h import make_model
+from rk4h.validation import metrics
+from rk4h.validation.scenes import SceneError, scene_from_dict
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -61,11 +61,11 @@ def test_scene_tableau_from_rationals_has_computed_order_and_exact_coefficients(
     ({"rows": {"A": [["0", "0"], ["1", "0"]], "b": ["1/2", "1/2"], "c": ["0", "1/2"]}}, "methods.rows.c"),
     ({"rk4": RK38}, "methods.rk4"),                                                  # a built-in's name
     ({"x": {"A": [["0"]], "b": ["1"], "order": 1}}, "methods.x.order"),             # computed, not declared
-    ({"x": {"python": "rk4core.steppers:rk4_step"}}, "methods.x.order"),            # python needs an order
+    ({"x": {"python": "rk4h.steppers:rk4_step"}}, "methods.x.order"),            # python needs an order
     ({"x": {"python": "no.such.module:f", "order": 4}}, "methods.x.python"),
     ({"x": {"python": "not a target", "order": 4}}, "methods.x.python"),
     ({"x": {"command": "octave-cli run.m", "order": 4}}, "methods.x.command"),     # argv is a list
-    ({"x": {"A": [["0"]], "b": ["1"], "python": "rk4core.steppers:rk4_step"}}, "methods.x.A"),
+    ({"x": {"A": [["0"]], "b": ["1"], "python": "rk4h.steppers:rk4_step"}}, "methods.x.A"),
     ({"x": {"A": [["0"]], "b": ["1"], "colour": "red"}}, "methods.x.colour"),
 ])
 def test_bad_method_definitions_are_one_line_naming_the_key(methods, field):
@@ -107,7 +107,7 @@ def _python_method(target, order=4):
 def test_a_python_rk4_stepper_equals_the_tableau_rk4_to_round_off():
     model, y0 = _chain()
     t = np.linspace(0.0, 2.0, 21)
-    mine = integrate(_python_method("rk4core.steppers:rk4_step"), model, y0, t, 0.01)
+    mine = integrate(_python_method("rk4h.steppers:rk4_step"), model, y0, t, 0.01)
     ref = integrate("rk4", model, y0, t, 0.01)
     assert mine.status is Status.OK and mine.n_steps == 200
     assert mine.nfev == 4 * 200  # every call of fun counted
@@ -141,8 +141,8 @@ def test_a_failing_python_stepper_is_a_status_not_an_exception(target, status, w
 # -- energy theory for any tableau -----------------------------------------------------
 @pytest.mark.parametrize("name", ["rk4", "rk38", "heun3", "ralston", "euler"])
 def test_energy_loss_per_step_is_one_minus_abs_R_squared(name):
-    from rk4core import get_method
-    from rk4core.stability_function import R
+    from rk4h import get_method
+    from rk4h.stability_function import R
 
     tab = get_method(name)
     theta = np.array([0.01, 0.1, 0.5, 1.0, 1.5])
@@ -161,8 +161,8 @@ def test_rk4_energy_loss_is_the_closed_form():
 def test_stability_boundaries_from_runs_equal_the_tableaux_boundaries():
     # methods-2dof's boundary study: bisection on the runs' one-step maps against
     # the boundary computed from each tableau (0.5 %), its own tableaux included.
-    from validation import stability as S
-    from validation.scenes import SCENE_DIR, load_scene
+    from rk4h.validation import stability as S
+    from rk4h.validation.scenes import SCENE_DIR, load_scene
 
     scene = load_scene(SCENE_DIR / "methods_2dof.toml")
     rows = S.run_unit(scene, "boundary", True).rows
@@ -177,9 +177,9 @@ def test_stability_boundaries_from_runs_equal_the_tableaux_boundaries():
 def test_a_command_method_whose_program_is_missing_is_a_status_and_a_finding():
     # GNU Octave (or any program) absent on a user's machine: the row says
     # "unavailable" with the message, the report says so, nothing fails or raises.
-    from validation import execute as X
-    from validation import measure as M
-    from validation import plan as P
+    from rk4h.validation import execute as X
+    from rk4h.validation import measure as M
+    from rk4h.validation import plan as P
 
     doc = _doc({"prog": {"command": ["no-such-program-rk4h", "{problem}", "{trajectory}"], "order": 4}},
                ["rk4", "prog"])
@@ -198,13 +198,13 @@ def test_a_command_method_whose_program_is_missing_is_a_status_and_a_finding():
 def test_a_reference_without_an_adapter_is_an_error_not_another_solver():
     import dataclasses
 
-    import rk4core
-    from references.registry import BUILTIN
-    from references.solvers import REFERENCE_RUNNERS, integrate
+    import rk4h
+    from rk4h.references.registry import BUILTIN
+    from rk4h.references.solvers import REFERENCE_RUNNERS, integrate
 
     fake = dataclasses.replace(BUILTIN["heyoka"], name="radau-fake", adapter="radau")
     assert fake.adapter not in REFERENCE_RUNNERS
-    model = rk4core.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
     with pytest.raises(ValueError, match="no adapter runs the reference 'radau-fake' \\(adapter 'radau'"):
         integrate(fake, model, model.state([0.01]), np.linspace(0.0, 1.0, 5), 1e-8)
 
@@ -212,13 +212,13 @@ def test_a_reference_without_an_adapter_is_an_error_not_another_solver():
 def test_a_reference_runs_on_its_adapter_whatever_its_name():
     import dataclasses
 
-    import rk4core
-    from references.registry import BUILTIN
-    from references.solvers import REFERENCE_RUNNERS, integrate
+    import rk4h
+    from rk4h.references.registry import BUILTIN
+    from rk4h.references.solvers import REFERENCE_RUNNERS, integrate
 
     assert {m.adapter for m in BUILTIN.values() if m.adaptive} <= set(REFERENCE_RUNNERS)
     renamed = dataclasses.replace(BUILTIN["dop853"], name="my-explicit-ref")
-    model = rk4core.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
     t = np.linspace(0.0, 1.0, 5)
     got = integrate(renamed, model, model.state([0.01]), t, 1e-8)
     want = integrate("dop853", model, model.state([0.01]), t, 1e-8)
@@ -229,14 +229,14 @@ def test_every_method_declares_what_its_nfev_counts():
     """The cost unit is data: a Taylor method's cost is steps x order, the
     others' their nfev; CVODE's nfev includes its Jacobian's difference
     quotients (its extra counters add up to it)."""
-    import rk4core
-    from references.registry import BUILTIN, CostUnit
-    from references.solvers import integrate
+    import rk4h
+    from rk4h.references.registry import BUILTIN, CostUnit
+    from rk4h.references.solvers import integrate
 
     assert all(isinstance(m.cost_unit, CostUnit) and m.cost_unit.text for m in BUILTIN.values())
     assert BUILTIN["heyoka"].cost(0, 10, 20) == 200.0 and BUILTIN["dop853"].cost(77, 10, 0) == 77.0
     assert BUILTIN["cvode-bdf"].cost_unit is CostUnit.RHS_WITH_JACOBIAN_DQ
-    model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 3.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 3.0, 1.0]})
     run = integrate("cvode-bdf", model, model.state([0.01, 0.0]), np.linspace(0.0, 2.0, 5), 1e-8)
     assert run.ok and run.nfev == run.extra["nfev_cvode"] + run.extra["nfev_jac_dq"]
     assert BUILTIN["cvode-bdf"].cost(run.nfev, run.n_steps, run.taylor_order or 0) == run.nfev
@@ -246,8 +246,8 @@ def test_growth_figures_leave_out_only_a_method_whose_curve_another_draws():
     """GROWTH_ALWAYS is BOUNDARY_ALWAYS less the methods whose growth factor
     on a harmonic mode equals a drawn one's at every theta (Stormer-Verlet:
     symplectic Euler's)."""
-    from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS
-    from validation.stability.boundary import theory_growth
+    from rk4h.references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS
+    from rk4h.validation.stability.boundary import theory_growth
 
     assert set(GROWTH_ALWAYS) <= set(BOUNDARY_ALWAYS)
     thetas = (0.1, 0.5, 1.0, 1.9, 2.1, 3.0)

@@ -5,7 +5,7 @@ columns excluded), and the errata numbers are the ones the tables compute.
 The regeneration runs on the committed report's OpenBLAS kernel (its
 ``index.md`` names it; ``OPENBLAS_CORETYPE`` forces it): numpy's dot
 products, hence scipy's DOP853 steps, round differently on another kernel
-(``validation.report.blas_kernel``). Measured here on the quick scenes:
+(``rk4h.validation.report.blas_kernel``). Measured here on the quick scenes:
 Haswell against SkylakeX kernels move DOP853's relative errors by up to
 1.2e-13 and its observed orders by 4.5e-6, nothing else (in the full
 report, where the accepted steps change, up to 53%: see the README).
@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import report
-from validation.scenes import load_scenes
+from rk4h.validation import report
+from rk4h.validation.scenes import load_scenes
 
 REPO = Path(__file__).resolve().parent.parent
 COMMITTED = REPO / "reports"
@@ -56,7 +56,7 @@ def _regenerate(tmp_path_factory, only=None):
     if committed:
         env["OPENBLAS_CORETYPE"] = committed
         # a kernel this CPU lacks the instructions for may kill the process: probe it first
-        probe = subprocess.run([sys.executable, "-c", "import numpy as np; from validation import report; "
+        probe = subprocess.run([sys.executable, "-c", "import numpy as np; from rk4h.validation import report; "
                                 "a = np.ones((64, 64)); a @ a @ np.ones(64); print(report.blas_kernel())"],
                                cwd=REPO, env=env, capture_output=True, text=True, timeout=120)
         if probe.returncode != 0 or probe.stdout.strip() != committed:
@@ -176,7 +176,7 @@ def test_blas_kernel_names_the_kernel_openblas_runs():
 
     if report.blas_kernel() is None or platform.machine() not in ("x86_64", "AMD64"):
         pytest.skip("numpy's BLAS here is not an x86 OpenBLAS that names its kernel")
-    p = subprocess.run([sys.executable, "-c", "from validation import report; print(report._blas())"], cwd=REPO,
+    p = subprocess.run([sys.executable, "-c", "from rk4h.validation import report; print(report._blas())"], cwd=REPO,
                        env={**os.environ, "OPENBLAS_CORETYPE": "Nehalem"}, capture_output=True, text=True,
                        timeout=60)
     assert p.returncode == 0, p.stderr

@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from validation import atomic, budget
-from validation.run_all import main, run
-from validation.scenes import SceneError, load_scene, output_stride
+from rk4h.validation import atomic, budget
+from rk4h.validation.run_all import main, run
+from rk4h.validation.scenes import SceneError, load_scene, output_stride
 
 from _scenes import one_mass
 
@@ -40,7 +40,7 @@ def _failures_section(index: str) -> str:
 
 # -- faults are rows ------------------------------------------------------------------
 def _raise_for(solver_name, exc):
-    from references import solvers
+    from rk4h.references import solvers
 
     real = solvers.integrate
 
@@ -52,9 +52,9 @@ def _raise_for(solver_name, exc):
 
 
 def test_solver_raising_is_a_failed_row_and_the_run_completes(tmp_path, monkeypatch, capsys):
-    import references.solvers
+    import rk4h.references.solvers
 
-    monkeypatch.setattr(references.solvers, "integrate",
+    monkeypatch.setattr(rk4h.references.solvers, "integrate",
                         _raise_for("dop853", RuntimeError("injected fault\nsecond line")))
     out = tmp_path / "out"
     rc = _main(["--scene", str(_scene(tmp_path)), "--out", str(out), "--repeats", "1", "--no-figures"])
@@ -88,7 +88,7 @@ def test_cvode_error_is_a_failed_row(tmp_path, monkeypatch):
 
 
 def test_heyoka_failure_is_a_failed_row(tmp_path, monkeypatch):
-    from references.solvers import taylor
+    from rk4h.references.solvers import taylor
 
     def broken(*args, **kw):
         raise RuntimeError("heyoka exploded (injected)")
@@ -107,7 +107,7 @@ def test_model_raising_inside_the_rhs_is_a_failed_row(tmp_path, monkeypatch):
     # the compiled path (printed from the definition) stands aside, so every
     # solver calls it and every row fails; the run goes on (the exact modal
     # reference does not call it).
-    from rk4core.models.chain import Chain
+    from rk4h.models.chain import Chain
 
     def rhs(self, t, y):
         raise FloatingPointError("model fault (injected)")
@@ -121,7 +121,7 @@ def test_model_raising_inside_the_rhs_is_a_failed_row(tmp_path, monkeypatch):
 
 
 def test_scene_raising_is_a_failure_line_and_other_scenes_run(tmp_path, monkeypatch):
-    from validation.scenes import Scene
+    from rk4h.validation.scenes import Scene
 
     real = Scene.build_model
 
@@ -152,7 +152,7 @@ def test_rk4_blow_up_is_an_unstable_row_at_the_predicted_step(tmp_path, capsys, 
     # log(1e6) / log|R| steps; a component lags its amplitude by its phase, so
     # the crossing may come up to two steps later (theta = 20: |R| = 6.6e3;
     # theta = 2.9: |R| = 1.04, ~350 steps).
-    from references.solvers.fixed import MAX_GROWTH
+    from rk4h.references.solvers.fixed import MAX_GROWTH
 
     t_end = round(h * 2000, 6)
     p = _scene(tmp_path, t_end=t_end, h=f"[{h}, {h / 10:g}]", solvers='["rk4"]', outputs='["state"]',

@@ -10,15 +10,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from references import registry
-from references.exact import modal_solution
-from references.solvers import integrate
+from rk4h.references import registry
+from rk4h.references.exact import modal_solution
+from rk4h.references.solvers import integrate
 import dataclasses
 
-from validation import execute as X
-from validation import measure as M
-from validation import plan as P
-from validation.scenes import SCENE_DIR, load_scene, load_scenes
+from rk4h.validation import execute as X
+from rk4h.validation import measure as M
+from rk4h.validation import plan as P
+from rk4h.validation.scenes import SCENE_DIR, load_scene, load_scenes
 
 from _scenes import one_mass
 
@@ -78,7 +78,7 @@ def test_dop853_error_decreases_with_tolerance(scene):
 
 
 def _cli(args, *, module=False, cwd=REPO):
-    cmd = [sys.executable, "-m", "validation.run_all"] if module else [sys.executable, "validation/run_all.py"]
+    cmd = [sys.executable, "-m", "rk4h.validation.run_all"] if module else [sys.executable, "validation/run_all.py"]
     env = {**os.environ, "MPLBACKEND": "Agg"}
     return subprocess.run(cmd + args, cwd=cwd, capture_output=True, text=True, timeout=300, env=env)
 
@@ -87,7 +87,7 @@ def _cli(args, *, module=False, cwd=REPO):
 def previous_report(tmp_path):
     """An output directory that already holds a report this tool wrote, to check
     it is not damaged (and that it may be replaced)."""
-    from validation import atomic
+    from rk4h.validation import atomic
 
     out = tmp_path / "reports"
     tmp = atomic.fresh_dir(out)

@@ -4,8 +4,8 @@ physics it explains)."""
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from validation.execute import problem
-from validation.scenes import load_scene, resolve_scene
+from rk4h.validation.execute import problem
+from rk4h.validation.scenes import load_scene, resolve_scene
 
 
 def test_planar4_case2_passes_within_micrometres_of_an_anchor():

@@ -1,4 +1,4 @@
-"""The scene schema declared once (validation.scene_schema): the generated
+"""The scene schema declared once (rk4h.validation.scene_schema): the generated
 reference and the schema hold the same keys, every documented example loads,
 the committed reference and JSON Schema are current, the shipped scenes pass
 the JSON Schema, an unknown key at any level is one line naming it, and
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from pydantic import BaseModel
 
-import rk4core
-from rk4core.models import MODELS, model_parameters
-from validation import scene_schema
-from validation import outputs as registry
-from validation.scenes import SCENE_DIR, SceneError, default_outputs, scene_from_dict, scene_points_from_dict
+import rk4h
+from rk4h.models import MODELS, model_parameters
+from rk4h.validation import scene_schema
+from rk4h.validation import outputs as registry
+from rk4h.validation.scenes import SCENE_DIR, SceneError, default_outputs, scene_from_dict, scene_points_from_dict
 
 REPO = Path(__file__).resolve().parent.parent
 BASE = {"name": "ref", "model": "chain",
@@ -105,7 +105,7 @@ def _params_base(model: str) -> dict:
     """The scene of ``model`` built from the reference's examples of its required keys."""
     required, _ = model_parameters(model)
     params = {k: copy.deepcopy(REFERENCE[(f"params:{model}", k)]) for k in required}
-    m = rk4core.make_model(model, dict(params))
+    m = rk4h.make_model(model, dict(params))
     n = m.n_dof
     if getattr(m, "first_order", False):  # any ODE: [initial] y, only the methods of a first-order system
         return {**copy.deepcopy(BASE), "model": model, "params": params,
@@ -155,7 +155,7 @@ def test_every_documented_key_is_accepted_with_its_example(section, key):
 
 
 def test_the_builtin_tables_are_the_model_registry():
-    from rk4core.models import BUILTIN_CLASSES
+    from rk4h.models import BUILTIN_CLASSES
 
     assert list(scene_schema.BUILTIN_MODELS) == [cls.name for cls in BUILTIN_CLASSES]
     assert all(c.parameters is not None and c.summary for c in BUILTIN_CLASSES)
@@ -179,13 +179,13 @@ def test_each_params_table_matches_the_models_constructor(model):
 
 
 def test_method_keys_are_the_registrys():
-    from references.registry import _KEYS
+    from rk4h.references.registry import _KEYS
 
     assert set(scene_schema.MethodTable.model_fields) == _KEYS
 
 
 def test_stability_keys_are_the_params_table():
-    from validation.stability.params import PARAMS
+    from rk4h.validation.stability.params import PARAMS
 
     assert list(scene_schema.Stability.model_fields) == [p.name for p in PARAMS]
 
@@ -197,7 +197,7 @@ def test_committed_reference_is_current(capsys, flag, path):
     assert scene_schema.main([flag]) == 0
     printed = capsys.readouterr().out
     assert (REPO / path).read_text(encoding="utf-8") == printed, \
-        f"stale: run python -m validation.scene_schema {flag} > {path}"
+        f"stale: run python -m rk4h.validation.scene_schema {flag} > {path}"
 
 
 # -- the JSON Schema accepts the shipped scenes -----------------------------------------------
@@ -281,7 +281,7 @@ def test_toml_types_are_kept_strict(key, value, field, shown):
 
 
 # -- run.outputs defaults to every output that applies to the model -------------------------
-class NoLinearization(rk4core.Model):
+class NoLinearization(rk4h.Model):
     """A model without a stiffness matrix: nothing modal applies."""
 
     name = "no-linearization-test"
@@ -304,7 +304,7 @@ class NoLinearization(rk4core.Model):
 
 @pytest.fixture
 def no_linearization():
-    rk4core.register_model(NoLinearization)
+    rk4h.register_model(NoLinearization)
     yield NoLinearization.name
     MODELS.pop(NoLinearization.name, None)
 
@@ -382,7 +382,7 @@ def test_a_huge_chain_defaults_to_stability_only():
 
 
 def test_default_outputs_reads_the_model_not_its_name():
-    chain = rk4core.make_model("chain", {"masses": [1.0, 1.0, 1.0], "springs": [2.0] * 4})
+    chain = rk4h.make_model("chain", {"masses": [1.0, 1.0, 1.0], "springs": [2.0] * 4})
     assert "dispersion" in default_outputs(chain) and "stability" in default_outputs(chain, stability=True)
-    assert "dispersion" not in default_outputs(rk4core.make_model("chain", {"masses": [1.0, 2.0, 1.0],
+    assert "dispersion" not in default_outputs(rk4h.make_model("chain", {"masses": [1.0, 2.0, 1.0],
                                                                             "springs": [2.0] * 4}))

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from validation.scenes import SCENE_DIR, SceneError, load_scene, load_scene_points, load_scenes, scene_from_dict
+from rk4h.validation.scenes import SCENE_DIR, SceneError, load_scene, load_scene_points, load_scenes, scene_from_dict
 
 SHIPPED = sorted(SCENE_DIR.glob("*.toml"))
 

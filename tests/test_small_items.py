@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-from validation import advise
-from validation.run_all import main as run_all
-from validation.scenes import scene_from_dict
+import rk4h
+from rk4h.validation import advise
+from rk4h.validation.run_all import main as run_all
+from rk4h.validation.scenes import scene_from_dict
 
 
 @pytest.mark.parametrize("name", ["a" * 300, "a" * 300 + ".toml", "a" * 150 + "@" + "b" * 150,
@@ -26,10 +26,10 @@ def test_a_scene_name_too_long_is_one_line_exit_2(name, tmp_path, capsys):
 
 
 def test_an_unavailable_command_method_shows_no_rhs_count():
-    from references.solvers.command import run_command_method
-    from validation import execute as X
-    from validation import measure as M
-    from validation import plan as P
+    from rk4h.references.solvers.command import run_command_method
+    from rk4h.validation import execute as X
+    from rk4h.validation import measure as M
+    from rk4h.validation import plan as P
 
     doc = {"name": "unavail", "model": "chain", "params": {"masses": [1.0], "springs": [1.0, 1.0]},
            "initial": {"x": [0.01]},
@@ -53,7 +53,7 @@ def test_an_unavailable_command_method_shows_no_rhs_count():
                                    np.array(["1.5"], dtype=object)], ids=["array", "list", "slice", "string"])
 def test_fun_returning_none_inside_an_array_is_a_value_error(value):
     with pytest.raises(ValueError, match=r"`fun` returned an array holding .* at t = 0\.0; expected an array"):
-        rk4core.solve(lambda t, y: value, (0.0, 1.0), [1.0], h=0.1)
+        rk4h.solve(lambda t, y: value, (0.0, 1.0), [1.0], h=0.1)
     # numbers in an object array are still numbers
-    res = rk4core.solve(lambda t, y: np.array([1.0], dtype=object), (0.0, 1.0), [0.0], h=0.1)
+    res = rk4h.solve(lambda t, y: np.array([1.0], dtype=object), (0.0, 1.0), [0.0], h=0.1)
     assert res.status == 0 and res.y[0, -1] == pytest.approx(1.0)

@@ -3,19 +3,19 @@ fast path, each on its own -- integrates the thesis' 2-DOF case 1."""
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from references.exact import modal_solution
+import rk4h
+import rk4h.fast as fast
+from rk4h.references.exact import modal_solution
 
 SOLVE = {
-    "generic": lambda model, y0: rk4core.solve(model.rhs, (0.0, 10.0), y0, h=0.01),
+    "generic": lambda model, y0: rk4h.solve(model.rhs, (0.0, 10.0), y0, h=0.01),
     "fast": lambda model, y0: fast.solve_model(model, (0.0, 10.0), y0, h=0.01),
 }
 
 
 @pytest.mark.parametrize("path", sorted(SOLVE))
 def test_two_dof_case1_rk4_matches_modal_solution(path):
-    model = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+    model = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
     y0 = model.state([0.005, 0.005])
     res = SOLVE[path](model, y0)
     assert res.success

@@ -1,4 +1,4 @@
-"""Tests of ``rk4core.solve`` and the methods' tableaux.
+"""Tests of ``rk4h.solve`` and the methods' tableaux.
 
 Expected values come from theory, stated beside each test: the order of each
 method, the amplification factor of RK4 and Euler on a harmonic mode, the
@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
-import rk4core
-from references.exact import modal_solution
+import rk4h
+from rk4h.references.exact import modal_solution
 
 # -- observed order on every linear model ------------------------------------
 
@@ -58,7 +58,7 @@ def fitted_order(hs, errs):
 @pytest.mark.parametrize("case", LINEAR_CASES, ids=[c[0] for c in LINEAR_CASES])
 def test_observed_order_on_linear_models(case, method):
     _, name, params, x0, v0 = case
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     y0 = model.state(x0, v0)
     exact = modal_solution(model, y0)
     w_max = exact.omega.max()
@@ -66,7 +66,7 @@ def test_observed_order_on_linear_models(case, method):
     hs = THETA_MAX[method] / w_max / 2.0 ** np.arange(4)
     used, errs = [], []
     for h in hs:
-        res = rk4core.solve(model.rhs, (0.0, t_end), y0, h=h, method=method)
+        res = rk4h.solve(model.rhs, (0.0, t_end), y0, h=h, method=method)
         assert res.success
         used.append(res.h)  # the step actually used, t_end / ceil(t_end / h)
         errs.append(np.max(np.abs(res.y - exact(res.t))))
@@ -78,7 +78,7 @@ def test_observed_order_on_linear_models(case, method):
 
 def single_mode(m=2.0, k1=8.0, k2=10.0):
     """One mass between two walls: x'' = -omega^2 x, omega^2 = (k1 + k2) / m."""
-    return rk4core.make_model("chain", {"masses": [m], "springs": [k1, k2]}), math.sqrt((k1 + k2) / m)
+    return rk4h.make_model("chain", {"masses": [m], "springs": [k1, k2]}), math.sqrt((k1 + k2) / m)
 
 
 def harmonic_energy(y, omega):
@@ -108,7 +108,7 @@ def test_energy_follows_amplification_factor(method, theta):
     # The growing cases (RK4 at theta = 3, Euler) pass 1e8 times the initial
     # amplitude within 200 steps; the growth test is off so the run follows
     # the amplification factor all the way (the factor, not the stop, is tested).
-    res = rk4core.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method=method, max_growth=None)
+    res = rk4h.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method=method, max_growth=None)
     assert res.success
     expected = harmonic_energy(y0, omega) * ENERGY_FACTOR[method](theta) ** np.arange(n + 1)
     np.testing.assert_allclose(harmonic_energy(res.y, omega), expected, rtol=1e-9, atol=0)
@@ -123,7 +123,7 @@ def test_symplectic_euler_conserves_modified_energy(theta):
     model, omega = single_mode()
     h, n = theta / omega, 2000
     y0 = model.state([0.3], [0.7])
-    res = rk4core.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method="symplectic-euler")
+    res = rk4h.solve(model.rhs, (0.0, n * h), y0, n_steps=n, method="symplectic-euler")
     x, v = res.y
     q_mod = omega**2 * x**2 + v**2 - h * omega**2 * x * v
     np.testing.assert_allclose(q_mod, q_mod[0], rtol=1e-12, atol=0)
@@ -147,7 +147,7 @@ def test_rk4_integrates_cubics_exactly(coef):
     # stage times (e.g. all at t) a linear p would already fail.
     p = np.polynomial.Polynomial(coef)
     t0, t1, n = 0.3, 2.1, 7
-    res = rk4core.solve(lambda t, y: np.array([p(t)]), (t0, t1), [0.5], n_steps=n)
+    res = rk4h.solve(lambda t, y: np.array([p(t)]), (t0, t1), [0.5], n_steps=n)
     expected = 0.5 + p.integ()(res.t) - p.integ()(t0)
     np.testing.assert_allclose(res.y[0], expected, rtol=1e-13, atol=1e-13)
 
@@ -158,7 +158,7 @@ def test_rk4_quartic_error_is_simpson_error(n):
     # p = t^4, p'''' = 24, so each step adds h^5 / 120 and n steps n h^5 / 120.
     t0, t1 = 0.0, 1.5
     h = (t1 - t0) / n
-    res = rk4core.solve(lambda t, y: np.array([t**4]), (t0, t1), [0.0], n_steps=n)
+    res = rk4h.solve(lambda t, y: np.array([t**4]), (t0, t1), [0.0], n_steps=n)
     err = res.y[0, -1] - (t1**5 - t0**5) / 5
     assert err == pytest.approx(n * h**5 / 120, rel=1e-10)
 
@@ -168,9 +168,9 @@ def test_euler_exact_for_constants_only():
     # sum over steps of h^2 / 2, i.e. n h^2 / 2 = (t1 - t0) h / 2.
     t0, t1, n = 0.0, 2.0, 8
     h = (t1 - t0) / n
-    const = rk4core.solve(lambda t, y: np.array([3.0]), (t0, t1), [1.0], n_steps=n, method="euler")
+    const = rk4h.solve(lambda t, y: np.array([3.0]), (t0, t1), [1.0], n_steps=n, method="euler")
     np.testing.assert_allclose(const.y[0], 1.0 + 3.0 * const.t, rtol=1e-14)
-    lin = rk4core.solve(lambda t, y: np.array([t]), (t0, t1), [0.0], n_steps=n, method="euler")
+    lin = rk4h.solve(lambda t, y: np.array([t]), (t0, t1), [0.0], n_steps=n, method="euler")
     assert t1**2 / 2 - lin.y[0, -1] == pytest.approx((t1 - t0) * h / 2, rel=1e-12)
 
 
@@ -178,7 +178,7 @@ def test_rk4_step_is_fourth_order_taylor_polynomial():
     # On y' = lam y, one RK4 step multiplies by R(lam h) = sum_{j<=4} (lam h)^j / j!:
     # checks that stage states use A (not only stage times use c).
     lam, h = -1.7, 0.4
-    res = rk4core.solve(lambda t, y: lam * y, (0.0, h), [1.0], n_steps=1)
+    res = rk4h.solve(lambda t, y: lam * y, (0.0, h), [1.0], n_steps=1)
     z = lam * h
     assert res.y[0, -1] == pytest.approx(sum(z**j / math.factorial(j) for j in range(5)), rel=1e-15)
 
@@ -199,7 +199,7 @@ def decay(t, y):
     ((0.0, 1.0), 0.1 * (1 - 1e-13), 10, 0.1),   # ratio 10 (1 + 1e-13), within the slack
 ])
 def test_step_count_from_h(t_span, h, n_expected, h_used):
-    res = rk4core.solve(decay, t_span, [1.0], h=h, method="euler")  # cheapest; the count is method-independent
+    res = rk4h.solve(decay, t_span, [1.0], h=h, method="euler")  # cheapest; the count is method-independent
     assert res.n_steps == n_expected
     assert res.h == pytest.approx(h_used, rel=1e-12)
     assert res.t.shape == (n_expected + 1,)
@@ -208,7 +208,7 @@ def test_step_count_from_h(t_span, h, n_expected, h_used):
 
 def test_step_count_just_beyond_slack_adds_a_step():
     # (t1 - t0) / h = 10 * (1 + 1e-9): more than the 1e-12 slack, so 11 steps.
-    res = rk4core.solve(decay, (0.0, 1.0), [1.0], h=0.1 / (1 + 1e-9))
+    res = rk4h.solve(decay, (0.0, 1.0), [1.0], h=0.1 / (1 + 1e-9))
     assert res.n_steps == 11
 
 
@@ -222,7 +222,7 @@ def test_nfev_counts_every_call(method, stages):
         calls.append(t)
         return np.array([y[1], -y[0]])
 
-    res = rk4core.solve(fun, (0.0, 2.0), [1.0, 0.0], n_steps=25, method=method)
+    res = rk4h.solve(fun, (0.0, 2.0), [1.0, 0.0], n_steps=25, method=method)
     assert res.nfev == len(calls) == stages * 25
 
 
@@ -236,14 +236,14 @@ def test_nfev_counts_dense_output_calls():
         return -y
 
     t_eval = [0.05, 0.07, 0.35, 1.0]  # h = 0.1: steps 0 (two points) and 3 hold off-grid points
-    res = rk4core.solve(fun, (0.0, 1.0), [1.0], h=0.1, t_eval=t_eval)
+    res = rk4h.solve(fun, (0.0, 1.0), [1.0], h=0.1, t_eval=t_eval)
     assert res.dense == "hermite"
     assert res.nfev == len(calls) == 4 * 10 + 2
 
 
 @pytest.mark.parametrize("n_dim", [1, 3])
 def test_shapes_follow_solve_ivp(n_dim):
-    res = rk4core.solve(lambda t, y: -y, (0.0, 1.0), np.ones(n_dim), n_steps=8)
+    res = rk4h.solve(lambda t, y: -y, (0.0, 1.0), np.ones(n_dim), n_steps=8)
     assert res.t.shape == (9,)
     assert res.y.shape == (n_dim, 9)
     assert res.success and res.status == 0
@@ -253,9 +253,9 @@ def test_shapes_follow_solve_ivp(n_dim):
 def test_t_eval_on_grid_returns_grid_values_exactly():
     model, _ = single_mode()
     y0 = model.state([0.3], [0.7])
-    full = rk4core.solve(model.rhs, (0.0, 2.0), y0, h=0.02)
+    full = rk4h.solve(model.rhs, (0.0, 2.0), y0, h=0.02)
     t_eval = [0.0, 0.1, 0.5, 1.3, 2.0]  # multiples of 0.02 up to representation error
-    res = rk4core.solve(model.rhs, (0.0, 2.0), y0, h=0.02, t_eval=t_eval)
+    res = rk4h.solve(model.rhs, (0.0, 2.0), y0, h=0.02, t_eval=t_eval)
     assert res.dense == "grid"
     np.testing.assert_array_equal(res.t, t_eval)
     idx = np.rint(np.array(t_eval) / 0.02).astype(int)
@@ -273,7 +273,7 @@ def test_t_eval_off_grid_hermite_error_is_fourth_order():
     t_eval = np.linspace(0.0, t_end, 4)[1:-1] + 0.37 * hs[0]  # off every grid
     used, errs = [], []
     for h in hs:
-        res = rk4core.solve(model.rhs, (0.0, t_end), y0, h=h, t_eval=t_eval)
+        res = rk4h.solve(model.rhs, (0.0, t_end), y0, h=h, t_eval=t_eval)
         assert res.dense == "hermite"
         np.testing.assert_array_equal(res.t, t_eval)
         used.append(res.h)
@@ -287,7 +287,7 @@ def test_blow_up_is_a_status_not_an_exception():
     h = 0.01
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = rk4core.solve(lambda t, y: y * y, (0.0, 2.0), [1.0], h=h)
+        res = rk4h.solve(lambda t, y: y * y, (0.0, 2.0), [1.0], h=h)
     assert not res.success
     assert res.status == -1
     assert 1.0 - 5 * h <= res.t_fail <= 1.0 + 10 * h
@@ -301,7 +301,7 @@ def test_blow_up_is_a_status_not_an_exception():
 def test_blow_up_with_t_eval_returns_points_before_failure():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = rk4core.solve(lambda t, y: y * y, (0.0, 2.0), [1.0], h=0.01, t_eval=[0.5, 0.905, 1.5, 2.0])
+        res = rk4h.solve(lambda t, y: y * y, (0.0, 2.0), [1.0], h=0.01, t_eval=[0.5, 0.905, 1.5, 2.0])
     assert res.status == -1
     np.testing.assert_array_equal(res.t, [0.5, 0.905])
     assert np.all(np.isfinite(res.y))
@@ -309,10 +309,10 @@ def test_blow_up_with_t_eval_returns_points_before_failure():
 
 def test_division_by_zero_in_fun_is_a_blow_up():
     # planar4 with the mass on an anchor: spring length 0, direction undefined.
-    model = rk4core.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
+    model = rk4h.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = rk4core.solve(model.rhs, (0.0, 1.0), model.state([1.0, 0.0]), n_steps=4)
+        res = rk4h.solve(model.rhs, (0.0, 1.0), model.state([1.0, 0.0]), n_steps=4)
     assert res.status == -1 and res.t_fail == 0.25 and res.n_steps == 0
 
 
@@ -350,16 +350,16 @@ def test_bad_arguments_raise_value_error_naming_them(kwargs, name):
     y0 = kwargs.pop("y0", [1.0, 0.0])
     t_span = kwargs.pop("t_span", (0.0, 1.0))
     with pytest.raises(ValueError, match=name.replace("[", r"\[")) as info:
-        rk4core.solve(lambda t, y: -y, t_span, y0, **kwargs)
+        rk4h.solve(lambda t, y: -y, t_span, y0, **kwargs)
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("name", sorted(rk4core.METHODS))
+@pytest.mark.parametrize("name", sorted(rk4h.METHODS))
 def test_methods_are_consistent_tableaux(name):
     # Row sums of A equal c (a stage's time matches its state) and each set of
     # weights sums to 1 (consistency: order >= 1). For the partitioned method
     # the velocity rows need not sum to c: stage 2's velocity slope has weight 0.
-    tab = rk4core.METHODS[name]
+    tab = rk4h.METHODS[name]
     np.testing.assert_allclose(tab.A.sum(axis=1), tab.c, atol=0)
     assert tab.b.sum() == pytest.approx(1.0, rel=1e-15)
     if tab.partitioned:

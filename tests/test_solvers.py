@@ -1,18 +1,18 @@
-"""The solver interface (references.solvers): accuracy against exact and real128
+"""The solver interface (rk4h.references.solvers): accuracy against exact and real128
 references, tolerance behaviour, counters, validation and failure reporting."""
 import math
 
 import numpy as np
 import pytest
 
-import rk4core
-from references.exact import modal_solution
-from references.solvers import (ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status, check_setting,
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.references.solvers import (ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status, check_setting,
                                 integrate)
-from references.solvers.cvode import interleave, linear_jacobian
-from references.solvers.taylor import _pars, scaled_system
-from references.solvers.tolerances import omega_bound, state_scale
-from references.truth import reference_solution
+from rk4h.references.solvers.cvode import interleave, linear_jacobian
+from rk4h.references.solvers.taylor import _pars, scaled_system
+from rk4h.references.solvers.tolerances import omega_bound, state_scale
+from rk4h.references.truth import reference_solution
 
 # name -> (model, params, x0, v0)
 LINEAR = {
@@ -41,7 +41,7 @@ TIGHTEST = {"dop853": 1e-13, "cvode-adams": 1e-14, "cvode-bdf": 1e-14, "heyoka":
 
 def scene(name):
     model_name, params, x0, v0 = ALL[name]
-    model = rk4core.make_model(model_name, params)
+    model = rk4h.make_model(model_name, params)
     return model, model.state(x0, v0)
 
 
@@ -289,7 +289,7 @@ def test_fixed_step_blow_up_is_unstable(solver):
     assert np.all(np.isnan(run.y[:, -1])) and np.all(np.isfinite(run.y[:, 0]))
 
 
-class _Broken(rk4core.models.Chain):
+class _Broken(rk4h.models.Chain):
     """A model whose equations raise (stand-in for any exception inside a solver)."""
 
     def rhs(self, t, y):

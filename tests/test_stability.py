@@ -1,4 +1,4 @@
-"""Issue 6: numerical stability at the extremes (validation.stability).
+"""Issue 6: numerical stability at the extremes (rk4h.validation.stability).
 
 Expected values come from the stability function of each method on y' = J y
 with eigenvalues +-i omega (theta = omega h):
@@ -12,13 +12,13 @@ import warnings
 import numpy as np
 import pytest
 
-import rk4core
-from validation.stability import boundary as B
-from validation.stability import geometry as G
-from validation.stability import large_n as LN
-from validation.stability import long_horizon as LH
-from validation.stability import mass_ratio as MR
-from validation.stability import validate_params
+import rk4h
+from rk4h.validation.stability import boundary as B
+from rk4h.validation.stability import geometry as G
+from rk4h.validation.stability import large_n as LN
+from rk4h.validation.stability import long_horizon as LH
+from rk4h.validation.stability import mass_ratio as MR
+from rk4h.validation.stability import validate_params
 
 TWO_DOF = ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
 LINEAR_SCENES = {
@@ -32,7 +32,7 @@ PLANAR = {"m": 0.815, "k": 41.5, "l": 0.01}
 
 
 def _model(key):
-    return rk4core.make_model(*LINEAR_SCENES[key])
+    return rk4h.make_model(*LINEAR_SCENES[key])
 
 
 @pytest.mark.parametrize("scene", sorted(LINEAR_SCENES))
@@ -52,7 +52,7 @@ def test_explicit_euler_has_no_stable_step(scene):
 
 @pytest.mark.parametrize("theta", [1e-3, 0.1, 0.5, 1.0, 2.0])
 def test_explicit_euler_growth_measured_from_run(theta):
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     g, res = B.measured_growth(model, "euler", theta, n_steps=400)
     assert res.success
     # growth per step sqrt(1 + theta^2): compare the excess g - 1 (small at small theta)
@@ -62,7 +62,7 @@ def test_explicit_euler_growth_measured_from_run(theta):
 @pytest.mark.parametrize("method", ["rk4", "symplectic-euler"])
 @pytest.mark.parametrize("theta", [0.5, 1.5, 2.5, 3.2])
 def test_measured_growth_follows_theory(method, theta):
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     g, _ = B.measured_growth(model, method, theta, n_steps=2000)
     # symplectic Euler's amplitude oscillates (non-normal mode map): the fit over
     # the run averages it, so only ~1e-3 agreement is expected there.
@@ -78,7 +78,7 @@ def test_rk4_growth_theory_is_the_stability_polynomial():
 
 @pytest.mark.parametrize("method, factor, n", [("rk4", 1.2, 3000), ("euler", None, 6000)])
 def test_blowup_is_a_status_with_a_time_and_no_warning(method, factor, n):
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     w = float(model.modes()[0][-1])
     h = factor * B.theory_boundary("rk4", w) if factor else 1.0 / w
     with warnings.catch_warnings():
@@ -94,7 +94,7 @@ def test_blowup_is_a_status_with_a_time_and_no_warning(method, factor, n):
 
 @pytest.mark.parametrize("theta", [0.1, 0.25, 0.5])
 def test_rk4_energy_loss_and_phase_lag_per_step(theta):
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     w = model.modes()[0]
     d = LH.measure_drift_and_phase(model, model.state([0.005, 0.005]), theta / w[-1], 1500)
     th = d["theta"]
@@ -112,7 +112,7 @@ def test_rk4_rates_measured_while_a_fast_mode_decays_to_round_off():
     # after about 2 ln(1e16) / 0.01215 ~ 6000 steps. A 20000-step run must still
     # give the exact per-step rates for both modes (the fit must stop where the
     # mode is gone, not average round-off noise into the slope).
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     w = model.modes()[0]
     d = LH.measure_drift_and_phase(model, model.state([0.005, 0.005]), 1.0 / w[-1], 20000)
     th = d["theta"]
@@ -128,7 +128,7 @@ def test_rk4_rates_measured_while_a_fast_mode_decays_to_round_off():
 def test_rk4_rates_match_leading_order_at_small_theta(theta):
     # leading terms theta^6/72 and theta^5/120: relative corrections theta^2/8 and
     # about theta^2 * 120/336 (< 2 % for theta <= 0.2)
-    model = rk4core.make_model(*TWO_DOF)
+    model = rk4h.make_model(*TWO_DOF)
     w = model.modes()[0]
     d = LH.measure_drift_and_phase(model, model.state([0.005, 0.005]), theta / w[-1], 1500)
     assert d["energy_loss"][-1] == pytest.approx(theta**6 / 72, rel=0.02)
@@ -165,7 +165,7 @@ def test_printed_eq_2_31_would_fail_the_limit_check():
 
 @pytest.mark.parametrize("mu", [0.0, -1.0, float("nan")])
 def test_eq_2_31_refuses_nonpositive_mu(mu):
-    from references.closed_forms import two_dof_equal_k
+    from rk4h.references.closed_forms import two_dof_equal_k
 
     with pytest.raises(ValueError, match="mu"):
         two_dof_equal_k(1.0, m1=1.0, mu=mu)
@@ -247,8 +247,8 @@ def test_validate_params_names_the_field(params, field):
 
 
 def test_run_contract_on_a_small_scene(tmp_path):
-    from validation.scenes import scene_from_dict
-    from validation.stability import run
+    from rk4h.validation.scenes import scene_from_dict
+    from rk4h.validation.stability import run
 
     doc = {"name": "stab_tiny", "model": "planar4", "params": {**PLANAR, "linear": False},
            "initial": {"x": [0.005, 0.03]}, "run": {"t_end": 1.0, "h": [0.01], "solvers": ["rk4"],
@@ -266,18 +266,18 @@ def test_run_contract_on_a_small_scene(tmp_path):
 def _four_spring_network(m=0.815, k=41.5, l=0.01, anchors=((-1, 0), (1, 0), (0, -1), (0, 1)), ref=(0.3, -0.2)):
     """planar4's mechanics as a `network` (another class, another name); springs of natural length l."""
     flat = [c for ax, ay in anchors for c in (ref[0] + ax * l, ref[1] + ay * l)]
-    return rk4core.make_model("network", {"dim": 2, "masses": [m], "positions": list(ref), "anchors": flat,
+    return rk4h.make_model("network", {"dim": 2, "masses": [m], "positions": list(ref), "anchors": flat,
                                           "springs": [[0, j + 1, k, l] for j in range(len(anchors))]})
 
 
 @pytest.mark.parametrize("key", sorted(LINEAR_SCENES) + ["pendulums", "triangle", "long chain"])
 def test_frequency_range_is_the_models_own(key):
-    from validation.stability.estimate import frequency_range
+    from rk4h.validation.stability.estimate import frequency_range
 
     extra = {"pendulums": ("pendulums", {"m": 0.5, "length": 1.0, "g": 9.81, "k": 0.2}),
              "triangle": ("triangle", {"m": 1.0, "k": 10.0, "side": 1.0}),
              "long chain": ("chain", {"masses": [1.0, 2.0] * 30, "springs": [3.0] * 61})}
-    model = rk4core.make_model(*(extra.get(key) or LINEAR_SCENES[key]))
+    model = rk4h.make_model(*(extra.get(key) or LINEAR_SCENES[key]))
     lo, hi = frequency_range(model)
     assert (lo, hi) == model.frequency_range()
     w = model.modes()[0]
@@ -286,9 +286,9 @@ def test_frequency_range_is_the_models_own(key):
 
 
 def test_frequency_range_of_a_long_chain_needs_no_dense_eigensolve(monkeypatch):
-    from validation.stability.estimate import frequency_range
+    from rk4h.validation.stability.estimate import frequency_range
 
-    model = rk4core.make_model("chain", {"masses": [1.0] * 100_000, "springs": [1.0] * 100_001})
+    model = rk4h.make_model("chain", {"masses": [1.0] * 100_000, "springs": [1.0] * 100_001})
     monkeypatch.setattr(type(model), "modes", lambda self: pytest.fail("dense eigensolve"))
     lo, hi = frequency_range(model)
     N = 100_000  # fixed ends: omega_n = 2 sin(n pi / (2 (N + 1)))
@@ -298,7 +298,7 @@ def test_frequency_range_of_a_long_chain_needs_no_dense_eigensolve(monkeypatch):
 
 @pytest.mark.parametrize("linear", [False, True])
 def test_four_spring_params_read_from_the_drawing(linear):
-    assert G.four_spring_params(rk4core.make_model("planar4", {**PLANAR, "linear": linear})) == \
+    assert G.four_spring_params(rk4h.make_model("planar4", {**PLANAR, "linear": linear})) == \
         pytest.approx(PLANAR, rel=1e-12)
     net = _four_spring_network()
     net.name = "chain"  # the name plays no part
@@ -318,7 +318,7 @@ def test_four_spring_params_refuse_other_geometries(model):
     elif model == "anchors at 2 l":
         m = _four_spring_network(anchors=((-2, 0), (2, 0), (0, -2), (0, 2)))  # pre-stretched springs
     else:
-        m = rk4core.make_model(*model)
+        m = rk4h.make_model(*model)
     assert G.four_spring_params(m) is None
 
 
@@ -331,7 +331,7 @@ def test_closest_approach_uses_the_drawings_anchors_about_its_reference():
 
 
 def _study_ctx(model):
-    from validation.stability.studies import Context
+    from rk4h.validation.stability.studies import Context
 
     return Context("s", model, model.state(np.zeros(model.n_dof)),
                    validate_params({"studies": ["amplitude", "singular"], "singular_offset": 1e-9}), True)
@@ -339,9 +339,9 @@ def _study_ctx(model):
 
 @pytest.mark.parametrize("study", ["amplitude", "singular"])
 def test_planar_studies_skip_a_model_not_drawn_as_the_four_spring_mass(study):
-    from validation.stability.studies import run_unit_in
+    from rk4h.validation.stability.studies import run_unit_in
 
-    model = rk4core.make_model("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5})
+    model = rk4h.make_model("oscillator2d", {"m": 0.815, "kx": 41.5, "ky": 41.5})
     model.name = "planar4"  # the name plays no part
     res = run_unit_in(_study_ctx(model), study)
     (r,) = res.rows
@@ -349,7 +349,7 @@ def test_planar_studies_skip_a_model_not_drawn_as_the_four_spring_mass(study):
 
 
 def test_singular_study_runs_on_the_four_spring_network():
-    from validation.stability.studies import run_unit_in
+    from rk4h.validation.stability.studies import run_unit_in
 
     res = run_unit_in(_study_ctx(_four_spring_network()), "singular")
     statuses = {r["quantity"]: r["status"] for r in res.rows}
@@ -358,14 +358,14 @@ def test_singular_study_runs_on_the_four_spring_network():
 
 
 def test_estimate_counts_planar_studies_only_for_the_four_spring_mass():
-    from validation.scenes import scene_from_dict
+    from rk4h.validation.scenes import scene_from_dict
 
     def scene(model, params, x):
         return scene_from_dict({"name": "e", "model": model, "params": params, "initial": {"x": x},
                                 "run": {"t_end": 1.0, "h": [0.01], "solvers": ["rk4"], "outputs": ["stability"]},
                                 "stability": {"studies": ["amplitude", "singular"]}})
 
-    from validation.stability import estimate_steps
+    from rk4h.validation.stability import estimate_steps
 
     planar = estimate_steps(scene("planar4", {**PLANAR, "linear": False}, [0.005, 0.03]), quick=True, detail=True)
     assert planar["amplitude"]["rk4"] > 0 and planar["singular"]["rk4"] > 0

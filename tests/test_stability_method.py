@@ -7,11 +7,11 @@ import mpmath as mp
 import numpy as np
 import pytest
 
-from rk4core.methods import METHODS
-from rk4core.stability_function import stability_polynomial
-from validation import metrics
-from validation import stability as S
-from validation.scenes import SCENE_DIR, SceneError, load_scene, scene_from_dict
+from rk4h.methods import METHODS
+from rk4h.stability_function import stability_polynomial
+from rk4h.validation import metrics
+from rk4h.validation import stability as S
+from rk4h.validation.scenes import SCENE_DIR, SceneError, load_scene, scene_from_dict
 
 CLASSICAL = ["rk4", "rk38", "heun3", "ralston", "euler"]
 
@@ -101,7 +101,7 @@ def _doc(stability, solvers=("rk4", "dop853")):
             "run": {"t_end": 1.0, "h": [0.01], "tolerances": [1e-8], "solvers": list(solvers),
                     "outputs": ["stability"]},
             "methods": {"ralston2": {"A": [["0", "0"], ["2/3", "0"]], "b": ["1/4", "3/4"]},
-                        "py4": {"python": "rk4core.steppers:rk4_step", "order": 4}},
+                        "py4": {"python": "rk4h.steppers:rk4_step", "order": 4}},
             "stability": stability}
 
 

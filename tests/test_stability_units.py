@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import rk4core
-import validation.stability as S
-from validation.scenes import SCENE_DIR, load_scene
-from validation.stability import _common as C
-from validation.stability import stiffness as ST
-from validation.stability import studies as SU
+import rk4h
+import rk4h.validation.stability as S
+from rk4h.validation.scenes import SCENE_DIR, load_scene
+from rk4h.validation.stability import _common as C
+from rk4h.validation.stability import stiffness as ST
+from rk4h.validation.stability import studies as SU
 
 ROOT = Path(__file__).resolve().parents[1]
 DETERMINISTIC = [c for c in S.COLUMNS if c not in S.TIMING_COLUMNS]
@@ -151,7 +151,7 @@ def test_run_unit_result_is_plain_data(name, unit, cheap_results):
 
 
 def test_run_unit_imports_no_plotting_library():
-    code = ("import sys; import validation.stability as S; from validation.scenes import SCENE_DIR, load_scene; "
+    code = ("import sys; import rk4h.validation.stability as S; from rk4h.validation.scenes import SCENE_DIR, load_scene; "
             "S.run_unit(load_scene(SCENE_DIR / 'stability_planar4.toml'), 'amplitude', True); "
             "print(sorted(m for m in sys.modules if m.startswith('matplotlib')))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
@@ -168,7 +168,7 @@ def test_rerun_gives_identical_deterministic_columns(name, unit, cheap_results):
 
 def test_rerun_in_another_process_gives_identical_deterministic_columns(cheap_results):
     name, unit = "stability_stiff_chain", "boundary"
-    code = ("import pickle, sys; import validation.stability as S; from validation.scenes import SCENE_DIR, "
+    code = ("import pickle, sys; import rk4h.validation.stability as S; from rk4h.validation.scenes import SCENE_DIR, "
             f"load_scene; sys.stdout.buffer.write(pickle.dumps(S.run_unit(load_scene(SCENE_DIR / '{name}.toml'), "
             f"'{unit}', True).rows))")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, timeout=120)
@@ -298,7 +298,7 @@ KINDS = ["growth", "roundoff", "amplitude", "drift", "long_energy", "large_n", "
 
 @pytest.fixture
 def saved(monkeypatch):
-    from validation import figures
+    from rk4h.validation import figures
 
     seen = []
     monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append((fig, path)))
@@ -307,7 +307,7 @@ def saved(monkeypatch):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_draw_writes_a_png_with_a_title(kind, cheap_results, saved, tmp_path):
-    from validation import figures
+    from rk4h.validation import figures
 
     plot = {**_real_plots(cheap_results), **_synthetic_plots()}[kind]
     path, sentence = S.draw(plot, tmp_path)
@@ -347,34 +347,34 @@ def test_unit_steps_of_the_long_run_is_its_step_count():
 
 # -- the one integration path -------------------------------------------------------------------
 def test_integrate_fixed_uses_the_compiled_path_when_supported():
-    model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
     _, path = C.integrate_fixed(model, (0.0, 1.0), model.state([0.01, 0.0]), h=0.01)
     assert path == "fast"
 
 
 def test_integrate_fixed_propagates_an_error_of_the_compiled_path(monkeypatch):
-    from rk4core import fast
+    from rk4h import fast
 
     def broken(*a, **k):
         raise RuntimeError("compiled path broke")
 
     monkeypatch.setattr(fast, "solve_model", broken)
-    model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
     with pytest.raises(RuntimeError, match="compiled path broke"):
         C.integrate_fixed(model, (0.0, 1.0), model.state([0.01, 0.0]), h=0.01)
 
 
 def test_integrate_fixed_takes_the_generic_path_only_when_not_supported(monkeypatch):
-    from rk4core import fast
+    from rk4h import fast
 
     monkeypatch.setattr(fast, "supports", lambda model: False)
-    model = rk4core.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 1.0, 1.0]})
     res, path = C.integrate_fixed(model, (0.0, 1.0), model.state([0.01, 0.0]), h=0.01)
     assert path == "solve" and res.success
 
 
 def test_a_broken_compiled_path_is_a_failed_row_in_run(monkeypatch, tmp_path):
-    from rk4core import fast
+    from rk4h import fast
 
     def broken(*a, **k):
         raise RuntimeError("compiled path broke")
@@ -454,7 +454,7 @@ def test_skip_rules(what, ratio, exc, quick, skipped):
 def test_limits_table_reads_the_stiffness_ratio_column(study, col):
     """The limits table's cost line takes the point with the largest
     stiffness_ratio (a tidy column, not text parsed from the note)."""
-    from validation.report import limits_rows
+    from rk4h.validation.report import limits_rows
 
     rows = []
     for x, stiff, rk, bdf in ((1.0, 2.0, 300.0, 200.0), (1e4, 4.07e4, 3.65e5, 219.0), (1e2, 30.0, 2e3, 210.0)):

@@ -1,4 +1,4 @@
-"""[sweep] tables (validation.sweeps): a swept scene expands to the
+"""[sweep] tables (rk4h.validation.sweeps): a swept scene expands to the
 Cartesian product of its lists, in key order; each point is the scene one
 would write by hand with that value; its name and sweep columns follow the
 documented rules; a bad sweep key is refused with one line naming it."""
@@ -8,9 +8,9 @@ import re
 
 import pytest
 
-from validation import scenes as scenes_mod
-from validation import sweeps as sweeps_mod
-from validation.scenes import (MAX_SWEEP_POINTS, SCENE_DIR, Scene, SceneError, load_scene, load_scene_points,
+from rk4h.validation import scenes as scenes_mod
+from rk4h.validation import sweeps as sweeps_mod
+from rk4h.validation.scenes import (MAX_SWEEP_POINTS, SCENE_DIR, Scene, SceneError, load_scene, load_scene_points,
                                load_scenes, resolve_scene, scene_from_dict, scene_points_from_dict)
 
 CHAIN = {
@@ -299,7 +299,7 @@ def test_unquoted_dotted_key_in_a_file_is_refused(tmp_path):
 @pytest.mark.parametrize("name", ["tiny@masses1=0.5", "tiny@x0=m0.01", "flat@k=1e-06", "flat@k=1e06",
                                   "a-b_c@springs1_2=1e-300@t_end=3.5", "flat@linear=true"])
 def test_point_stem_agrees_with_the_figure_slug(name):
-    from validation.figures import slug
+    from rk4h.validation.figures import slug
 
     assert scenes_mod._figure_stem(name) == slug(name)
     assert re.fullmatch(r"[a-z0-9_]+", slug(name))

@@ -13,10 +13,10 @@ from fractions import Fraction as F
 import numpy as np
 import pytest
 
-import rk4core
-from rk4core import order_conditions as oc
-from rk4core import stability_function as sf
-from rk4core.methods import METHODS, Tableau, make_tableau
+import rk4h
+from rk4h import order_conditions as oc
+from rk4h import stability_function as sf
+from rk4h.methods import METHODS, Tableau, make_tableau
 
 # The two-parameter family of 3-stage third-order methods (HNW I, sec. II.1;
 # Butcher 2008, sec. 32) built from free nodes c2, c3: it satisfies every
@@ -194,30 +194,30 @@ def test_generic_path_makes_the_calls_it_reports(name, t_eval):
     tab = BS3 if name == "bs3" else METHODS[name]
     fun, calls = _counting(_oscillator)
     n = 20
-    res = rk4core.solve(fun, (0.0, 1.0), [1.0, 0.0], n_steps=n, method=tab, t_eval=t_eval)
+    res = rk4h.solve(fun, (0.0, 1.0), [1.0, 0.0], n_steps=n, method=tab, t_eval=t_eval)
     expected = tab.nfev_first_step + (n - 1) * tab.nfev_per_step
-    assert rk4core.nfev_count(tab, n) == expected
+    assert rk4h.nfev_count(tab, n) == expected
     if t_eval is not None:  # for each of the 3 steps holding off-grid points: the slopes no stage gave
         expected += 3 * ((not tab.fsal) + (tab.start_stage is None))  # (a drift-first splitting: both ends)
     assert res.nfev == len(calls) == expected
 
 
 def test_bs3_fsal_reuse_on_both_paths():
-    import rk4core.fast as fast
+    import rk4h.fast as fast
 
-    model = rk4core.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+    model = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
     y0 = model.state([0.005, 0.005], [0.0, 0.0])
     fun, calls = _counting(model.rhs)
     kw = dict(n_steps=150, method=BS3, t_eval=np.array([0.0, 0.013, 0.7, 1.5]))
-    gen = rk4core.solve(fun, (0.0, 1.5), y0, **kw)
+    gen = rk4h.solve(fun, (0.0, 1.5), y0, **kw)
     res = fast.solve_model(model, (0.0, 1.5), y0, **kw)
     assert gen.nfev == res.nfev == len(calls) == 4 + 149 * 3
     np.testing.assert_array_equal(res.y, gen.y)
     # The reuse changes nothing but the count: the same step with every stage evaluated.
     y, k = np.array(y0), np.empty((4, 4))
-    y1 = rk4core.rk_step(model.rhs, 0.0, y, 0.01, BS3, k)
-    y2a = rk4core.rk_step(model.rhs, 0.01, y1, 0.01, BS3, k, reuse=True)
-    y2b = rk4core.rk_step(model.rhs, 0.01, y1, 0.01, BS3, np.empty((4, 4)))
+    y1 = rk4h.rk_step(model.rhs, 0.0, y, 0.01, BS3, k)
+    y2a = rk4h.rk_step(model.rhs, 0.01, y1, 0.01, BS3, k, reuse=True)
+    y2b = rk4h.rk_step(model.rhs, 0.01, y1, 0.01, BS3, np.empty((4, 4)))
     np.testing.assert_array_equal(y2a, y2b)
 
 
@@ -280,7 +280,7 @@ def test_partitioned_step_matrix():
 
 def _amplitude_growth(tab, hw, n_steps=3000):
     """max |y| / |y0| of ``solve`` on q'' = -q at step h = hw (None when the run stopped as unstable)."""
-    res = rk4core.solve(_oscillator, (0.0, n_steps * hw), [1.0, 0.0], n_steps=n_steps, method=tab)
+    res = rk4h.solve(_oscillator, (0.0, n_steps * hw), [1.0, 0.0], n_steps=n_steps, method=tab)
     return float(np.max(np.abs(res.y))) if res.success else None
 
 
@@ -311,7 +311,7 @@ def test_real_boundary_matches_a_run(name):
         return -y
 
     def final(x):
-        res = rk4core.solve(decay, (0.0, 3000 * x), [1.0], n_steps=3000, method=tab)
+        res = rk4h.solve(decay, (0.0, 3000 * x), [1.0], n_steps=3000, method=tab)
         return abs(res.y[0, -1]) if res.success else math.inf
 
     assert final(0.99 * edge) < 1.0

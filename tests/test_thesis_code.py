@@ -10,12 +10,12 @@ import shutil
 import numpy as np
 import pytest
 
-from rk4core.command import THESIS_CODE
-from rk4core.models import Chain, Planar4
-from references import thesis_code as tc
-from references.errata import errata_markdown
-from references.solvers.base import Status
-from references.solvers.command import run_command_method
+from rk4h.command import THESIS_CODE
+from rk4h.models import Chain, Planar4
+from rk4h.references import thesis_code as tc
+from rk4h.references.errata import errata_markdown
+from rk4h.references.solvers.base import Status
+from rk4h.references.solvers.command import run_command_method
 
 OCTAVE = shutil.which("octave-cli")
 needs_octave = pytest.mark.skipif(OCTAVE is None, reason="octave-cli not found on PATH: install GNU Octave "

@@ -1,12 +1,12 @@
 """Timings carry their context: the load average and CPU count around the
 timed runs are recorded in the report, and under a load above the CPUs every
-time verdict is a tie, with the reason (validation.timing_context)."""
+time verdict is a tie, with the reason (rk4h.validation.timing_context)."""
 import math
 
 import pandas as pd
 import pytest
 
-from validation import timing_context as tc
+from rk4h.validation import timing_context as tc
 
 ROWS = [{"scene": "a", "target_error": 1e-3, "verdict_rhs": "rk4", "verdict_amortized": "rk4",
          "verdict_one_run": "dop853", "note": "rk4 at h = 0.01 s"},
@@ -38,9 +38,9 @@ def test_a_load_above_the_cpus_makes_every_time_verdict_a_tie():
 
 
 def test_the_context_column_is_a_timing_column():
-    from validation.compare_reports import TIMING
-    from validation.report import COLUMNS, TIMING as REPORT_TIMING
-    from validation.trust import TIMING_COLUMNS
+    from rk4h.validation.compare_reports import TIMING
+    from rk4h.validation.report import COLUMNS, TIMING as REPORT_TIMING
+    from rk4h.validation.trust import TIMING_COLUMNS
 
     assert "time_context" in TIMING_COLUMNS and "time_context" in TIMING and "time_context" in COLUMNS["cheapest"]
     assert "time_context" in REPORT_TIMING["cheapest"] and "note" not in TIMING_COLUMNS
@@ -66,7 +66,7 @@ def test_unknown_or_absent_context():
 
 
 def _scene():
-    from validation.scenes import scene_from_dict
+    from rk4h.validation.scenes import scene_from_dict
 
     return scene_from_dict({
         "name": "timing-ctx", "model": "chain",
@@ -78,7 +78,7 @@ def _scene():
 
 @pytest.mark.parametrize("load", [9.0, 0.5])
 def test_the_report_records_the_load_and_ties_under_it(tmp_path, monkeypatch, load):
-    from validation import run_all
+    from rk4h.validation import run_all
 
     monkeypatch.setattr(tc, "snapshot", lambda: _snap(load, cpus=2))
     run_all.run([_scene()], tmp_path, quick=True, figures=False)

@@ -1,4 +1,4 @@
-"""The trust table (validation.trust, cheapest.csv) and the advisor
+"""The trust table (rk4h.validation.trust, cheapest.csv) and the advisor
 (validation/advise.py): the step for a target from the error constant, the
 verdict rules, verdicts identical on a rerun, the advisor's step confirmed
 and within 2x of the largest step that meets the target."""
@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from references.registry import BUILTIN
-from validation import trust
-from validation.advise import (FIT_HALVINGS, ORDER_TOLERANCE, _fixed_candidate, _Problem, advise, asymptotic_fit,
+from rk4h.references.registry import BUILTIN
+from rk4h.validation import trust
+from rk4h.validation.advise import (FIT_HALVINGS, ORDER_TOLERANCE, _fixed_candidate, _Problem, advise, asymptotic_fit,
                                bracket_step, sample_steps)
 
 REPO = Path(__file__).resolve().parent.parent
@@ -274,7 +274,7 @@ ALL = sorted({tomlname for tomlname in
 
 
 def _scene(name):
-    from validation.scenes import load_scenes
+    from rk4h.validation.scenes import load_scenes
 
     return load_scenes([name])[0]
 
@@ -337,7 +337,7 @@ def test_advisor_bad_input_is_one_line_exit_2(args, words):
 
 
 def test_advisor_warns_of_aliasing_and_steps_past_the_limit():
-    from validation.scenes import scene_from_dict
+    from rk4h.validation.scenes import scene_from_dict
 
     scene = scene_from_dict({"name": "warn", "model": "chain",
                              "params": {"masses": [1.0, 1.0], "springs": [100.0, 1.0, 100.0], "walls": "both"},
@@ -350,7 +350,7 @@ def test_advisor_warns_of_aliasing_and_steps_past_the_limit():
 
 
 def test_the_rk4h_command_dispatches_and_refuses_unknown_commands(capsys):
-    from validation.cli import main
+    from rk4h.validation.cli import main
 
     assert main(["bogus"]) == 2 and "unknown command 'bogus'" in capsys.readouterr().err
     assert main(["advise", "three-blocks", "--target", "1e-3", "--json"]) == 0

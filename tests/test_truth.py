@@ -1,12 +1,12 @@
-"""The reference trajectory (references.truth): exact-modal for linear models,
+"""The reference trajectory (rk4h.references.truth): exact-modal for linear models,
 heyoka real128 below double round-off for nonlinear ones, cached per scene."""
 import mpmath as mp
 import numpy as np
 import pytest
 
-import rk4core
-from references.exact import modal_solution
-from references.truth import cache_dir, clear_memory_cache, reference_solution
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.references.truth import cache_dir, clear_memory_cache, reference_solution
 
 LINEAR = {
     "chain-2dof": ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]},
@@ -27,7 +27,7 @@ ALL = {**LINEAR, **NONLINEAR}
 
 def scene(name):
     model_name, params, x0, v0 = ALL[name]
-    model = rk4core.make_model(model_name, params)
+    model = rk4h.make_model(model_name, params)
     return model, model.state(x0, v0)
 
 

@@ -1,21 +1,21 @@
 """A model a user brings: one Python file named in a scene as
-``model = "module:Class"``, or registered with ``rk4core.register_model``."""
+``model = "module:Class"``, or registered with ``rk4h.register_model``."""
 import sys
 
 import numpy as np
 import pandas as pd
 import pytest
 
-import rk4core
-from rk4core.models import MODELS, resolve_model
-from validation.run_all import main
-from validation.scenes import SceneError, load_scene
+import rk4h
+from rk4h.models import MODELS, resolve_model
+from rk4h.validation.run_all import main
+from rk4h.validation.scenes import SceneError, load_scene
 
 USER_FILE = '''
 """A Duffing oscillator: m x'' = -k x - eps x^3 (one file, nothing else touched)."""
 import numpy as np
 
-from rk4core import Model
+from rk4h import Model
 
 
 class Duffing(Model):
@@ -47,7 +47,7 @@ class Duffing(Model):
 DEFINED_FILE = '''
 """The same Duffing oscillator, defined by its potential: force, Hessian,
 compiled kernels and heyoka's equations are derived from the one text."""
-from rk4core import Defined, PotentialModel
+from rk4h import Defined, PotentialModel
 
 
 class DuffingV(Defined):
@@ -96,7 +96,7 @@ def user_module(tmp_path, monkeypatch):
 def test_a_defined_user_model_gets_the_derived_and_compiled_paths(user_module):
     import importlib
 
-    import rk4core.fast as fast
+    import rk4h.fast as fast
 
     mod = importlib.import_module(user_module)
     hand = mod.Duffing(1.0, 4.0, 0.5)
@@ -107,7 +107,7 @@ def test_a_defined_user_model_gets_the_derived_and_compiled_paths(user_module):
     np.testing.assert_array_equal(defined.stiffness_matrix(), [[4.0]])
     y0 = defined.state([0.3], [0.1])
     res = fast.solve_model(defined, (0.0, 2.0), y0, h=0.01)
-    gen = rk4core.solve(defined.rhs, (0.0, 2.0), y0, h=0.01)
+    gen = rk4h.solve(defined.rhs, (0.0, 2.0), y0, h=0.01)
     np.testing.assert_array_equal(res.y, gen.y)
 
 
@@ -128,17 +128,17 @@ def test_register_model_adds_and_guards_names(user_module):
     import importlib
 
     cls = importlib.import_module(user_module).Duffing
-    assert rk4core.register_model(cls) is cls and MODELS["duffing-test"] is cls
-    m = rk4core.make_model("duffing-test", {"m": 1.0, "k": 4.0, "eps": 0.5})
+    assert rk4h.register_model(cls) is cls and MODELS["duffing-test"] is cls
+    m = rk4h.make_model("duffing-test", {"m": 1.0, "k": 4.0, "eps": 0.5})
     np.testing.assert_allclose(m.force([0.1]), [-0.4 - 0.5e-3])
 
     class Impostor(cls):
         pass
 
     with pytest.raises(ValueError, match="model name 'duffing-test' is taken"):
-        rk4core.register_model(Impostor)
-    with pytest.raises(ValueError, match="must be a subclass of rk4core.models.Model"):
-        rk4core.register_model(dict)
+        rk4h.register_model(Impostor)
+    with pytest.raises(ValueError, match="must be a subclass of rk4h.models.Model"):
+        rk4h.register_model(dict)
 
 
 @pytest.mark.parametrize("model, says", [

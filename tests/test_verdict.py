@@ -1,6 +1,6 @@
 """A verdict needs a run: the trust table (cheapest.csv), its index.md lines
 and the crossover figure name a method only where a measured run at the
-recommended setting met the target (validation.trust, validation.confirm).
+recommended setting met the target (rk4h.validation.trust, rk4h.validation.confirm).
 
 The winner logic on synthetic rows (an unconfirmed prediction never wins, an
 exact tie of RHS calls is a tie, no run reaching the target is
@@ -17,10 +17,10 @@ from types import SimpleNamespace
 import pandas as pd
 import pytest
 
-from references.registry import BUILTIN
-from validation import confirm, trust
-from validation.report import trust_lines
-from validation.run_all import _crossover_job
+from rk4h.references.registry import BUILTIN
+from rk4h.validation import confirm, trust
+from rk4h.validation.report import trust_lines
+from rk4h.validation.run_all import _crossover_job
 
 REPO = Path(__file__).resolve().parent.parent
 RK4 = BUILTIN["rk4"]
@@ -126,7 +126,7 @@ def test_crossover_figure_says_tie_and_unmeasured(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    from validation import figures
+    from rk4h.validation import figures
 
     rows = _crossover_job(_table() + _table(_rk4([(1e-3, 8e-10)]), [_row("dop853", 1e-12, 5e-10, 4e5)])
                           ).figures[0].data["rows"]
@@ -220,7 +220,7 @@ def test_the_invariant_check_can_fail():
 
 
 def _quick_scenes():
-    from validation.scenes import load_scenes
+    from rk4h.validation.scenes import load_scenes
 
     return [s.name for s in load_scenes(quick=True) if "work_precision" in s.outputs]
 

@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-import rk4core.fast as fast
-from rk4core.methods import METHODS
+import rk4h
+import rk4h.fast as fast
+from rk4h.methods import METHODS
 
 VERLET = METHODS["stormer-verlet"]
 
@@ -26,7 +26,7 @@ def oscillator(t, y):
 
 
 def _max_error(n_steps, t_end=10.0):
-    res = rk4core.solve(oscillator, (0.0, t_end), [1.0, 0.0], n_steps=n_steps, method="stormer-verlet")
+    res = rk4h.solve(oscillator, (0.0, t_end), [1.0, 0.0], n_steps=n_steps, method="stormer-verlet")
     exact = np.vstack([np.cos(res.t), -np.sin(res.t)])
     return float(np.max(np.abs(res.y - exact)))
 
@@ -46,21 +46,21 @@ def test_equals_textbook_velocity_verlet():
         v_half = v + h / 2 * -q
         q = q + h * v_half
         v = v_half + h / 2 * -q
-    res = rk4core.solve(oscillator, (0.0, n * h), [1.0, 0.0], n_steps=n, method="stormer-verlet")
+    res = rk4h.solve(oscillator, (0.0, n * h), [1.0, 0.0], n_steps=n, method="stormer-verlet")
     np.testing.assert_allclose(res.y[:, -1], [q, v], rtol=0, atol=1e-13)
 
 
 def test_symmetric_a_step_back_undoes_a_step():
     y0 = np.array([0.3, -0.7])
     k = np.empty((2, 2))
-    y1 = rk4core.rk_step(oscillator, 0.0, y0, 0.1, VERLET, k)
-    back = rk4core.rk_step(oscillator, 0.1, y1, -0.1, VERLET, k)
+    y1 = rk4h.rk_step(oscillator, 0.0, y0, 0.1, VERLET, k)
+    back = rk4h.rk_step(oscillator, 0.1, y1, -0.1, VERLET, k)
     np.testing.assert_allclose(back, y0, rtol=0, atol=1e-15)
 
 
 def test_energy_error_bounded_over_1e5_periods():
     # The compiled path: 3.2 million steps in well under a second once compiled.
-    model = rk4core.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})  # w = 1 rad/s
+    model = rk4h.make_model("oscillator2d", {"m": 1.0, "kx": 1.0, "ky": 1.0})  # w = 1 rad/s
     y0 = model.state([1.0, 0.0], [0.0, 0.5])
     periods, per_period = 100_000, 32
     hw = 2 * math.pi / per_period
@@ -87,7 +87,7 @@ MODELS = [
 @pytest.mark.parametrize("name, params, x0, v0", MODELS, ids=[m[0] for m in MODELS])
 @pytest.mark.parametrize("t_eval", [None, np.array([0.0, 0.013, 0.25, 0.2501, 0.7, 1.5])], ids=["grid", "hermite"])
 def test_nfev_is_steps_plus_one_on_both_paths(name, params, x0, v0, t_eval):
-    model = rk4core.make_model(name, params)
+    model = rk4h.make_model(name, params)
     y0 = model.state(x0, v0)
     calls = []
 
@@ -96,12 +96,12 @@ def test_nfev_is_steps_plus_one_on_both_paths(name, params, x0, v0, t_eval):
         return model.rhs(t, y)
 
     kw = dict(h=0.01, method="stormer-verlet", t_eval=t_eval)
-    gen = rk4core.solve(fun, (0.0, 1.5), y0, **kw)
+    gen = rk4h.solve(fun, (0.0, 1.5), y0, **kw)
     res = fast.solve_model(model, (0.0, 1.5), y0, **kw)
     # first step: both stages' accelerations; every later step: only a(q_{n+1});
     # dense output takes its end slopes from the stages (no extra call).
     assert gen.n_steps == res.n_steps == 150
     assert gen.nfev == res.nfev == len(calls) == 150 + 1
-    assert rk4core.nfev_count(VERLET, 150) == 151
+    assert rk4h.nfev_count(VERLET, 150) == 151
     np.testing.assert_array_equal(res.t, gen.t)
     np.testing.assert_array_equal(res.y, gen.y)

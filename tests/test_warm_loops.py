@@ -1,13 +1,13 @@
 """Each numba loop of a plan compiled by one worker (issue 29,
-:mod:`validation.warm`): the loops are told apart by what the compiled code
+:mod:`rk4h.validation.warm`): the loops are told apart by what the compiled code
 depends on, never by the numbers of a model."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from validation.plan import plan_all
-from validation.scenes import load_scene
-from validation.warm import _loop_key, loop_jobs, warm_one
+from rk4h.validation.plan import plan_all
+from rk4h.validation.scenes import load_scene
+from rk4h.validation.warm import _loop_key, loop_jobs, warm_one
 
 SCENES = Path(__file__).resolve().parent.parent / "validation" / "scenes"
 

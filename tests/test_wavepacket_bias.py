@@ -7,10 +7,10 @@ is smaller. With s = d^2 / (8 sigma^2) the mean is
 
     v_g(kp0) (1 - 5 s / 2 + (25/8 + 1/sin^2(kp0 d/2)) s^2 + ...)
 
-(``references.dispersion.gaussian_packet_group_velocity``): -5 d^2 / (16 sigma^2)
+(``rk4h.references.dispersion.gaussian_packet_group_velocity``): -5 d^2 / (16 sigma^2)
 = -0.488% for the report's sigma = 8 d at either carrier. What remains after
 comparing with that mean is RK4's group-velocity error -(omega h)^4 / 24
-(``references.wavepacket.rk4_group_velocity_offset``).
+(``rk4h.references.wavepacket.rk4_group_velocity_offset``).
 
 Tolerance used on measured speeds, RK4_TOL * |rk4_offset|: RK4's predicted
 group-velocity error at the carrier (1.2e-5 at kp0 = 0.3 pi/d, 1.2e-4 at
@@ -26,10 +26,10 @@ import math
 import numpy as np
 import pytest
 
-import rk4core
-from references import dispersion as disp
-from rk4core.models import Chain
-from references.wavepacket import (measure_group_velocity, packet_state, rk4_group_velocity_offset,
+import rk4h
+from rk4h.references import dispersion as disp
+from rk4h.models import Chain
+from rk4h.references.wavepacket import (measure_group_velocity, packet_state, rk4_group_velocity_offset,
                                    spectral_group_velocity)
 
 M, K, D = disp.THESIS_LATTICE["m"], disp.THESIS_LATTICE["k"], disp.THESIS_LATTICE["d"]
@@ -78,10 +78,10 @@ def test_displacement_weighted_centroid_lacks_the_omega2_term(sigma_d):
     N, kp0, sigma, h = 400, 0.3 * math.pi / D, sigma_d * D, 0.02
     v_g = float(disp.group_velocity(kp0, **LAT))
     t_end = 0.4 * (N + 1) * D / v_g
-    n_steps = rk4core.step_count((0.0, t_end), h)
+    n_steps = rk4h.step_count((0.0, t_end), h)
     y0 = packet_state(N, kp0, sigma, 0.3 * (N + 1) * D, **LAT)
     chain = Chain([M] * N, [K] * (N + 1), walls="both")
-    res = rk4core.solve(chain.rhs, (0.0, t_end), y0, n_steps=n_steps,
+    res = rk4h.solve(chain.rhs, (0.0, t_end), y0, n_steps=n_steps,
                         t_eval=np.linspace(0, n_steps, 40).round() * (t_end / n_steps))
     assert res.success
     u2 = res.y[:N] ** 2

@@ -1,5 +1,5 @@
-"""Workers that pay (``validation.workers``) and the runner's report value
-(``validation.runner.execute``): the number of worker processes comes from
+"""Workers that pay (``rk4h.validation.workers``) and the runner's report value
+(``rk4h.validation.runner.execute``): the number of worker processes comes from
 the plan's estimated work, a small scene starts no pool, and the runner
 returns what happened instead of keeping it on function attributes."""
 from __future__ import annotations
@@ -8,8 +8,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from validation import engine, plan, runner, workers
-from validation.scenes import load_scenes
+from rk4h.validation import engine, plan, runner, workers
+from rk4h.validation.scenes import load_scenes
 
 from _scenes import one_mass
 

@@ -12,14 +12,14 @@ How (all plain data):
 
 1. *Calibration.* Each fixed-step method of the scene (a tableau) runs at its
    scene's largest step, halved (on the output grid) until its error is below
-   :data:`validation.metrics.PREASYMPTOTIC_REL` (at most
+   :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL` (at most
    :data:`CALIBRATION_HALVINGS` times), then halved further, at most
    :data:`FIT_HALVINGS` times, until three successive steps ``h, h/2, h/4``
    show the method's order: both observed orders ``log2(e(h)/e(h/2))``
    within :data:`ORDER_TOLERANCE` of ``p`` (:func:`asymptotic_fit`). ``C``
    of ``error ~ C h^p`` is then the largest ``err / h^p`` of those three
    (conservative) and gives the step for the target
-   (:func:`validation.trust.step_for`: capped at 0.9 of the stability limit,
+   (:func:`rk4h.validation.trust.step_for`: capped at 0.9 of the stability limit,
    refused below the round-off level). One run is not enough: on
    planar4-case2 a single run (h = 3.1e-4 s, error 1.2e-2, in a dip of a
    non-monotone error curve) gave ``C`` 2300x below ``err / h^4`` at
@@ -55,7 +55,7 @@ How (all plain data):
    setting; ``cost_rhs`` the RHS calls of the run at it (heyoka: Taylor steps
    x order); ``cost_s`` the median wall time of up to
    :data:`TIMING_REPEATS` runs at it, measured on this machine (one run when
-   it takes over :data:`validation.execute.REPEAT_BELOW_S`, as in the
+   it takes over :data:`rk4h.validation.execute.REPEAT_BELOW_S`, as in the
    report), with the compile time (``compile_s``) apart. A candidate other
    than the method under test whose predicted calls and time are both over
    :data:`SKIP_FACTOR` times the best confirmed is not run
@@ -63,8 +63,8 @@ How (all plain data):
 3. *Choice.* The answer (``method``, ``setting``, ...) is the listed
    candidate with the fewest RHS calls, a deterministic cost; ``fastest``
    names the listed one with the smallest median wall time, with
-   :func:`validation.trust.time_verdict` against the runner-up (a ``tie``
-   unless the medians are :data:`validation.trust.TIME_MARGIN` apart and the
+   :func:`rk4h.validation.trust.time_verdict` against the runner-up (a ``tie``
+   unless the medians are :data:`rk4h.validation.trust.TIME_MARGIN` apart and the
    repeats disjoint), and ``fastest_one_run`` the fastest with its compile
    time added.
 4. *Model.* A linear model has a closed form (its modal solution: no
@@ -89,17 +89,22 @@ import numpy as np
 
 if __package__ in (None, ""):  # run as a script: python validation/advise.py
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+    try:  # the folders import as rk4h, rk4h.references, rk4h.validation once installed
+        import rk4h  # noqa: F401
+    except ModuleNotFoundError:
+        sys.stderr.write("advise: the harness is not installed: run `pip install -e .` in the checkout first\n")
+        raise SystemExit(2) from None
 
-from references.registry import Kind  # noqa: E402
-from validation import metrics, trust  # noqa: E402
-from validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step  # noqa: E402,F401 - re-exported
+from rk4h.references.registry import Kind  # noqa: E402
+from rk4h.validation import metrics, trust  # noqa: E402
+from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step  # noqa: E402,F401 - re-exported
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
            "SKIP_FACTOR", "SKIP_MIN_S", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
-#: :data:`validation.metrics.PREASYMPTOTIC_REL`.
+#: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
 CALIBRATION_HALVINGS = 8
 #: Further halvings, after that, to see the method's order or bracket the
 #: target (each run costs twice the one before: at most 2^9 - 1 times the first
@@ -116,10 +121,10 @@ CONFIRM_ROUNDS = 8
 SAMPLE_STEPS = 8
 #: Wall time of a listed candidate: the median of this many runs at its
 #: setting (one run when it takes longer than
-#: :data:`validation.execute.REPEAT_BELOW_S`, as in the report).
+#: :data:`rk4h.validation.execute.REPEAT_BELOW_S`, as in the report).
 TIMING_REPEATS = 3
 #: A candidate other than the scene's method under test
-#: (:func:`validation.plan.under_test`, always run) is not run, and not
+#: (:func:`rk4h.validation.plan.under_test`, always run) is not run, and not
 #: listed, when its predicted RHS calls and
 #: its predicted time both exceed this many times the fewest calls and the
 #: fastest time already confirmed, and its predicted time exceeds
@@ -168,9 +173,9 @@ class _Problem:
     """The scene's model, initial state, output grid and truth, built once."""
 
     def __init__(self, scene):
-        from validation.execute import problem
+        from rk4h.validation.execute import problem
 
-        from references.truth import reference_solution
+        from rk4h.references.truth import reference_solution
 
         self.scene = scene
         self.model, self.y0 = problem(scene)
@@ -183,7 +188,7 @@ class _Problem:
 
     def run(self, method, setting):
         """``(error_rel, rhs calls, wall s, status)`` of one run."""
-        from references.solvers import integrate
+        from rk4h.references.solvers import integrate
 
         with np.errstate(all="ignore"):
             run = integrate(method, self.model, self.y0, self.t, setting)
@@ -322,7 +327,7 @@ def sample_steps(p, h: float, n: int = SAMPLE_STEPS) -> list:
 def _rise(points):
     """The strongest sign that the error is not monotone in the step: among
     ``points = [(h, err), ...]`` with errors where a constant is fitted
-    (:func:`validation.trust.in_fit_range`: above round-off, below the
+    (:func:`rk4h.validation.trust.in_fit_range`: above round-off, below the
     pre-asymptotic level), the pair where a smaller step has the larger
     error, by the largest ratio: ``(h_large, e_large, h_small, e_small)``, or
     None."""
@@ -413,8 +418,8 @@ def _confirm_adaptive(p, method, cand, target) -> dict:
 def _timed(p, method, setting, first_wall):
     """``(median, min, max, runs)`` wall seconds at ``setting``: the confirming
     run and repeats, :data:`TIMING_REPEATS` in all (one run when it took more
-    than :data:`validation.execute.REPEAT_BELOW_S`, as in the report)."""
-    from validation.execute import REPEAT_BELOW_S
+    than :data:`rk4h.validation.execute.REPEAT_BELOW_S`, as in the report)."""
+    from rk4h.validation.execute import REPEAT_BELOW_S
 
     walls = [float(first_wall)]
     while len(walls) < TIMING_REPEATS and max(walls) <= REPEAT_BELOW_S:
@@ -423,7 +428,7 @@ def _timed(p, method, setting, first_wall):
 
 
 def _model_advice(p: _Problem, target):
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     m = p.model
     if getattr(m, "first_order", False):  # any ODE: its exact solution if it came with one
@@ -432,7 +437,7 @@ def _model_advice(p: _Problem, target):
                                    "integrating; integrate only to test an integrator")
         return m.name, "a first-order ODE without a closed form; integrate"
     if m.linear:
-        return "closed form", ("the model is linear: its exact modal solution (references.exact.modal_solution) "
+        return "closed form", ("the model is linear: its exact modal solution (rk4h.references.exact.modal_solution) "
                                "gives the answer without integrating; integrate only to test an integrator")
     try:
         y_lin = np.asarray(modal_solution(m, p.y0)(p.t), float)
@@ -501,7 +506,7 @@ def _skip_reason(p, m, c, listed):
 
 
 def advise(scene, target: float) -> Advice:
-    """Advice for ``scene`` (a :class:`validation.scenes.Scene`) at the target
+    """Advice for ``scene`` (a :class:`rk4h.validation.scenes.Scene`) at the target
     relative error ``target``; see the module docstring."""
     p = _Problem(scene)
     adv = Advice(scene.name, float(target))
@@ -525,7 +530,7 @@ def advise(scene, target: float) -> Advice:
                                                     f"{m.setting_name} = {c['setting']:.3g} ({c['source']})"))
         else:
             todo.append((m, c))
-    from validation.plan import under_test
+    from rk4h.validation.plan import under_test
 
     under = under_test(scene)  # the method under test is always confirmed
     listed = []
@@ -637,7 +642,7 @@ _EXAMPLES = """examples:
 
 
 def main(argv=None, *, prog="advise.py") -> int:
-    from validation import extras
+    from rk4h.validation import extras
 
     lack = extras.message("advise", prog)
     if lack:
@@ -649,7 +654,7 @@ def main(argv=None, *, prog="advise.py") -> int:
     parser.add_argument("scene", help="a scene file or a shipped scene's name")
     parser.add_argument("--target", help="target relative error, e.g. 1e-6 (required unless --energy-target)")
     parser.add_argument("--energy-target", metavar="E",
-                        help="bound on max |E(t) - E0| / E_motion over the horizon (validation.advise_energy)")
+                        help="bound on max |E(t) - E0| / E_motion over the horizon (rk4h.validation.advise_energy)")
     horizon = parser.add_mutually_exclusive_group()
     horizon.add_argument("--periods", metavar="N", help="horizon in periods of the slowest mode (--energy-target)")
     horizon.add_argument("--horizon", metavar="T", help="horizon in s (--energy-target)")
@@ -658,7 +663,7 @@ def main(argv=None, *, prog="advise.py") -> int:
                         help="run the programs and import the Python modules a scene not shipped with the "
                              "project names; read it first (default: refused; also RK4H_ALLOW_CODE=1)")
     args = parser.parse_args(argv)
-    from validation.scenes import SceneError, load_scenes
+    from rk4h.validation.scenes import SceneError, load_scenes
 
     if args.energy_target is not None or args.periods is not None or args.horizon is not None:
         return _energy_main(args)
@@ -686,8 +691,8 @@ def main(argv=None, *, prog="advise.py") -> int:
 
 
 def _energy_main(args) -> int:
-    """The horizon-and-energy path (:mod:`validation.advise_energy`)."""
-    from validation.scenes import SceneError, load_scenes
+    """The horizon-and-energy path (:mod:`rk4h.validation.advise_energy`)."""
+    from rk4h.validation.scenes import SceneError, load_scenes
 
     def number(flag, text, lo, hi, what):
         try:
@@ -721,7 +726,7 @@ def _energy_main(args) -> int:
     except SceneError as e:
         print(str(e).splitlines()[0], file=sys.stderr)
         return 2
-    from validation import advise_energy
+    from rk4h.validation import advise_energy
 
     try:
         return advise_energy.run_cli(scenes[0], args, time.perf_counter())

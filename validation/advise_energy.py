@@ -3,17 +3,17 @@
     rk4h advise SCENE --periods N --energy-target E       (or --horizon T, in s)
 
 ``E`` bounds ``max_t |E(t) - E0| / E_motion`` over the whole horizon
-(:mod:`rk4core.energy`); ``N`` counts periods of the slowest (linearized)
+(:mod:`rk4h.energy`); ``N`` counts periods of the slowest (linearized)
 mode. How (all plain data, every number measured on this machine):
 
 1. *Candidates*: every fixed-step tableau of the registry
-   (:data:`rk4core.methods.METHODS`: RK4, the shipped tableaux, the geometric
-   methods) and of the scene, on the compiled loops (:mod:`rk4core.fast`),
+   (:data:`rk4h.methods.METHODS`: RK4, the shipped tableaux, the geometric
+   methods) and of the scene, on the compiled loops (:mod:`rk4h.fast`),
    and the adaptive references the scene lists.
 2. *Calibration* on a short horizon ``T_c = min(T, CALIBRATION_PERIODS
    periods)``: a fixed-step method runs at ``h0 = T_fast / 8`` (capped at 0.9
    of its stability limit) and ``h0 / 2``; the energy error's growth exponent
-   ``k`` (:func:`validation.energy_time.growth_exponent`, clipped to
+   ``k`` (:func:`rk4h.validation.energy_time.growth_exponent`, clipped to
    ``[0, 1]``) extrapolates each to the horizon, ``e_T = e_c (T / T_c)^k``,
    and their ratio gives the energy error's order in ``h``, hence the step for
    ``SAFETY * E``. A reference runs at rtol 1e-10 over ``T_c``: its error and
@@ -49,7 +49,7 @@ CALIBRATION_PERIODS = 100.0
 #: The step is chosen for this fraction of the energy target.
 SAFETY = 0.5
 #: A full-horizon run confirms when its sampled maximum is at most this
-#: fraction of the target: the samples (:func:`validation.energy_time.dense_samples`,
+#: fraction of the target: the samples (:func:`rk4h.validation.energy_time.dense_samples`,
 #: 16 per fastest period) may miss up to 8 % of an oscillating error's peak.
 CONFIRM_MARGIN = 0.9
 #: Full-horizon runs per fixed-step candidate at most.
@@ -116,7 +116,7 @@ def horizon_seconds(model, periods=None, horizon=None) -> tuple[float, float]:
 
 
 def _energy_error(model, y) -> float:
-    from rk4core.energy import relative_energy_error
+    from rk4h.energy import relative_energy_error
 
     with np.errstate(all="ignore"):
         e = np.abs(relative_energy_error(model, y))
@@ -127,7 +127,7 @@ def _fixed_run(model, y0, tab, h, T):
     res, wall = energy_time.long_run(model, y0, tab, h, T, energy_time.dense_samples(model, T))
     if not res.success:
         return math.nan, math.nan, int(res.nfev), wall, res.h
-    from rk4core.energy import relative_energy_error
+    from rk4h.energy import relative_energy_error
 
     with np.errstate(all="ignore"):
         e = relative_energy_error(model, res.y)
@@ -142,7 +142,7 @@ def _extrapolate(e, k, T, Tc):
 
 def _fixed_candidate(model, y0, tab, T, Tc, target, omega_max):
     """Calibrate and confirm one tableau: a listed row, or a not-listed row (key ``reason``)."""
-    from validation import trust
+    from rk4h.validation import trust
 
     h_stab = trust.stable_step(SimpleNamespace(tableau=tab), omega_max)  # wants a registry Method
     h0 = 2 * math.pi / omega_max / 8
@@ -178,18 +178,18 @@ def _confirm_fixed(model, y0, tab, cand, T, target):
 
 
 def _reference(model, y0, name, T, Tc, target):
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     def run(t_end):
         t = np.linspace(0.0, t_end, energy_time.dense_samples(model, t_end))
         r = integrate(name, model, y0, t, _REFERENCE_RTOL)
         ok = getattr(r.status, "value", str(r.status)) == "ok"
         e = _energy_error(model, r.y) if ok else math.nan
-        from rk4core.energy import relative_energy_error
+        from rk4h.energy import relative_energy_error
 
         with np.errstate(all="ignore"):
             k = energy_time.growth_exponent(t, relative_energy_error(model, r.y))[0] if ok else math.nan
-        from validation import trust
+        from rk4h.validation import trust
 
         rhs = trust.rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})
         return e, k, rhs, r.wall_s
@@ -215,8 +215,8 @@ def _reference(model, y0, name, T, Tc, target):
 
 
 def _tableaux(scene):
-    from references.registry import Kind
-    from rk4core.methods import METHODS
+    from rk4h.references.registry import Kind
+    from rk4h.methods import METHODS
 
     out = dict(METHODS)
     for name in scene.solvers:
@@ -231,7 +231,7 @@ def advise_energy(scene, energy_target: float, *, periods=None, horizon=None) ->
 
     Parameters
     ----------
-    scene : validation.scenes.Scene
+    scene : rk4h.validation.scenes.Scene
     energy_target : float
         Bound on ``max_t |E(t) - E0| / E_motion`` over the horizon, in (0, 1).
     periods, horizon : float
@@ -241,9 +241,9 @@ def advise_energy(scene, energy_target: float, *, periods=None, horizon=None) ->
     -------
     EnergyAdvice
     """
-    import rk4core.fast as fast
-    from references.registry import Kind
-    from validation.execute import problem
+    import rk4h.fast as fast
+    from rk4h.references.registry import Kind
+    from rk4h.validation.execute import problem
 
     model, y0 = problem(scene)
     T, N = horizon_seconds(model, periods, horizon)

@@ -99,7 +99,7 @@ __all__ = ["MARKER", "TargetRefused", "EnvironmentRefused", "Lock", "check_targe
 #: The ownership marker in every report directory this tool writes.
 MARKER = ".rk4h-report"
 _MAGIC = "rk4h-report v1"
-#: The record store's marker file (:mod:`validation.records`) and its magic:
+#: The record store's marker file (:mod:`rk4h.validation.records`) and its magic:
 #: defined here, where every marker the tool writes is, so that clean-up can
 #: recognise a store cut short without importing the store.
 STORE_MARKER = ".rk4h-records"

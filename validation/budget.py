@@ -4,16 +4,16 @@ A scene whose estimate exceeds a cap is refused up front (``run_all`` exits 2
 with the estimate in the message) instead of running for hours or exhausting
 memory. The estimate is a sum over everything the scene will run, and it costs
 no eigensolve: the fastest frequency is the Gershgorin bound
-:func:`references.solvers.tolerances.omega_bound` (O(N) for a chain), an upper
+:func:`rk4h.references.solvers.tolerances.omega_bound` (O(N) for a chain), an upper
 bound of the linearized spectrum.
 
 ``steps``
     double-precision integration steps, summed over the scene's plan
-    (:func:`validation.plan.plan`, one term per spec: :func:`spec_steps`):
+    (:func:`rk4h.validation.plan.plan`, one term per spec: :func:`spec_steps`):
     every fixed-step run (``ceil(t_end / h)``), the convergence sweeps, the
     RK4 run behind the state figures, for each adaptive run a lower bound of
     :data:`ADAPTIVE_STEPS_PER_PERIOD` steps per period of the fastest mode,
-    and each stability unit (:func:`validation.stability.unit_steps`).
+    and each stability unit (:func:`rk4h.validation.stability.unit_steps`).
     Timing repeats are not counted (runs longer than 0.1 s are timed once).
     Cap: :data:`MAX_STEPS` (``--max-steps``).
 ``truth_steps``
@@ -96,7 +96,7 @@ class Estimate:
 def _omega_bound(model) -> float:
     import numpy as np
 
-    from references.solvers.tolerances import omega_bound
+    from rk4h.references.solvers.tolerances import omega_bound
 
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -109,7 +109,7 @@ def _omega_bound(model) -> float:
 def _rate(scene, model) -> float:
     """The frequency bound (rad/s) the estimate runs on: :func:`_omega_bound`,
     or a first-order ODE's rate at its initial state
-    (:func:`validation.execute.fastest_rate`, 1/s)."""
+    (:func:`rk4h.validation.execute.fastest_rate`, 1/s)."""
     if getattr(model, "first_order", False):
         from .execute import fastest_rate
 
@@ -118,7 +118,7 @@ def _rate(scene, model) -> float:
 
 
 def _steps(t_end: float, h: float) -> int:
-    from rk4core.solver import step_count
+    from rk4h.solver import step_count
 
     return step_count((0.0, t_end), h)  # the integrator's own rule
 
@@ -188,7 +188,7 @@ def spec_cost_function():
 
 def estimate(scene: Scene, model=None, *, quick: bool = False) -> Estimate:
     """Estimate the cost of ``scene``: the sum over its plan
-    (:func:`validation.plan.plan`) of :func:`spec_steps`. Raises
+    (:func:`rk4h.validation.plan.plan`) of :func:`spec_steps`. Raises
     ``ValueError`` when the model's frequency bound is not a finite number."""
     from .plan import plan
 

@@ -27,10 +27,10 @@ _EXAMPLES = """examples:
 #: Subcommand -> (module, help line). Each module's ``main(argv, prog=...)``
 #: parses the rest of the command line itself.
 _COMMANDS = {
-    "run": ("validation.run_all", "run the scenes and write the report (default: every shipped scene)"),
-    "advise": ("validation.advise", "the cheapest method and setting for a target error, confirmed by runs"),
-    "compare": ("validation.compare_reports", "compare two reports' tables column by column"),
-    "schema": ("validation.scene_schema", "print the scene file reference (Markdown) or its JSON Schema"),
+    "run": ("rk4h.validation.run_all", "run the scenes and write the report (default: every shipped scene)"),
+    "advise": ("rk4h.validation.advise", "the cheapest method and setting for a target error, confirmed by runs"),
+    "compare": ("rk4h.validation.compare_reports", "compare two reports' tables column by column"),
+    "schema": ("rk4h.validation.scene_schema", "print the scene file reference (Markdown) or its JSON Schema"),
 }
 
 
@@ -71,7 +71,7 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 2
     module, _ = _COMMANDS[argv[0]]
-    from validation import extras
+    from rk4h.validation import extras
 
     lack = extras.message(argv[0], f"rk4h {argv[0]}")
     if lack:  # before the module is imported: it may need what is missing
@@ -85,7 +85,7 @@ def main(argv=None) -> int:
 def entry() -> None:
     """The console script: an interrupted ``rk4h run`` ends as ``run_all.py`` does."""
     code = main()
-    from validation.run_all import exit_process
+    from rk4h.validation.run_all import exit_process
 
     exit_process(code)
 

@@ -2,16 +2,16 @@
 dtype and description.
 
 From it :func:`typed_frame` enforces the dtypes when a table is written
-(CSV and Parquet, :func:`validation.report.write_tables`), :func:`columns_json`
+(CSV and Parquet, :func:`rk4h.validation.report.write_tables`), :func:`columns_json`
 gives the ``columns.json`` written into every report, and :func:`markdown`
 gives ``docs/columns.md``::
 
-    python -m validation.columns --markdown > docs/columns.md
+    python -m rk4h.validation.columns --markdown > docs/columns.md
 
-(``python -m validation.docs_gen`` writes it with the other generated documents.)
+(``python -m rk4h.validation.docs_gen`` writes it with the other generated documents.)
 
-Column order comes from :data:`validation.tables.COLUMNS`, the tables'
-descriptions from :data:`validation.tables.DESCRIPTIONS`.
+Column order comes from :data:`rk4h.validation.tables.COLUMNS`, the tables'
+descriptions from :data:`rk4h.validation.tables.DESCRIPTIONS`.
 
 The conventions (dtypes, ``setting``/``h``/``rtol``, ``passed``/``checked``)
 are :data:`CONVENTIONS`.
@@ -36,7 +36,7 @@ CONVENTIONS = {
              "`note` or `message`), `str` (free text, empty where none).",
     "setting, h, rtol": "`setting` is the run's setting as the scene lists it: the step `h` (s) of a fixed-step "
                         "method, the relative tolerance `rtol` of an adaptive reference "
-                        "(`references.registry.REFERENCES`). `h` and `rtol` hold it apart, each NaN where it does "
+                        "(`rk4h.references.registry.REFERENCES`). `h` and `rtol` hold it apart, each NaN where it does "
                         "not apply.",
     "passed, checked": "In the tables where some rows carry no pass/fail verdict (`energy`, `stability`, "
                        "`thesis_code`), `checked` says whether the row was judged and `passed` is True only for a "
@@ -45,7 +45,7 @@ CONVENTIONS = {
 }
 
 #: The categories of ``cheapest.h_source`` (how the method's step was found;
-#: validation.trust). Anything after them (``(2 runs)``, ``: why``) goes to ``note``.
+#: rk4h.validation.trust). Anything after them (``(2 runs)``, ``: why``) goes to ``note``.
 H_SOURCES = ("error constant", "measured bracket", "measured run", "confirmation run", "stability", "round-off",
              "no asymptotic fit", "no run", "no fit", "other")
 
@@ -77,7 +77,7 @@ _STATUS = _c("", "category", "outcome of the run: ok, unstable, failed, skipped,
 #: Columns shared by several tables, unless a table overrides them.
 _COMMON = {
     "scene": _c("", "str", "scene name (validation/scenes/*.toml)"),
-    "solver": _c("", "category", "method name (references.registry)"),
+    "solver": _c("", "category", "method name (rk4h.references.registry)"),
     "setting": _SETTING, "h": _H, "rtol": _RTOL, "passed": _PASSED, "checked": _CHECKED, "status": _STATUS,
     "error_max": _c("state", "float", "largest absolute difference from the truth over output times and state "
                                       "components (in the state's units: m, m/s, rad, ...)"),
@@ -96,7 +96,7 @@ _COMMON = {
     "theory": _c("per quantity", "float", "the theory's value of `quantity`"),
     "target_error": _c("1", "float", "target relative error"),
     "order": _c("1", "int", "order of accuracy of the method"),
-    "method": _c("", "category", "method name (references.registry)"),
+    "method": _c("", "category", "method name (rk4h.references.registry)"),
     "tolerance": _c("per quantity", "float", "allowed difference"),
 }
 
@@ -130,7 +130,7 @@ _TABLES = {
         "theory_drift_per_time": _c("1/s", "float", "the same from the per-step factor |R(i omega h)|^2 of each "
                                                     "mode (NaN where no theory applies)"),
         "passed": _c("", "bool", "measured drift agrees with the theory (False where `checked` is False)"),
-        # validation.energy_time.summary
+        # rk4h.validation.energy_time.summary
         "energy_growth_exponent": _c("1", "float", "slope of log max_{s<=t} |E(s) - E0| against log t over "
                                                    "[energy_fit_t0, energy_fit_t1]: ~0 bounded, ~1 linear growth"),
         "energy_fit_t0": _c("s", "float", "start of the growth exponent's fit range (t_end / 100)"),
@@ -226,16 +226,16 @@ _TABLES = {
         "holds": _c("", "bool", "every condition of order p holds"),
         "order": _c("1", "int", "the computed order"),
         "precision": _c("", "category", "precision the order is judged at (exact, or a float precision)"),
-        "coefficient_tol": _c("1", "float", "rk4core.methods.Tableau.coefficient_tol"),
+        "coefficient_tol": _c("1", "float", "rk4h.methods.Tableau.coefficient_tol"),
         "stages": _c("1", "int", "stages of the tableau"),
         "partitioned": _c("", "bool", "a partitioned (position/velocity) tableau"),
         "error_coefficient": _c("1", "float", "principal error coefficient: 2-norm of the order-(order+1) "
-                                "truncation-error coefficients (rk4core.methods.Tableau.error_coefficient)"),
+                                "truncation-error coefficients (rk4h.methods.Tableau.error_coefficient)"),
         "nfev_per_step": _c("1", "int", "right-hand-side evaluations per step after the first (first-same-as-last "
                             "reuse counted)"),
         "imaginary_axis_bound": _c("1", "float", "largest y = h omega with the method stable on y' = i omega y "
                                    "(partitioned: on q'' = -omega^2 q) for every h omega in [0, y]; RK4 2 sqrt 2, "
-                                   "0 for none (rk4core.stability_function.imaginary_axis_boundary)"),
+                                   "0 for none (rk4h.stability_function.imaginary_axis_boundary)"),
         "builtin": _c("", "bool", "a built-in method (False: the scene's own `[methods]` table)"),
     },
 }
@@ -253,22 +253,22 @@ UNDECLARED = "undeclared"
 def table_columns(name: str, strict: bool = True) -> list[Column]:
     """The declared columns of table ``name`` in their written order.
 
-    A column of :data:`validation.tables.COLUMNS` without a declaration
+    A column of :data:`rk4h.validation.tables.COLUMNS` without a declaration
     raises ``KeyError`` when ``strict``, else gets dtype :data:`UNDECLARED`
     (a report run is not lost to a column someone forgot to declare)."""
-    from validation import outputs
-    from validation.tables import COLUMNS
+    from rk4h.validation import outputs
+    from rk4h.validation.tables import COLUMNS
 
     own = _TABLES.get(name, {})
     declared_by_output = outputs.own_table(name)
-    if declared_by_output is not None:  # an output's own table (validation.outputs.Table)
+    if declared_by_output is not None:  # an output's own table (rk4h.validation.outputs.Table)
         own = {c[0]: tuple(c[1:]) for c in declared_by_output.columns}
     out = []
     for c in COLUMNS[name]:
         spec = own.get(c) or _COMMON.get(c)
         if spec is None:
             if strict:
-                raise KeyError(f"column {c!r} of table {name!r} is not declared in validation.columns")
+                raise KeyError(f"column {c!r} of table {name!r} is not declared in rk4h.validation.columns")
             spec = ("", UNDECLARED, "")
         out.append(Column(c, *spec))
     return out
@@ -276,14 +276,14 @@ def table_columns(name: str, strict: bool = True) -> list[Column]:
 
 def declared() -> dict[str, list[Column]]:
     """Every table -> its columns."""
-    from validation.tables import COLUMNS
+    from rk4h.validation.tables import COLUMNS
 
     return {name: table_columns(name) for name in COLUMNS}
 
 
 # -- enforcing the declaration -----------------------------------------------------
 def _references() -> set:
-    from references.registry import REFERENCES
+    from rk4h.references.registry import REFERENCES
 
     return set(REFERENCES)
 
@@ -385,7 +385,7 @@ def typed_frame(name: str, df):
 
 
 def _known():
-    from validation.tables import COLUMNS
+    from rk4h.validation.tables import COLUMNS
 
     return {n for n, c in COLUMNS.items() if c is not None}
 
@@ -394,7 +394,7 @@ def _known():
 def columns_json(tables=None, front=()) -> dict:
     """The content of ``columns.json``: per table (``tables``: names; None:
     all) its description, files and columns; ``front`` the sweep parameters."""
-    from validation.tables import DESCRIPTIONS
+    from rk4h.validation.tables import DESCRIPTIONS
 
     names = list(declared()) if tables is None else list(tables)
     return {
@@ -417,10 +417,10 @@ def _cell(text: str) -> str:
 
 def markdown() -> str:
     """``docs/columns.md``: every table's columns (generated; do not edit)."""
-    from validation.tables import DESCRIPTIONS
+    from rk4h.validation.tables import DESCRIPTIONS
 
     lines = ["# Report table columns", "",
-             "Generated by `python -m validation.columns --markdown > docs/columns.md` from "
+             "Generated by `python -m rk4h.validation.columns --markdown > docs/columns.md` from "
              "`validation/columns.py`; do not edit by hand. Every report holds the same as `columns.json`, "
              "and each table as `NAME.csv` and `NAME.parquet` (the Parquet file keeps the dtypes).", "",
              "## Conventions", ""]
@@ -435,7 +435,7 @@ def markdown() -> str:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.columns", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m rk4h.validation.columns", description=__doc__.splitlines()[0])
     g = p.add_mutually_exclusive_group()
     g.add_argument("--markdown", action="store_true", help="print docs/columns.md (default)")
     g.add_argument("--json", action="store_true", help="print columns.json for every table")

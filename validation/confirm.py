@@ -1,14 +1,14 @@
 """Confirmation runs of the trust table: a verdict needs a run.
 
-The trust table (``cheapest.csv``, :func:`validation.trust.trust_rows`)
+The trust table (``cheapest.csv``, :func:`rk4h.validation.trust.trust_rows`)
 predicts the step the method under test needs for each target error from the
 scene's runs. A prediction is not a measurement: before the method may win a
 target, it runs at that step (on the output grid,
-:func:`validation.trust.on_grid`) and its measured ``error_rel`` must be at
+:func:`rk4h.validation.trust.on_grid`) and its measured ``error_rel`` must be at
 most the target. Where no run of any other method reaches a target, the
 scene's adaptive references run at tighter tolerances, ten times tighter per
 round, down to each one's floor (:data:`RTOL_FLOOR`). A reference with a
-compiled loop runs it there (DOP853: :mod:`rk4core.fast.dop853`, scipy's
+compiled loop runs it there (DOP853: :mod:`rk4h.fast.dop853`, scipy's
 method to round-off, about 100x faster than scipy's Python stepping); its
 row says so (``implementation``) and the trust table's note names it.
 
@@ -16,7 +16,7 @@ These runs are specs of the plan (purpose ``confirm``: a timed run over the
 scene's output grid, executed like a ``run`` spec, kept out of the accuracy
 and work-precision tables). They depend on the records of the scene's runs,
 so they are planned in rounds after the plan has run
-(``validation.run_all``): :func:`next_specs` is a pure function of the
+(``rk4h.validation.run_all``): :func:`next_specs` is a pure function of the
 specs and records so far, and returns nothing once every target is settled,
 so resumed records give the same rounds. At most :data:`MAX_ROUNDS` rounds.
 
@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from references.registry import BUILTIN
+from rk4h.references.registry import BUILTIN
 
 from . import trust
 from .plan import TARGETS, RunSpec, scene_digest, under_test
@@ -53,7 +53,7 @@ MAX_CONFIRM_STEPS = 1e7
 _EPS = float(np.finfo(float).eps)
 #: The tightest rtol each reference is run at where the registry gives one (``Method.rtol_floor``:
 #: heyoka's Taylor method in double precision, 10 eps); else 100 eps: scipy raises DOP853's rtol below
-#: 100 eps to 100 eps (``references.solvers.dop853.RTOL_MIN``), and CVODE's is taken the same.
+#: 100 eps to 100 eps (``rk4h.references.solvers.dop853.RTOL_MIN``), and CVODE's is taken the same.
 RTOL_FLOOR = {n: m.rtol_floor for n, m in BUILTIN.items() if m.rtol_floor is not None}
 _RTOL_FLOOR_DEFAULT = 100 * _EPS
 
@@ -68,7 +68,7 @@ def rows_of(specs, records) -> list[dict]:
     ``error_rel``, ``nfev``, ``n_steps``, ``taylor_order``, ``status``,
     ``wall_s``, ``wall_min``, ``wall_max``, ``compile_s``, and ``implementation``:
     ``"compiled"`` for a reference's confirmation run on its compiled loop,
-    :func:`references.solvers.integrate_compiled`) of the ``run`` or
+    :func:`rk4h.references.solvers.integrate_compiled`) of the ``run`` or
     ``confirm`` specs among ``specs`` that have a record; a record without
     values (the execution raised) is a row with status ``failed``."""
     out = []

@@ -3,22 +3,22 @@
 Four documents are generated from the declarations they describe and never
 edited by hand::
 
-    python -m validation.docs_gen            # rewrite the stale ones in docs/
-    python -m validation.docs_gen --check    # exit 1 naming each stale one; writes nothing
-    python -m validation.docs_gen --out DIR  # write all four into DIR instead
+    python -m rk4h.validation.docs_gen            # rewrite the stale ones in docs/
+    python -m rk4h.validation.docs_gen --check    # exit 1 naming each stale one; writes nothing
+    python -m rk4h.validation.docs_gen --out DIR  # write all four into DIR instead
 
 ==========================  ===============================================
 file                        generated from
 ==========================  ===============================================
-``scene-reference.md``      the scene schema (:mod:`validation.scene_schema`)
+``scene-reference.md``      the scene schema (:mod:`rk4h.validation.scene_schema`)
 ``scene.schema.json``       the same models, as JSON Schema (for editors)
-``columns.md``              every table's columns (:mod:`validation.columns`)
-``stability-params.md``     ``[stability]`` keys (:mod:`validation.stability.params`)
+``columns.md``              every table's columns (:mod:`rk4h.validation.columns`)
+``stability-params.md``     ``[stability]`` keys (:mod:`rk4h.validation.stability.params`)
 ==========================  ===============================================
 
 Each generator keeps its own entry point (``python -m
-validation.scene_schema --markdown``, ``python -m validation.columns``,
-``python -m validation.stability.params``); this module only gathers them.
+rk4h.validation.scene_schema --markdown``, ``python -m rk4h.validation.columns``,
+``python -m rk4h.validation.stability.params``); this module only gathers them.
 Only the four names above are ever written, each through a temporary file
 beside it and a rename, and only when its content differs.
 """
@@ -38,25 +38,25 @@ DOCS_DIR = Path(__file__).resolve().parent.parent / "docs"
 
 
 def _scene_reference() -> str:
-    from validation.scene_schema import reference_markdown
+    from rk4h.validation.scene_schema import reference_markdown
 
     return reference_markdown()
 
 
 def _scene_schema_json() -> str:
-    from validation.scene_schema import json_schema
+    from rk4h.validation.scene_schema import json_schema
 
     return json.dumps(json_schema(), indent=2) + "\n"
 
 
 def _columns() -> str:
-    from validation.columns import markdown
+    from rk4h.validation.columns import markdown
 
     return markdown()
 
 
 def _stability_params() -> str:
-    from validation.stability.params import params_document
+    from rk4h.validation.stability.params import params_document
 
     return params_document()
 
@@ -113,7 +113,7 @@ def write(directory=DOCS_DIR) -> list[str]:
     return written
 
 
-def main(argv=None, *, prog="python -m validation.docs_gen") -> int:
+def main(argv=None, *, prog="python -m rk4h.validation.docs_gen") -> int:
     """Write (or with ``--check`` compare) the generated documents; returns the
     exit status: 0 done or current, 1 stale (``--check``), 2 bad arguments."""
     p = argparse.ArgumentParser(prog=prog, description="Write the generated documents (scene reference, "

@@ -1,4 +1,4 @@
-"""Figures from figure jobs (:class:`validation.measure.FigureJob`): the
+"""Figures from figure jobs (:class:`rk4h.validation.measure.FigureJob`): the
 report's only drawing entry. Each job's data came from records; nothing here
 integrates. A plotting fault is a failed check of the scene, never a lost run.
 """
@@ -24,9 +24,9 @@ def draw_job(job, out_dir, scene) -> list:
 
 def draw(job, out_dir, scenes_by_name) -> list:
     """Draw ``job`` into ``out_dir``; returns ``[(Path, sentence), ...]``, each
-    sentence a :class:`validation.figures.Caption` (a ``str`` with the
+    sentence a :class:`rk4h.validation.figures.Caption` (a ``str`` with the
     scene-specific facts; ``sentence.kind`` keys the figure kind's reading
-    guide in ``validation.figures.GENERIC_CAPTIONS``).
+    guide in ``rk4h.validation.figures.GENERIC_CAPTIONS``).
     The scene's own methods (``[methods.NAME]``) are drawn in their registry styles."""
     from . import figures as f
 
@@ -68,7 +68,7 @@ def _draw(job, out_dir, scenes_by_name) -> list:
         return [f.crossover(out_dir, pd.DataFrame(d["rows"]))]
     from . import outputs
 
-    fn = outputs.drawer(job.kind)  # a figure an output draws itself (validation.outputs.Output.draw)
+    fn = outputs.drawer(job.kind)  # a figure an output draws itself (rk4h.validation.outputs.Output.draw)
     if fn is not None:
         return list(fn(out_dir, job, scenes_by_name.get(name) if scenes_by_name else None))
     raise ValueError(f"unknown figure kind {job.kind!r}")

@@ -1,6 +1,6 @@
 """Figures of the energy over time: growth at equal cost, and energy work-precision.
 
-Both draw measured rows only (:mod:`validation.energy_time` produced them);
+Both draw measured rows only (:mod:`rk4h.validation.energy_time` produced them);
 nothing here integrates.
 """
 from __future__ import annotations
@@ -24,16 +24,16 @@ def energy_growth(out_dir, scene_name, series, exponents):
         ``label -> (t, rel_energy_error)`` (t in s), the label starting with the
         method's name (``"rk4 h=0.004"``).
     exponents : dict
-        ``label -> growth exponent`` (:func:`validation.energy_time.growth_exponent`),
+        ``label -> growth exponent`` (:func:`rk4h.validation.energy_time.growth_exponent`),
         added to the legend.
 
     Returns
     -------
     (Path, caption)
-        As :func:`validation.figures.energy_error`, whose drawing this reuses
+        As :func:`rk4h.validation.figures.energy_error`, whose drawing this reuses
         (file stem ``<scene>_energy_growth``).
     """
-    from validation import figures
+    from rk4h.validation import figures
 
     labelled = {f"{lab} (k = {exponents.get(lab, math.nan):.2f})": v for lab, v in series.items()}
     return figures.energy_error(out_dir, scene_name, labelled,
@@ -49,7 +49,7 @@ def energy_work_precision(out_dir, scene_name, rows) -> Path:
     out_dir : path-like
     scene_name : str
     rows : list of dict
-        :func:`validation.energy_time.work_precision_rows` of one scene: one
+        :func:`rk4h.validation.energy_time.work_precision_rows` of one scene: one
         line per (method, horizon), markers at its steps or rtols; rows that did not
         end ``ok`` are left out.
 
@@ -63,7 +63,7 @@ def energy_work_precision(out_dir, scene_name, rows) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from validation import figures
+    from rk4h.validation import figures
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), constrained_layout=True)
     fig.suptitle(f"{scene_name}: energy work-precision (periods of the slowest mode)")

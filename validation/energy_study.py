@@ -1,11 +1,11 @@
 """The opt-in energy study: energy work-precision and energy growth over long horizons.
 
-    python -m validation.energy_study SCENE... --out DIR [--periods 1e2 1e4] [--full] [--steps 8 16 32 64]
+    python -m rk4h.validation.energy_study SCENE... --out DIR [--periods 1e2 1e4] [--full] [--steps 8 16 32 64]
 
-The numbers come from :mod:`validation.energy_time`, the figures from
-:mod:`validation.energy_figures`; the default report does not run it. A
+The numbers come from :mod:`rk4h.validation.energy_time`, the figures from
+:mod:`rk4h.validation.energy_figures`; the default report does not run it. A
 scene runs the same numbers in the report by listing the
-``energy_work_precision`` output (:mod:`validation.outputs.energy_work_precision`).
+``energy_work_precision`` output (:mod:`rk4h.validation.outputs.energy_work_precision`).
 """
 from __future__ import annotations
 
@@ -21,8 +21,8 @@ __all__ = ["main"]
 
 def _methods(scene):
     """The registry's tableaux and the scene's own (every fixed-step method the study runs)."""
-    from references.registry import Kind
-    from rk4core.methods import METHODS
+    from rk4h.references.registry import Kind
+    from rk4h.methods import METHODS
 
     out = dict(METHODS)
     for name in scene.solvers:
@@ -33,7 +33,7 @@ def _methods(scene):
 
 
 def main(argv=None) -> int:
-    """``python -m validation.energy_study SCENE ... --out DIR``: the opt-in energy study.
+    """``python -m rk4h.validation.energy_study SCENE ... --out DIR``: the opt-in energy study.
 
     Writes ``energy_work_precision.csv`` (:func:`work_precision_rows`), one
     ``<scene>_energy_work_precision.png`` and one ``<scene>_energy_growth.png``
@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     import pathlib
     import sys
 
-    p = argparse.ArgumentParser(prog="python -m validation.energy_study",
+    p = argparse.ArgumentParser(prog="python -m rk4h.validation.energy_study",
                                 description="energy work-precision and energy growth over long horizons")
     p.add_argument("scenes", nargs="+", help="scene files or shipped scene names (e.g. " + ", ".join(WP_SCENES) + ")")
     p.add_argument("--out", required=True, help="output folder (absent or empty)")
@@ -65,7 +65,7 @@ def main(argv=None) -> int:
         print(f"energy_study: --periods/--steps: must be positive numbers, got {a.periods} / {a.steps}",
               file=sys.stderr)
         return 2
-    from references.registry import REFERENCES
+    from rk4h.references.registry import REFERENCES
 
     bad = [r for r in a.references if r not in REFERENCES]
     if bad:
@@ -76,16 +76,16 @@ def main(argv=None) -> int:
         print(f"energy_study: --out: {str(out)!r} exists and is not an empty folder; nothing written",
               file=sys.stderr)
         return 2
-    from validation.execute import problem
-    from validation.scenes import SceneError, load_scenes
+    from rk4h.validation.execute import problem
+    from rk4h.validation.scenes import SceneError, load_scenes
 
     try:
         scenes = load_scenes(a.scenes)
     except SceneError as e:
         print(str(e).splitlines()[0], file=sys.stderr)
         return 2
-    from rk4core.energy import relative_energy_error
-    from rk4core.methods import RK4
+    from rk4h.energy import relative_energy_error
+    from rk4h.methods import RK4
 
     from . import energy_figures
 

@@ -1,7 +1,7 @@
 """Energy over time: the energy error's time series of a run, summarised.
 
 A run's relative energy error ``e(t) = (E(t) - E0) / E_motion``
-(:func:`rk4core.energy.relative_energy_error`; ``E_motion = E0 - V(q*)``)
+(:func:`rk4h.energy.relative_energy_error`; ``E_motion = E0 - V(q*)``)
 is summarised by
 
 - its maximum ``max_t |e(t)|`` (``energy_drift_max``, as every table has it);
@@ -24,10 +24,10 @@ is summarised by
   ``theta^5/120`` per step, Stormer-Verlet ``theta^3/24``).
 
 The long runs (:func:`long_run`) use the compiled fixed-step loops
-(:mod:`rk4core.fast`), keeping :data:`LONG_SAMPLES` states.
+(:mod:`rk4h.fast`), keeping :data:`LONG_SAMPLES` states.
 
 Functions here integrate only in :func:`long_run` and :func:`work_precision_rows`
-(the opt-in energy work-precision study, :mod:`validation.energy_study`);
+(the opt-in energy work-precision study, :mod:`rk4h.validation.energy_study`);
 :func:`summary` is a pure function of a trajectory.
 """
 from __future__ import annotations
@@ -53,7 +53,7 @@ PHASE_MIN_SHARE = 1e-6
 LONG_SAMPLES = 20000
 
 #: The energy table's columns :func:`summary` fills (declared, with units, in
-#: :mod:`validation.columns`).
+#: :mod:`rk4h.validation.columns`).
 COLUMNS = ("energy_growth_exponent", "energy_fit_t0", "energy_fit_t1", "phase_error_max", "phase_growth_exponent")
 
 
@@ -113,7 +113,7 @@ def phase_errors(model, y0, t, y):
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
         A linear model (``model.linear``).
     y0 : array_like
         The initial state ``[q, v]`` (SI).
@@ -131,7 +131,7 @@ def phase_errors(model, y0, t, y):
         is not linear or has no such mode. The unwrapping assumes the error
         changes by less than pi between samples.
     """
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -160,7 +160,7 @@ def summary(model, y0, t, y) -> dict:
     ``t`` (s, shape (m,)) and ``y`` (shape (2n, m)) as a solver returns them;
     NaN entries where the run has none (a blown-up run, a nonlinear model's phase).
     """
-    from rk4core.energy import relative_energy_error
+    from rk4h.energy import relative_energy_error
 
     t = np.asarray(t, dtype=float)
     with np.errstate(all="ignore"):
@@ -230,11 +230,11 @@ def long_run(model, y0, method, h: float, t_end: float, samples: int = LONG_SAMP
 
     Parameters
     ----------
-    model : rk4core.models.Model
-        A model with a compiled force (:func:`rk4core.fast.supports`).
+    model : rk4h.models.Model
+        A model with a compiled force (:func:`rk4h.fast.supports`).
     y0 : array_like
         Initial state ``[q, v]`` (SI).
-    method : str or rk4core.methods.Tableau
+    method : str or rk4h.methods.Tableau
     h : float
         Step (s); the run takes ``ceil(t_end / h)`` equal steps.
     t_end : float
@@ -245,10 +245,10 @@ def long_run(model, y0, method, h: float, t_end: float, samples: int = LONG_SAMP
     Returns
     -------
     (result, wall_s)
-        The :class:`rk4core.solver.FixedStepResult` and the wall time (s) of
+        The :class:`rk4h.solver.FixedStepResult` and the wall time (s) of
         the run (the loop is warmed up first, its compile time apart).
     """
-    import rk4core.fast as fast
+    import rk4h.fast as fast
 
     n = max(1, int(math.ceil(t_end / h * (1 - 1e-12))))
     every = max(1, n // max(int(samples), 1))
@@ -275,7 +275,7 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
     scene_name : str
     model, y0
         The scene's model and initial state (SI).
-    methods : iterable of rk4core.methods.Tableau
+    methods : iterable of rk4h.methods.Tableau
         Fixed-step methods, run on the compiled loops.
     steps_per_period : sequence of int
         Steps per period of the *fastest* mode at which each method runs
@@ -295,7 +295,7 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
         t_end`` (s), ``h`` (s), ``rtol``, ``energy_drift_max`` (1), ``energy_growth_exponent``,
         ``nfev``, ``wall_s`` (s, one run, compile time apart), ``status``.
     """
-    from rk4core.energy import relative_energy_error
+    from rk4h.energy import relative_energy_error
 
     T_slow = slowest_period(model)
     omega = np.asarray(model.modes()[0], float)
@@ -325,8 +325,8 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
 def _reference_row(scene_name, model, y0, name, rtol, periods, t_end) -> dict:
     """One adaptive reference's run for :func:`work_precision_rows` (``nfev``: its
     RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it)."""
-    from references.solvers import integrate
-    from rk4core.energy import relative_energy_error
+    from rk4h.references.solvers import integrate
+    from rk4h.energy import relative_energy_error
 
     from .trust import rhs_calls
 

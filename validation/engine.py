@@ -1,7 +1,7 @@
 """Executing a plan: in this process, on a local process pool, or on a Dask cluster.
 
-:func:`run_plan` takes ``(scene, spec)`` pairs (:func:`validation.plan.plan_all`)
-and returns their records, key -> :class:`~validation.records.RunRecord`.
+:func:`run_plan` takes ``(scene, spec)`` pairs (:func:`rk4h.validation.plan.plan_all`)
+and returns their records, key -> :class:`~rk4h.validation.records.RunRecord`.
 Records already in the store (``--resume``) are not run again; every new
 record is written to the store as soon as it arrives, so an interrupted run
 loses at most the runs in flight.
@@ -20,7 +20,7 @@ report: one per worker process, each single-threaded (``benchmarks/bench_timing_
 measures what a neighbour integrating on the other core does to a timing).
 Other processes on the machine are not under the report's control: the load
 average just before and after the timed stage is recorded
-(``PlanStats.load_before``/``load_after``, :mod:`validation.timing_context`),
+(``PlanStats.load_before``/``load_after``, :mod:`rk4h.validation.timing_context`),
 and under a load above the CPU count every time verdict is a tie.
 ``exclusive_timing=True`` (``run_all.py --exclusive-timing``) runs them one at
 a time in one worker process (the *timing lane*) with the other workers idle,
@@ -42,7 +42,7 @@ record (``WorkerDied: worker died (SIGKILL) twice``); the other specs in
 flight there are resubmitted. The run goes on (:class:`_Dispatch`).
 
 Before a Dask worker gets a spec it proves its code: it runs
-:func:`_worker_digest` (:func:`validation.plan.code_digest` of the packages
+:func:`_worker_digest` (:func:`rk4h.validation.plan.code_digest` of the packages
 it imports), and a worker whose digest is not ours is refused, named on
 stderr, and gets no work. Every wait on the cluster is bounded by
 :func:`scheduler_timeout`: no scheduler answering, no worker, no verified
@@ -77,7 +77,7 @@ def default_workers() -> int:
 class PlanStats:
     """What :func:`run_plan` did: specs ``planned``, ``resumed`` (read from the
     store), ``executed``; ``timing`` says how timed runs were placed.
-    ``audit`` (:meth:`validation.records.RecordStore.audit`): of the executed
+    ``audit`` (:meth:`rk4h.validation.records.RecordStore.audit`): of the executed
     specs, how many had a record that did not verify (``mismatch``) or one
     made by other code or libraries (``stale``); records matching no planned
     spec (``unused``)."""
@@ -87,7 +87,7 @@ class PlanStats:
         self.audit = {"mismatch": 0, "stale": 0, "unused": 0}
         self.timing = "one at a time in the main process (--workers 1)"
         self.phases = {}
-        #: validation.timing_context.snapshot() just before / after the timed stage ran (None: not run)
+        #: rk4h.validation.timing_context.snapshot() just before / after the timed stage ran (None: not run)
         self.load_before = self.load_after = None
         self.timed_executed = self.timed_resumed = 0
 
@@ -154,11 +154,11 @@ def _exit_now():
 def _warm():
     """Import what executing a spec needs and start heyoka (run in a fresh
     worker; heyoka's start-up is untimed in any case, see
-    ``references.solvers.taylor``)."""
-    import validation.execute  # noqa: F401
-    import validation.measure  # noqa: F401
+    ``rk4h.references.solvers.taylor``)."""
+    import rk4h.validation.execute  # noqa: F401
+    import rk4h.validation.measure  # noqa: F401
 
-    from references.solvers import taylor
+    from rk4h.references.solvers import taylor
 
     try:
         taylor.start_up()
@@ -167,7 +167,7 @@ def _warm():
 
 
 def _execute(scene, spec, quick):
-    from validation.execute import execute
+    from rk4h.validation.execute import execute
 
     return execute(scene, spec, quick)
 
@@ -411,7 +411,7 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
 
 
 def _load_mark(stats, stages, i):
-    """Record the machine's load (:func:`validation.timing_context.snapshot`)
+    """Record the machine's load (:func:`rk4h.validation.timing_context.snapshot`)
     when the timed stage (the last) is about to start (``i`` its index) or
     has ended (``i == len(stages)``), if it has specs."""
     from .timing_context import snapshot
@@ -638,9 +638,9 @@ def _bounded(fn, seconds):
 
 
 def _worker_digest():
-    """:func:`validation.plan.code_digest` of the code this process imports
+    """:func:`rk4h.validation.plan.code_digest` of the code this process imports
     (run on each Dask worker before it gets work)."""
-    from validation.plan import code_digest
+    from rk4h.validation.plan import code_digest
 
     return code_digest()
 

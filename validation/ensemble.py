@@ -121,7 +121,7 @@ def draw_instances(table, model, x, v=None):
     table : mapping
         The ``[ensemble]`` table (``size``, ``seed``, one entry per drawn
         quantity; see the module docstring).
-    model : rk4core.models.Model
+    model : rk4h.models.Model
         The scene's model (its parameters are the defaults of the others).
     x, v : array_like, shape (n_dof,)
         The scene's initial positions and velocities (defaults of the others).
@@ -131,7 +131,7 @@ def draw_instances(table, model, x, v=None):
     y0 : ndarray, shape (size, 2 n_dof)
     params : dict
         ``"NAME"`` or ``"NAME[i]"`` -> ndarray of shape (size,), for
-        :func:`rk4core.ensemble`.
+        :func:`rk4h.ensemble`.
 
     Raises
     ------
@@ -243,9 +243,9 @@ def error_statistics(model, result, y0, params=None):
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
         A linear model (its ``modes()`` give the exact solution).
-    result : rk4core.EnsembleResult
+    result : rk4h.EnsembleResult
     y0 : ndarray, shape (B, n)
     params : mapping, optional
         The per-instance parameters the ensemble ran with.
@@ -284,11 +284,11 @@ def instance_errors(model, result, y0, params=None, built=None):
     failed : int
         Instances that did not reach the end.
     """
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     if not model.linear:
         raise ValueError(f"`model` {model.name} is nonlinear: error_statistics needs an exact (modal) solution")
-    from rk4core.batch.api import _split_key
+    from rk4h.batch.api import _split_key
 
     ok = np.flatnonzero(result.status == 0)
     errs, eerrs = [], []
@@ -319,7 +319,7 @@ def instance_errors(model, result, y0, params=None, built=None):
 
 
 def stability_map_figure(smap, path, *, limit=None, label=None):
-    """Draw a :class:`rk4core.batch.maps.StabilityMap`: stable (light) and
+    """Draw a :class:`rk4h.batch.maps.StabilityMap`: stable (light) and
     unstable (dark) grid cells over (parameter, h), and the largest stable
     ``omega_max h`` per value on a second panel, with ``limit`` (e.g. RK4's
     2.8284) as a line. Written to ``path`` (PNG); returns ``path``."""

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from references.registry import Kind
+from rk4h.references.registry import Kind
 
 from . import metrics
 from .plan import FIGURE_POINTS, RunSpec
@@ -68,7 +68,7 @@ def fastest_rate(scene, model) -> float:
     """``omega_max`` (rad/s) of the convergence sweeps' ``theta = omega_max h``:
     the fastest (linearized) mode; for a first-order ODE (``model.first_order``)
     the spectral radius of its Jacobian at the initial state
-    (:meth:`rk4core.models.OdeModel.rate`, 1/s), or ``2 pi / t_end`` where
+    (:meth:`rk4h.models.OdeModel.rate`, 1/s), or ``2 pi / t_end`` where
     that is 0 or not finite."""
     if getattr(model, "first_order", False):
         r = model.rate(scene.y0())
@@ -108,7 +108,7 @@ def grid(scene, model, spec: RunSpec) -> np.ndarray:
 
 
 def _truth(model, y0, t):
-    from references.truth import reference_solution
+    from rk4h.references.truth import reference_solution
 
     return reference_solution(model, y0, t)
 
@@ -164,9 +164,9 @@ def _first_line(text) -> str:
 
 def _timed(solver, model, y0, t, setting, repeats, compiled=False):
     """The first run, and the wall times of up to ``repeats`` runs;
-    ``compiled``: through :func:`references.solvers.integrate_compiled`
+    ``compiled``: through :func:`rk4h.references.solvers.integrate_compiled`
     (a reference's compiled loop, for confirmation runs)."""
-    from references.solvers import integrate, integrate_compiled
+    from rk4h.references.solvers import integrate, integrate_compiled
 
     walls, first = [], None
     for _ in range(max(1, repeats)):
@@ -206,7 +206,7 @@ def _truth_spec(scene, spec, quick):
                                  "no_truth": reason})
     y = np.asarray(truth.y, float)
     values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))}
-    if "agreement_rel" in truth.extra:  # any ODE: two references that agree (references.ode_truth)
+    if "agreement_rel" in truth.extra:  # any ODE: two references that agree (rk4h.references.ode_truth)
         values |= {"agreement_rel": float(truth.extra["agreement_rel"]), "truth_note": _first_line(truth.message)}
     arrays = {}
     if "trajectory" in spec.keep:
@@ -239,13 +239,13 @@ def _run_spec(scene, spec, quick):
               "taylor_order": int(run.taylor_order or 0), "duration": float(t[-1] - t[0]),
               "implementation": str(run.extra.get("implementation", ""))}
     if method.kind is Kind.TABLEAU and model.linear and ok:
-        from references.exact import modal_solution
+        from rk4h.references.exact import modal_solution
 
         ms = modal_solution(model, y0)
         duration = values["duration"]
         values["theory_drift_per_time"] = metrics.drift_theory(
             method.tableau, ms.omega, ms.eta0, ms.deta0, duration / run.n_steps, run.n_steps, duration)
-    if ok:  # energy over time: growth law and phase error (validation.energy_time)
+    if ok:  # energy over time: growth law and phase error (rk4h.validation.energy_time)
         from . import energy_time
 
         values.update(energy_time.summary(model, y0, t, run.y))
@@ -253,7 +253,7 @@ def _run_spec(scene, spec, quick):
     if "energy" in spec.keep and ok:
         arrays["energy_t"] = t
         arrays["energy_rel"] = np.abs(metrics.relative_energy_error(model, run.y))
-    if "trajectory" in spec.keep:  # the trajectory output (validation.outputs.trajectory)
+    if "trajectory" in spec.keep:  # the trajectory output (rk4h.validation.outputs.trajectory)
         arrays.update(_trajectory(model, t, run))
     timing = {"wall_s": float(np.median(walls)), "wall_min": float(min(walls)), "wall_max": float(max(walls)),
               "repeats": len(walls), "compile_s": float(run.compile_s)}
@@ -279,7 +279,7 @@ def _trajectory(model, t, run) -> dict:
 
 
 def _figure_spec(scene, spec, quick):
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
@@ -293,7 +293,7 @@ def _figure_spec(scene, spec, quick):
 
 
 def _order_spec(scene, spec, quick):
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
@@ -324,7 +324,7 @@ def modal_content(model, t, y) -> dict:
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
     t : ndarray, shape (m,)
         Output times (s).
     y : ndarray, shape (2 n_dof, m)
@@ -406,7 +406,7 @@ def recorded_modal(record) -> dict:
 
 
 def _modal_spec(scene, spec, quick):
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     model, y0 = problem(scene)
     omega, phi = model.modes()
@@ -415,7 +415,7 @@ def _modal_spec(scene, spec, quick):
     omega, phi = omega[order], phi[:, order]
     t = grid(scene, model, spec)
     run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
-    from rk4core.energy import energy_scale
+    from rk4h.energy import energy_scale
 
     # fractions of the energy of the motion (E0 - V(q*)), which the modes share
     E_motion = energy_scale(model, float(np.asarray(model.energy(y0))))
@@ -432,9 +432,9 @@ def _modes_spec(scene, spec, quick):
 
 def _lattice(scene, spec):
     """``(model, m, k, d)`` of a scene whose model is a uniform chain between
-    walls (:meth:`rk4core.models.Model.uniform_chain`; ``d`` the thesis' lattice spacing), or the
+    walls (:meth:`rk4h.models.Model.uniform_chain`; ``d`` the thesis' lattice spacing), or the
     failed record of ``spec`` saying why not."""
-    from references import dispersion
+    from rk4h.references import dispersion
 
     model, _ = problem(scene)
     mk = model.uniform_chain()
@@ -445,7 +445,7 @@ def _lattice(scene, spec):
 
 
 def _dispersion_spec(scene, spec, quick):
-    from references import dispersion
+    from rk4h.references import dispersion
 
     lattice = _lattice(scene, spec)
     if isinstance(lattice, RunRecord):
@@ -460,7 +460,7 @@ def _dispersion_spec(scene, spec, quick):
 
 
 def _packet_spec(scene, spec, quick):
-    from references import wavepacket
+    from rk4h.references import wavepacket
 
     lattice = _lattice(scene, spec)
     if isinstance(lattice, RunRecord):
@@ -477,7 +477,7 @@ def _packet_spec(scene, spec, quick):
 
 def _linearization_spec(scene, spec, quick):
     """The linearized model's exact modal solution against the nonlinear truth."""
-    from references.exact import modal_solution
+    from rk4h.references.exact import modal_solution
 
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
@@ -500,7 +500,7 @@ def _stability_spec(scene, spec, quick):
 
 
 def _thesis_code_spec(scene, spec, quick):
-    from references import thesis_code
+    from rk4h.references import thesis_code
 
     rows = thesis_code.compare()
     return RunRecord(spec.key, values={"rows": rows, "errata": thesis_code.errata(rows)})
@@ -514,7 +514,7 @@ _PURPOSE = {"truth": _truth_spec, "run": _run_spec, "figure": _figure_spec, "ord
 
 def _executor(purpose: str):
     """The function running a spec of ``purpose``: a built-in, else the one an
-    output declares (:attr:`validation.outputs.Output.execute`)."""
+    output declares (:attr:`rk4h.validation.outputs.Output.execute`)."""
     fn = _PURPOSE.get(purpose)
     if fn is None:
         from . import outputs

@@ -1,7 +1,7 @@
 """Which optional part of the installation a command needs, and one line
 saying how to get it when it is missing.
 
-The base install (numpy, scipy) is what :func:`rk4core.solve` needs. The
+The base install (numpy, scipy) is what :func:`rk4h.solve` needs. The
 report and the advisor need the extras ``fast`` (numba: the compiled
 loops), ``references`` (heyoka, scikit-sundae) and ``report`` (pandas,
 matplotlib, pydantic, pyarrow: the Parquet tables; xarray: netCDF trajectories); ``--scheduler`` needs ``cluster`` (dask,

@@ -3,7 +3,7 @@
 :func:`measure` turns one scene's plan and records into table rows (the CSV
 files of the report), :class:`Check` records (a failed check is a failure
 line in ``index.md``; nothing else fails a run), one-line findings, and
-:class:`FigureJob` data that :mod:`validation.draw` turns into PNGs.
+:class:`FigureJob` data that :mod:`rk4h.validation.draw` turns into PNGs.
 
 Rows of a swept scene (``scene.sweep``) carry the swept parameters as columns.
 """
@@ -52,7 +52,7 @@ class Check:
 
 @dataclass
 class FigureJob:
-    """A figure to draw: ``kind`` names a function of :mod:`validation.draw`,
+    """A figure to draw: ``kind`` names a function of :mod:`rk4h.validation.draw`,
     ``data`` its arguments (arrays, rows)."""
 
     scene: str
@@ -70,7 +70,7 @@ class SceneTables:
     truth_kind: str = ""
     seconds: float = 0.0
     drawn: list = field(default_factory=list)
-    #: files other than tables and figures (validation.outputs.FileJob)
+    #: files other than tables and figures (rk4h.validation.outputs.FileJob)
     files: list = field(default_factory=list)
 
     def add(self, table, row):
@@ -87,7 +87,7 @@ class SceneTables:
 
 def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=True) -> SceneTables:
     """Everything ``scene`` reports, from its ``specs`` and their ``records``
-    (key -> :class:`~validation.records.RunRecord`)."""
+    (key -> :class:`~rk4h.validation.records.RunRecord`)."""
     res = SceneTables(scene.name)
     by = {}
     for s in specs:
@@ -106,7 +106,7 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
     from . import outputs
 
     m = outputs.Measuring(scene, by, records, res, quick, draw)
-    for hook in outputs.measure_hooks(scene.outputs):  # each output's measurement (validation.outputs)
+    for hook in outputs.measure_hooks(scene.outputs):  # each output's measurement (rk4h.validation.outputs)
         hook(m)
     _methods_table(scene, res)
     if scene_sweep(scene):
@@ -208,7 +208,7 @@ def _energy_row(scene, spec, rec, row, res):
            "energy_drift_max": v["energy_drift_max"] if ok else math.nan, "passed": "", "status": rec.status,
            **{k: v.get(k, math.nan) if ok else math.nan for k in energy_time.COLUMNS}}
     theory = v["theory_drift_per_time"]
-    if ok and math.isfinite(theory):  # a tableau method on a linear model (validation.execute)
+    if ok and math.isfinite(theory):  # a tableau method on a linear model (rk4h.validation.execute)
         measured, duration = v["drift_per_time"], v["duration"]
         slack = ENERGY_RTOL * abs(theory) + ENERGY_ROUNDOFF_PER_STEP * v["n_steps"] / duration
         passed = bool(abs(measured - theory) <= slack)
@@ -221,8 +221,8 @@ def _energy_row(scene, spec, rec, row, res):
 
 def _cheapest(scene, res, confirm_specs=(), records=None):
     """``cheapest.csv``: the trust table of the method under test
-    (:mod:`validation.trust`), with the confirmation runs of ``confirm_specs``
-    (:mod:`validation.confirm`)."""
+    (:mod:`rk4h.validation.trust`), with the confirmation runs of ``confirm_specs``
+    (:mod:`rk4h.validation.confirm`)."""
     from . import confirm
 
     under = under_test(scene)
@@ -273,17 +273,17 @@ def _methods_table(scene, res):
     plus one, the largest residual of the order conditions of order ``p``,
     the residual the coefficients' precision allows for that condition, and
     whether every condition of order ``p`` holds
-    (:attr:`rk4core.methods.Tableau.order_residuals`); and per method its
+    (:attr:`rk4h.methods.Tableau.order_residuals`); and per method its
     cost (``nfev_per_step``, first-same-as-last reuse counted), the end of
     its stable interval of the imaginary axis (``imaginary_axis_bound``,
     dimensionless ``h omega``;
-    :func:`rk4core.stability_function.imaginary_axis_boundary`: RK4 2 sqrt 2,
+    :func:`rk4h.stability_function.imaginary_axis_boundary`: RK4 2 sqrt 2,
     Heun3 sqrt 3) and its principal error coefficient
-    (:attr:`rk4core.methods.Tableau.error_coefficient`: RK4 0.01450).
+    (:attr:`rk4h.methods.Tableau.error_coefficient`: RK4 0.01450).
     Computed from the coefficients, not from runs; the built-in tableaux are
     exact rationals (every residual 0)."""
-    from references.registry import BUILTIN
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.references.registry import BUILTIN
+    from rk4h.stability_function import imaginary_axis_boundary
 
     own = getattr(scene, "registry", None) or {}
     for name in dict.fromkeys(scene.solvers):
@@ -519,7 +519,7 @@ def _stability(scene, specs, records, res, quick):
         res.figures.append(FigureJob(scene.name, "stability", {"plot": p}))
 
 
-#: The measurements the output modules delegate to (validation.outputs).
+#: The measurements the output modules delegate to (rk4h.validation.outputs).
 measure_runs = _runs
 measure_state_figure = _state_figure
 measure_linearization = _linearization

@@ -12,7 +12,7 @@ never solvers. Conventions (docs/reading-the-report.md):
   state component" (Hairer & Wanner's scd idea, Bari IVP test set).
 * ``energy_drift_max`` -- ``max_t |E(t) - E0| / E_motion`` with
   ``E_motion = E0 - V(q*)``, the energy of the motion above the equilibrium
-  ``q*`` the model is linearized about (:mod:`rk4core.energy`): invariant when
+  ``q*`` the model is linearized about (:mod:`rk4h.energy`): invariant when
   a constant is added to ``V``, and a pre-tensioned network's static spring
   energy is not counted as motion.
 * A run that did not reach every output time has NaN errors (its status says why).
@@ -48,8 +48,8 @@ def error_final(y, y_ref) -> float:
 
 def relative_energy_error(model, y) -> np.ndarray:
     """``(E(t) - E0) / E_motion`` along the trajectory (signed, dimensionless;
-    :func:`rk4core.energy.relative_energy_error`)."""
-    from rk4core.energy import relative_energy_error as rel
+    :func:`rk4h.energy.relative_energy_error`)."""
+    from rk4h.energy import relative_energy_error as rel
 
     return rel(model, y)
 
@@ -74,14 +74,14 @@ def _energy_loss_coefficients(tab) -> tuple[int, tuple[int, ...], int]:
     """``(m, (n_m, n_m+1, ...), D)`` with ``1 - |R(i theta)|^2 =
     theta^(2m) (n_m + n_m+1 theta^2 + ...) / D`` exactly (integers), from the
     method's stability polynomial ``R(z) = sum a_k z^k``
-    (:func:`rk4core.stability_function.stability_polynomial`).
+    (:func:`rk4h.stability_function.stability_polynomial`).
 
     ``|R(iy)|^2 = sum_n y^n sum_{j+k=n} a_j a_k i^(j-k)``: odd powers cancel,
     and the low even powers cancel exactly for a method of order ``p``
     (``m >= p/2 + 1`` when ``p`` is even)."""
     from fractions import Fraction
 
-    from rk4core.stability_function import stability_polynomial
+    from rk4h.stability_function import stability_polynomial
 
     a = [Fraction(x) for x in stability_polynomial(tab)]
     deg = len(a) - 1
@@ -144,7 +144,7 @@ def _exp_minus_R(tab) -> tuple[tuple[float, ...], int]:
     tail ``sum_{k > d} z^k / k!``; ``d`` the degree of ``R``."""
     from fractions import Fraction
 
-    from rk4core.stability_function import stability_polynomial
+    from rk4h.stability_function import stability_polynomial
 
     r = [Fraction(x) for x in stability_polynomial(tab)]
     return tuple(float(Fraction(1, math.factorial(k)) - rk) for k, rk in enumerate(r)), len(r) - 1
@@ -178,7 +178,7 @@ def phase_lag(tab, theta):
     w = -diff * np.exp(-z)
     out = -np.arctan2(w.imag, 1.0 + w.real)
     if not small.all():
-        from rk4core.stability_function import R
+        from rk4h.stability_function import R
 
         big = np.flatnonzero(~small.ravel())
         flat = out.ravel().copy() if out.ndim else np.array([float(out)])
@@ -200,7 +200,7 @@ def leading_terms(tab) -> tuple[tuple[float, int], tuple[float, int]]:
     odd ``k`` with ``l_k != 0``."""
     from fractions import Fraction
 
-    from rk4core.stability_function import stability_polynomial
+    from rk4h.stability_function import stability_polynomial
 
     m, ints, den = _energy_loss_coefficients(tab)
     r = [Fraction(x) for x in stability_polynomial(tab)]
@@ -216,7 +216,7 @@ def leading_terms(tab) -> tuple[tuple[float, int], tuple[float, int]]:
 
 
 def _rk4():
-    from rk4core.methods import RK4
+    from rk4h.methods import RK4
 
     return RK4
 
@@ -306,7 +306,7 @@ def cheapest(rows, targets, *, cost="wall_s", under_test="rk4"):
     cost : str
         The key of the cost column.
     under_test : str or None
-        The method under test (``validation.plan.under_test``).
+        The method under test (``rk4h.validation.plan.under_test``).
 
     Returns
     -------

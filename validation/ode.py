@@ -2,16 +2,16 @@
 
 :func:`ode_scene` turns ``fun`` (scipy's convention), ``t_span``, ``y0`` and
 an optional ``exact(t)`` and ``invariant(y)`` into a validated
-:class:`validation.scenes.Scene` whose model is an
-:class:`rk4core.models.FunctionOde`; every rule of a scene file holds (the
+:class:`rk4h.validation.scenes.Scene` whose model is an
+:class:`rk4h.models.FunctionOde`; every rule of a scene file holds (the
 steps divide the output spacing, which divides the horizon, ...). That scene
 goes where a scene file goes: :func:`study` runs its plan (truth, runs,
 convergence sweeps, the trust table's confirmation runs) in this process and
-returns its tables and checks; :func:`validation.advise.advise` gives the
+returns its tables and checks; :func:`rk4h.validation.advise.advise` gives the
 advisor's answer for a target error.
 
 The truth is ``exact`` when given, else DOP853 at its tightest tolerance
-confirmed by a second reference (:mod:`references.ode_truth`). The
+confirmed by a second reference (:mod:`rk4h.references.ode_truth`). The
 invariant's drift is ``max |I(t) - I0| / |I0|`` (the ``energy_drift_max``
 column). Times in the tables count from ``t_span[0]`` (the scene runs on
 ``[0, t_span[1] - t_span[0]]``; ``fun`` and ``exact`` are called at the
@@ -19,7 +19,7 @@ true times).
 
 Example (Lotka-Volterra)::
 
-    from validation.ode import ode_scene, study
+    from rk4h.validation.ode import ode_scene, study
 
     def lv(t, y):
         u, v = y
@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 
-from rk4core.models import FunctionOde, MODELS, register_model
+from rk4h.models import FunctionOde, MODELS, register_model
 
 from .scenes import Scene, SceneError, scene_from_dict
 
@@ -85,11 +85,11 @@ def ode_scene(fun, t_span, y0, *, exact=None, invariant=None, h=None, tolerances
 
     Returns
     -------
-    validation.scenes.Scene
+    rk4h.validation.scenes.Scene
 
     Raises
     ------
-    validation.scenes.SceneError
+    rk4h.validation.scenes.SceneError
         One line naming the field and the value.
     """
     try:
@@ -132,7 +132,7 @@ def study(scene, *, quick: bool = False, figures: bool = False):
 
     Returns
     -------
-    validation.measure.SceneTables
+    rk4h.validation.measure.SceneTables
         ``tables`` (name -> list of row dicts: ``accuracy``,
         ``work_precision``, ``convergence``, ``energy``, ``cheapest`` (the
         trust table), ...; ``pandas.DataFrame(res.tables[NAME])``), ``checks``

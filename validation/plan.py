@@ -3,7 +3,7 @@
 A :class:`RunSpec` is frozen, hashable and serializable: the scene it belongs
 to (its name and a digest of its content and of the code), the purpose of the
 run, the method and its setting, and the few parameters the purpose needs. Its
-:attr:`RunSpec.key` (SHA-256) names its record (:mod:`validation.records`): an
+:attr:`RunSpec.key` (SHA-256) names its record (:mod:`rk4h.validation.records`): an
 interrupted run resumes from the records it has, a cluster can run any subset,
 and two specs with one key are one run.
 
@@ -34,18 +34,18 @@ Purposes (``RunSpec.purpose``):
     the linearized model's exact solution against the truth of the nonlinear
     one (how much a cheaper model costs in accuracy at this amplitude).
 ``stability``
-    one unit of the stability study (:func:`validation.stability.units`).
+    one unit of the stability study (:func:`rk4h.validation.stability.units`).
 ``thesis_code``
     the thesis' programs run in GNU Octave and compared with rk4core and the
-    truth (:func:`references.thesis_code.compare`), with their computed errata.
+    truth (:func:`rk4h.references.thesis_code.compare`), with their computed errata.
 ``confirm``
     a ``run`` made to confirm a verdict of the trust table (the method under
     test at a predicted step, a reference at a tighter tolerance); planned
-    after the plan has run, from its records (:mod:`validation.confirm`),
+    after the plan has run, from its records (:mod:`rk4h.validation.confirm`),
     not by :func:`plan`.
 
 The order of the plan is the order of the report; execution order is the
-engine's business (:mod:`validation.engine`).
+engine's business (:mod:`rk4h.validation.engine`).
 """
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from references.registry import CONVERGENCE_ALWAYS
+from rk4h.references.registry import CONVERGENCE_ALWAYS
 
 __all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGETS",
            "ORDER_TOL", "RK4_THETAS", "EULER_THETAS", "order_methods", "settings_of", "PURPOSES",
@@ -66,7 +66,7 @@ __all__ = ["RunSpec", "plan", "plan_all", "scene_digest", "code_digest", "TARGET
 #: Target relative errors of the cheapest-solver table.
 TARGETS = (1e-3, 1e-6, 1e-9, 1e-12)
 #: Accepted deviation of a fitted order from the method's expected order
-#: (``references.registry.Method.order``: computed from the order conditions
+#: (``rk4h.references.registry.Method.order``: computed from the order conditions
 #: for a tableau, declared for python and command methods).
 ORDER_TOL = 0.1
 #: Default omega_max * h of the convergence sweeps (halving: nested step grids):
@@ -144,16 +144,27 @@ def _key(spec: RunSpec) -> str:
 @lru_cache(maxsize=1)
 def code_digest() -> str:
     """SHA-256 over the sources of the packages a record depends on
-    (``rk4core``, ``references``, ``validation``: their Python files and the
-    thesis' GNU Octave programs in ``rk4core/thesis_code``): a record made by
-    other code is never resumed."""
-    root = Path(__file__).resolve().parent.parent
+    (``rk4h``, ``rk4h.references``, ``rk4h.validation``: their Python files
+    and the thesis' GNU Octave programs in ``rk4h``'s ``thesis_code``): a
+    record made by other code is never resumed.
+
+    Each file is named by its module path inside ``rk4h`` (``fast/codegen.py``,
+    ``validation/plan.py``), so a checkout (three folders) and a wheel (one
+    ``rk4h`` folder holding the other two) of the same code agree."""
+    import rk4h
+    import rk4h.references
+    import rk4h.validation
+    files = {}
+    for sub, mod in (("", rk4h), ("references/", rk4h.references), ("validation/", rk4h.validation)):
+        root = Path(mod.__file__).resolve().parent
+        for pattern in ("*.py", "*.m"):
+            for p in root.rglob(pattern):
+                if "__pycache__" not in p.parts:
+                    files.setdefault(sub + p.relative_to(root).as_posix(), p)
     h = hashlib.sha256()
-    for pkg, pattern in (("rk4core", "*.py"), ("references", "*.py"), ("validation", "*.py"),
-                         ("rk4core/thesis_code", "*.m")):
-        for p in sorted((root / pkg).rglob(pattern)):
-            h.update(str(p.relative_to(root)).encode())
-            h.update(p.read_bytes())
+    for name in sorted(files):
+        h.update(name.encode())
+        h.update(files[name].read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -161,7 +172,7 @@ def scene_digest(scene) -> str:
     """Digest of everything in ``scene`` that a run depends on (not its file
     path or description), of the harness code (:func:`code_digest`), of the
     user's code the scene names and of the library versions and BLAS kernel
-    (:mod:`validation.provenance`)."""
+    (:mod:`rk4h.validation.provenance`)."""
     from .provenance import environment_digest, user_code_digest
 
     d = dataclasses.asdict(scene)
@@ -179,13 +190,13 @@ def settings_of(scene, solver) -> list:
 
 def order_methods(scene) -> list[tuple[str, str, tuple]]:
     """``(method, scene key of its thetas, default thetas)`` of every
-    convergence sweep of ``scene``: :data:`references.registry.CONVERGENCE_ALWAYS` and the scene's
+    convergence sweep of ``scene``: :data:`rk4h.references.registry.CONVERGENCE_ALWAYS` and the scene's
     own fixed-step methods, in that order."""
     out = []
     first_order = _first_order(scene)
     for name in dict.fromkeys((*CONVERGENCE_ALWAYS, *scene.fixed_solvers)):
         if first_order:  # a partitioned tableau integrates q' = v: not a first-order ODE's method
-            from references.solvers import mechanical_only
+            from rk4h.references.solvers import mechanical_only
 
             if mechanical_only(scene.method(name)):
                 continue
@@ -215,7 +226,7 @@ def plan(scene, *, quick: bool = False, figures: bool = True, repeats: int = 1) 
     p = outputs.Planning(scene, want, draw, quick, int(repeats),
                          lambda purpose, **kw: RunSpec(scene.name, dig, purpose, **kw))
     out = []
-    for hook in outputs.plan_hooks(want):  # each output's runs (validation.outputs), in plan order
+    for hook in outputs.plan_hooks(want):  # each output's runs (rk4h.validation.outputs), in plan order
         out += hook(p)
     seen = set()  # one run per key (two sweeps on one grid share their reference)
     return [s for s in out if not (s.key in seen or seen.add(s.key))]

@@ -1,8 +1,8 @@
 """What decides a record's numbers besides the scene: the user's code a scene
 names and the numerical libraries this process runs.
 
-A spec's key (:attr:`validation.plan.RunSpec.key`) covers the scene's digest,
-and :func:`validation.plan.scene_digest` folds in
+A spec's key (:attr:`rk4h.validation.plan.RunSpec.key`) covers the scene's digest,
+and :func:`rk4h.validation.plan.scene_digest` folds in
 
 * :func:`user_code_digest`: the content of the source files of the modules a
   scene names (``model = "package.module:Class"``, ``python =
@@ -12,7 +12,7 @@ and :func:`validation.plan.scene_digest` folds in
   Octave's ``octave-cli`` for the ``thesis_code`` output;
 * :func:`environment_digest`: the versions of numpy, scipy, heyoka,
   scikit-sundae and numba, the Python version and numpy's OpenBLAS kernel
-  (:func:`validation.report.blas_kernel`).
+  (:func:`rk4h.validation.report.blas_kernel`).
 
 So a record made before a user's stepper file or a library changed has
 another key and is rerun, never resumed.
@@ -51,7 +51,7 @@ _FILE_CACHE: dict = {}
 def library_versions() -> tuple:
     """``((distribution, version or "absent"), ...)`` of :data:`LIBRARIES`,
     looked up once per process (``importlib.metadata`` is slow)."""
-    from rk4core.distributions import version
+    from rk4h.distributions import version
 
     return tuple((name, version(name) or "absent") for name in LIBRARIES)
 
@@ -140,7 +140,7 @@ def _command_files(argv) -> list[str]:
     it has no directory part) and every other argument that is an existing
     file, after ``{thesis_code}`` is expanded (the per-run placeholders
     ``{problem}``, ``{trajectory}``, ``{workdir}`` name no file yet)."""
-    from rk4core.command import THESIS_CODE
+    from rk4h.command import THESIS_CODE
 
     out = []
     for i, arg in enumerate(argv):
@@ -172,7 +172,7 @@ def user_code_digest(scene) -> str:
         argv = table.get("command")
         if isinstance(argv, list) and argv:
             entries += [(f"command {name}", f) for f in _command_files(argv)]
-    if "thesis_code" in (scene.outputs or ()):  # references.thesis_code runs octave-cli
+    if "thesis_code" in (scene.outputs or ()):  # rk4h.references.thesis_code runs octave-cli
         entries += [("thesis_code", f) for f in _command_files(["octave-cli"])]
     h = hashlib.sha256()
     for what, f in entries:

@@ -1,4 +1,4 @@
-"""Run records: what one :class:`~validation.plan.RunSpec` measured, and where
+"""Run records: what one :class:`~rk4h.validation.plan.RunSpec` measured, and where
 records are kept between an interrupted run and its ``--resume``.
 
 A :class:`RunRecord` holds scalars only in ``values`` (deterministic: errors,
@@ -12,7 +12,7 @@ for stability units, the unit's rows, findings and plot data in ``result``.
 the size of its arrays file and one SHA-256 over the JSON and the arrays
 together) and ``<key>.npz`` (numpy arrays, loaded with ``allow_pickle=False``).
 The spec's key covers the harness code, the user's code the scene names, the
-library versions and the BLAS kernel (:func:`validation.plan.scene_digest`),
+library versions and the BLAS kernel (:func:`rk4h.validation.plan.scene_digest`),
 so a record is evidence only if it is the one this code, on these
 libraries, made. Files are written under a temporary name and renamed, so a
 killed run leaves whole records or none. A record is trusted only when its
@@ -133,7 +133,7 @@ def _digest(body: dict, npz: bytes) -> str:
 
 def dumps(record: RunRecord, spec=None) -> tuple[bytes, bytes]:
     """``(json bytes, npz bytes)`` of a record; ``spec`` (a
-    :class:`~validation.plan.RunSpec`, optional) is kept in the JSON, so a
+    :class:`~rk4h.validation.plan.RunSpec`, optional) is kept in the JSON, so a
     later run can tell a stale record of the same run from a foreign one."""
     arrays = {}
     body = {"key": record.key, "status": record.status, "message": record.message,
@@ -241,7 +241,7 @@ class RecordStore:
     RecordsLeft
         The store holds records of an earlier run and neither ``resume`` nor
         ``fresh`` is given; nothing is changed.
-    validation.atomic.TargetRefused
+    rk4h.validation.atomic.TargetRefused
         ``.<name>.records`` exists and is not a store of this tool.
 
     A store without records is used as it is (temporary files of a killed

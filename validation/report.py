@@ -1,5 +1,5 @@
 """Writing the report: tables (one row per measurement; CSV and Parquet, typed
-by :mod:`validation.columns`, described in ``columns.json``) and ``index.md``.
+by :mod:`rk4h.validation.columns`, described in ``columns.json``) and ``index.md``.
 
 Column order is fixed by :data:`COLUMNS`. Timing columns (:data:`TIMING`) are
 the only ones that change between two runs on one machine; every other column
@@ -26,10 +26,10 @@ from .tables import COLUMNS, DESCRIPTIONS, TIMING  # re-exported: the report's t
 
 def _frame(name, rows):
     """The table's rows as a frame in :data:`COLUMNS` order, typed by
-    :func:`validation.columns.typed_frame` (tables without a declaration as is)."""
+    :func:`rk4h.validation.columns.typed_frame` (tables without a declaration as is)."""
     import pandas as pd
 
-    from validation.columns import typed_frame
+    from rk4h.validation.columns import typed_frame
 
     cols = COLUMNS.get(name)
     df = pd.DataFrame(rows)
@@ -44,10 +44,10 @@ def _frame(name, rows):
 
 def write_tables(out_dir, tables: dict, front=()) -> dict:
     """Write ``tables`` (name -> rows) as ``name.csv`` and ``name.parquet``
-    (dtypes of :mod:`validation.columns`), and ``columns.json`` describing
+    (dtypes of :mod:`rk4h.validation.columns`), and ``columns.json`` describing
     the tables written; returns name -> CSV path. Columns in ``front`` (a
     sweep's parameters) come right after ``scene``."""
-    from validation import columns
+    from rk4h.validation import columns
 
     out, written = {}, set()
     for name, rows in tables.items():
@@ -69,7 +69,7 @@ def write_tables(out_dir, tables: dict, front=()) -> dict:
 
 def versions() -> dict:
     """Versions of the interpreter and the numerical stack, numpy's BLAS, and the machine."""
-    from rk4core.distributions import version
+    from rk4h.distributions import version
 
     v = {"python": sys.version.split()[0]}
     for dist in ("numpy", "scipy", "scikit-sundae", "heyoka", "numba", "pandas", "matplotlib"):
@@ -144,8 +144,8 @@ def _cpu_name() -> str:
 
 def errata_rows() -> list[dict]:
     """The errata table: thesis' printed numbers beside the computed ones
-    (``references.errata``, the code that also feeds the tables)."""
-    from references.errata import errata_rows as rows
+    (``rk4h.references.errata``, the code that also feeds the tables)."""
+    from rk4h.references.errata import errata_rows as rows
 
     return rows()
 
@@ -170,7 +170,7 @@ def _g(x, unit="") -> str:
 
 def trust_lines(rows) -> list[str]:
     """The trust table of index.md: one line per scene, one cell per target
-    (from ``cheapest.csv``, :mod:`validation.trust`)."""
+    (from ``cheapest.csv``, :mod:`rk4h.validation.trust`)."""
     if not rows:
         return []
     targets = sorted({float(r["target_error"]) for r in rows}, reverse=True)
@@ -227,7 +227,7 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
     ``stability.method``: given, or the first classical tableau it runs);
     a scene not in it gets the fixed-step method of its round-off or
     long-horizon rows, else the registry's method under test (rk4)."""
-    from references.registry import BUILTIN, UNDER_TEST
+    from rk4h.references.registry import BUILTIN, UNDER_TEST
 
     adaptive = {n for n, m in BUILTIN.items() if m.adaptive}  # the references, not the method under study
     out = []
@@ -254,7 +254,7 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
             out.append({"scene": sc, "limit": f"{m} long-run energy change",
                         "value": f"{r['measured'] * r['periods']:.3g} relative",
                         "detail": f"over {r['periods']:.3g} slow periods at omega_max h = {r['theta']:.3g}"})
-    from validation.stability._common import FREQUENCY_RATIO, SWEEP_NAMES, stiffest_index
+    from rk4h.validation.stability._common import FREQUENCY_RATIO, SWEEP_NAMES, stiffest_index
 
     for study, col in (("stiffness", "ratio"), ("mass_ratio", "mu")):
         pts = [r for r in rows if r["study"] == study and r["quantity"] == "nfev_at_error"]
@@ -279,9 +279,9 @@ def limits_rows(stability_rows, methods=None) -> list[dict]:
 
 def _figure_lines(results, out_dir) -> list[str]:
     """The figures section: each figure kind's reading guide once
-    (``validation.figures.GENERIC_CAPTIONS``, in the order kinds first
+    (``rk4h.validation.figures.GENERIC_CAPTIONS``, in the order kinds first
     appear), then per scene one line per figure with its own sentence."""
-    from validation.figures import GENERIC_CAPTIONS
+    from rk4h.validation.figures import GENERIC_CAPTIONS
 
     per_scene, kinds = [], {}
     for r in results:
@@ -319,9 +319,9 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
 
     ``stability_methods``: scene -> the method its stability study is about
     (:func:`limits_rows`). ``load``: the timing context
-    (:func:`validation.timing_context.load_context`; None: no timed run),
+    (:func:`rk4h.validation.timing_context.load_context`; None: no timed run),
     said in the header and the environment section; not given: not said."""
-    from validation import timing_context
+    from rk4h.validation import timing_context
 
     out_dir = Path(out_dir)
     lines = ["# RK4 validation report", ""]
@@ -376,7 +376,7 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
     lines += ["", "## Figures", ""]
     lines += _figure_lines(results, out_dir)
     lines += ["## Errata of the thesis", "",
-              "Printed values beside the values the harness computes (`references.errata`, the same "
+              "Printed values beside the values the harness computes (`rk4h.references.errata`, the same "
               "closed forms and eigenproblems that feed the tables above).", ""]
     try:
         lines += _md_table(["item", "quantity", "thesis", "corrected", "note"], errata_rows())

@@ -6,23 +6,23 @@ Usage::
                                  [--max-output-points N] [--max-steps N] [--max-truth-steps N]
                                  [--replace] [--workers N] [--exclusive-timing] [--scheduler ADDRESS]
                                  [--resume | --fresh] [--allow-code]
-    python -m validation.run_all ...
+    python -m rk4h.validation.run_all ...
 
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
 ``quick = true``; ``--scene``: the files named) and writes CSV tables,
 figures and ``index.md`` into ``DIR`` (default: ``reports/`` at the
 repository root). All scenes are validated, and their cost estimated
-(:mod:`validation.budget`), before anything runs.
+(:mod:`rk4h.validation.budget`), before anything runs.
 
 ``DIR`` is replaced only if it is absent, empty, or a report this tool wrote
-and nothing has changed in since (:mod:`validation.atomic`: a marker file with
+and nothing has changed in since (:mod:`rk4h.validation.atomic`: a marker file with
 a manifest); anything else is refused before any work, untouched. A ``--quick``
 or ``--scene`` run never replaces a full report unless ``--replace`` is given.
 
 A scene the project does not ship may name code (a ``command`` or ``python``
 method, a ``module:Class`` model): it is refused, exit 2, before anything is
 imported or started, unless ``--allow-code`` (or ``RK4H_ALLOW_CODE=1``) is
-given (:mod:`validation.scenes`, "Code in a scene").
+given (:mod:`rk4h.validation.scenes`, "Code in a scene").
 Runs into one ``DIR`` are serialized by ``flock`` on ``.<DIR>.lock`` beside it.
 The report is written into a fresh directory beside ``DIR`` and swapped into
 place at the end (one atomic ``renameat2`` exchange where the filesystem has
@@ -31,14 +31,14 @@ report; leftovers of killed runs are cleaned at the next start. SIGINT
 (Ctrl-C) and SIGTERM stop the run, remove its temporary directory and print
 which scenes had finished.
 
-The work is a plan (:mod:`validation.plan`): one record per spec, executed
+The work is a plan (:mod:`rk4h.validation.plan`): one record per spec, executed
 on ``--workers`` local processes (default: as many as the plan's estimated
 work repays, at most the cores this process may use, see
-:func:`validation.workers.choose_workers`) or on a Dask cluster
+:func:`rk4h.validation.workers.choose_workers`) or on a Dask cluster
 (``--scheduler``); the timed runs come last, one per worker
 (``--exclusive-timing``: one at a time, the other workers idle; see
-:mod:`validation.engine`). Each record is written to ``.<DIR>.records``
-beside ``DIR`` as it arrives (:mod:`validation.records`). After an interrupted
+:mod:`rk4h.validation.engine`). Each record is written to ``.<DIR>.records``
+beside ``DIR`` as it arrives (:mod:`rk4h.validation.records`). After an interrupted
 or failed run, ``--resume`` reruns only the specs that have no usable record
 (none, one that does not verify, or one made by other code, user code,
 libraries or BLAS kernel: the summary line counts them); ``--fresh`` moves
@@ -55,8 +55,8 @@ refused (lock held, not writable, disk full, mount point, name too long: one
 line); 130 interrupted by SIGINT, 143 by SIGTERM.
 
 This module is the command line: options, progress, signals, exit status;
-the run itself is :func:`validation.runner.execute`, which returns a
-:class:`validation.runner.RunReport` that :func:`main` prints.
+the run itself is :func:`rk4h.validation.runner.execute`, which returns a
+:class:`rk4h.validation.runner.RunReport` that :func:`main` prints.
 """
 from __future__ import annotations
 
@@ -90,10 +90,15 @@ if __name__ == "__main__" and __package__ in (None, ""):
     # Run as a script: import the package `validation`, not its modules as top-level names.
     sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != REPO / "validation"]
     sys.path.insert(0, str(REPO))
+    try:  # the folders import as rk4h, rk4h.references, rk4h.validation once installed
+        import rk4h  # noqa: F401
+    except ModuleNotFoundError:
+        sys.stderr.write("run_all: the harness is not installed: run `pip install -e .` in the checkout first\n")
+        raise SystemExit(2) from None
 
 __all__ = ["main", "run", "Interrupted", "exit_process"]
 
-from validation.runner import (  # noqa: E402,F401 - the pipeline, re-exported
+from rk4h.validation.runner import (  # noqa: E402,F401 - the pipeline, re-exported
     DEFAULT_OUT, MAX_REPEATS, REPEATS_FULL, REPEATS_QUICK, Interrupted, _crossover_job, run)
 
 
@@ -140,7 +145,7 @@ exit status: 0 every expectation held; 1 one failed (listed first in index.md); 
 
 
 def _parser(prog="run_all.py"):
-    from validation.budget import MAX_STEPS, MAX_TRUTH_STEPS
+    from rk4h.validation.budget import MAX_STEPS, MAX_TRUTH_STEPS
 
     p = _Parser(prog=prog, description="Run the validation scenes (every shipped one by default) and write the "
                 "report: tables, figures and index.md.", epilog=_EXAMPLES,
@@ -245,7 +250,7 @@ class _Signals:
         self.held, self.pending, self.saved, self.restore = False, None, {}, restore
 
     def _handler(self, signum, frame):
-        from validation import interrupt
+        from rk4h.validation import interrupt
 
         interrupt.record(signum)
         if self.held:
@@ -289,7 +294,7 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
 
     SIGINT and SIGTERM handlers are installed for the call and restored after
     it (``restore_signals=False``: ignored after it, for the process's exit)."""
-    from validation import extras, interrupt
+    from rk4h.validation import extras, interrupt
 
     lack = extras.message("run", prog)
     if lack is None and argv is not None and "--scheduler" in argv:
@@ -313,7 +318,7 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
 
 
 def _main(argv, sig, prog="run_all.py") -> int:
-    from validation import runner
+    from rk4h.validation import runner
 
     args = _parser(prog).parse_args(argv)
 

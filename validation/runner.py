@@ -2,17 +2,17 @@
 
 :func:`execute` takes the options of a run (:class:`RunOptions`, what
 ``run_all.py`` / ``rk4h run`` parse from the command line), loads and checks
-the scenes, chooses the workers (:func:`validation.workers.choose_workers`),
+the scenes, chooses the workers (:func:`rk4h.validation.workers.choose_workers`),
 runs the plan into a fresh directory beside ``--out``, swaps it into place
 and returns what happened: the exit status, the report's path, the counts,
 the failed checks. It prints nothing itself: the caller gets its notes
 through ``notify`` and its progress through ``progress``, and prints the
-report value (:mod:`validation.run_all` is that caller; it also owns the
+report value (:mod:`rk4h.validation.run_all` is that caller; it also owns the
 signal handlers and the process's exit).
 
-:func:`run` is the pipeline under it (``validation.plan`` ->
-``validation.engine`` -> ``validation.measure`` -> ``validation.draw`` /
-``validation.report``) for scenes already loaded, into an existing
+:func:`run` is the pipeline under it (``rk4h.validation.plan`` ->
+``rk4h.validation.engine`` -> ``rk4h.validation.measure`` -> ``rk4h.validation.draw`` /
+``rk4h.validation.report``) for scenes already loaded, into an existing
 directory; the cross-scene steps (the crossover figure, the time verdicts
 gated by the machine's load) are here too.
 """
@@ -51,7 +51,7 @@ class RunOptions:
     """The options of a run, as the command line names them (``run_all.py
     --help``). ``scenes``: the ``--scene`` arguments (empty: every shipped
     scene, or the quick ones); ``workers`` None: chosen from the plan's
-    estimated work (:func:`validation.workers.choose_workers`), else exactly
+    estimated work (:func:`rk4h.validation.workers.choose_workers`), else exactly
     that many local processes; ``repeats`` None: 3, or 1 with ``quick``."""
 
     scenes: list = field(default_factory=list)
@@ -92,7 +92,7 @@ class RunReport:
     processes used and ``workers_why`` how that number was chosen;
     ``phases`` seconds per phase; ``failures`` the failed expectations;
     ``records_found`` and ``audit`` describe the records of an earlier run
-    (:meth:`validation.records.RecordStore.audit`); ``kept_aside`` is
+    (:meth:`rk4h.validation.records.RecordStore.audit`); ``kept_aside`` is
     ``(path, why)`` when the previous report could not be removed."""
 
     status: int
@@ -130,16 +130,16 @@ def _quiet(line, err=False):
 
 
 def _check_run_args(scenes, out_dir, quick, repeats, figures, progress):
-    from rk4core.validate import boolean
+    from rk4h.validate import boolean
 
-    from validation.scenes import Scene
+    from rk4h.validation.scenes import Scene
 
     if isinstance(scenes, (str, bytes, Path)) or not hasattr(scenes, "__iter__"):
         raise ValueError(f"`scenes` must be a list of Scene objects, got {scenes!r}")
     scenes = list(scenes)
     for i, s in enumerate(scenes):
         if not isinstance(s, Scene):
-            raise ValueError(f"`scenes[{i}]` must be a Scene (validation.scenes.load_scene), got {s!r}")
+            raise ValueError(f"`scenes[{i}]` must be a Scene (rk4h.validation.scenes.load_scene), got {s!r}")
     if not isinstance(out_dir, (str, Path)) or not Path(out_dir).is_dir():
         raise ValueError(f"`out_dir` must be an existing directory, got {out_dir!r}")
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 1 <= repeats <= MAX_REPEATS:
@@ -156,14 +156,14 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         completed=None):
     """Run ``scenes`` and write the report into ``out_dir`` (which must exist).
 
-    The pipeline (``validation.plan`` -> ``validation.engine`` ->
-    ``validation.measure`` -> ``validation.draw`` / ``validation.report``):
+    The pipeline (``rk4h.validation.plan`` -> ``rk4h.validation.engine`` ->
+    ``rk4h.validation.measure`` -> ``rk4h.validation.draw`` / ``rk4h.validation.report``):
     every scene's plan is executed (records), then tables, checks and figures
     are computed from the records alone.
 
     Parameters
     ----------
-    scenes : list of validation.scenes.Scene
+    scenes : list of rk4h.validation.scenes.Scene
     out_dir : str or Path
         An existing directory; tables, figures and ``index.md`` are written
         straight into it (:func:`main` passes a fresh temporary directory).
@@ -179,14 +179,14 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         Local processes (1: this process).
     scheduler : str or None
         A Dask scheduler's address.
-    store : validation.records.RecordStore or None
+    store : rk4h.validation.records.RecordStore or None
         Records to resume from and to write.
-    stats : validation.engine.PlanStats or None
+    stats : rk4h.validation.engine.PlanStats or None
         Filled with the counts of planned, resumed and executed specs.
     exclusive_timing : bool
         Time each run alone, the other workers idle (default: the timed runs
-        run one per worker after the untimed work; see ``validation.engine``).
-    pools : validation.engine.LocalPools or None
+        run one per worker after the untimed work; see ``rk4h.validation.engine``).
+    pools : rk4h.validation.engine.LocalPools or None
         Worker processes started by the caller, who closes them (``workers``
         is then their number); default: started here when ``workers > 1``
         and stopped at the end.
@@ -204,7 +204,7 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         raise ValueError(f"`workers` must be an integer >= 1, got {workers!r}")
     if not isinstance(exclusive_timing, bool):
         raise ValueError(f"`exclusive_timing` must be True or False, got {exclusive_timing!r}")
-    from validation import engine, interrupt, plan
+    from rk4h.validation import engine, interrupt, plan
 
     t0 = time.perf_counter()
     if completed is None:
@@ -217,7 +217,7 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
         try:
             scene.build_model()
         except Exception as e:  # noqa: BLE001
-            from validation.atomic import is_environment_error
+            from rk4h.validation.atomic import is_environment_error
 
             if is_environment_error(e) or interrupt.pending():
                 raise
@@ -274,14 +274,14 @@ def run(scenes, out_dir, *, quick=False, repeats=REPEATS_FULL, figures=True, pro
 
 def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats, pools, records, tick,
          complete, t0, broken, exclusive_timing=False, grow=None):
-    from validation import atomic, budget, confirm, draw, engine, interrupt, measure, report
+    from rk4h.validation import atomic, budget, confirm, draw, engine, interrupt, measure, report
 
     t_run = time.perf_counter()
     stats = stats if stats is not None else engine.PlanStats()
     records = engine.run_plan(jobs, quick=quick, workers=pools.workers if pools else 1, scheduler=scheduler,
                               store=store, progress=tick, cost=budget.spec_cost_function(), stats=stats,
                               records=records, pools=pools, exclusive_timing=exclusive_timing)
-    # Confirmation runs of the trust table (validation.confirm): planned from the records, in rounds.
+    # Confirmation runs of the trust table (rk4h.validation.confirm): planned from the records, in rounds.
     unplanned = {}
     for _ in range(confirm.MAX_ROUNDS):
         extra = []
@@ -337,7 +337,7 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     for r in results:
         for name, rows in r.tables.items():
             tables.setdefault(name, []).extend(rows)
-    from validation import timing_context
+    from rk4h.validation import timing_context
 
     load = timing_context.load_context(
         stats.load_before, stats.load_after, executed_timed=stats.timed_executed,
@@ -361,7 +361,7 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
         failures += r.failures
         findings += r.findings
     findings = timing_context.findings(load) + report.summarize(tables) + findings
-    from validation import outputs
+    from rk4h.validation import outputs
 
     files, file_failures = outputs.write_files(out_dir, results)  # e.g. the trajectory output's netCDF
     findings += [str(sentence) for _, sentence in files]
@@ -397,7 +397,7 @@ def _crossover_job(cheapest):
     ``alt_confirmed``); ``tie`` and ``unmeasured`` cells name no solver."""
     import pandas as pd
 
-    from validation import measure
+    from rk4h.validation import measure
 
     rows = []
     for r in pd.DataFrame(cheapest).to_dict("records"):
@@ -420,8 +420,8 @@ def _draw_all(results, sweep_jobs, out_dir, by_name, pools, extra=()):
     ``extra`` (on the worker processes when there are any); a plotting fault
     is a failed check of its scene. The sweeps' and ``extra``'s results are
     appended to ``results``."""
-    from validation import atomic, interrupt, measure
-    from validation.draw import draw_job
+    from rk4h.validation import atomic, interrupt, measure
+    from rk4h.validation.draw import draw_job
 
     sweeps = {}
     for job in sweep_jobs:
@@ -475,8 +475,8 @@ def execute(options: RunOptions, *, progress=None, notify=None, guard=None) -> R
     one-line ``message``, never exceptions (``KeyboardInterrupt`` before the
     run started excepted).
     """
-    from validation import atomic, budget
-    from validation.scenes import SceneError, load_scenes
+    from rk4h.validation import atomic, budget
+    from rk4h.validation.scenes import SceneError, load_scenes
 
     notify = notify or _quiet
     guard = guard or _NoGuard()
@@ -550,9 +550,9 @@ def _run_into(target: Path, scenes, options, repeats: int, scope: str, guard, pr
     (the caller holds the lock)."""
     import shutil
 
-    from validation import atomic, engine, records
-    from validation.plan import plan_all
-    from validation.workers import choose_workers
+    from rk4h.validation import atomic, engine, records
+    from rk4h.validation.plan import plan_all
+    from rk4h.validation.workers import choose_workers
 
     figures = options.figures
     store = records.RecordStore(target, resume=options.resume, fresh=options.fresh)
@@ -654,7 +654,7 @@ def _counts(report, stats) -> None:
 
 def _check_name_length(target: Path) -> None:
     """The temporary names beside ``target`` must fit the filesystem's limit."""
-    from validation import atomic
+    from rk4h.validation import atomic
 
     longest = max(len(os.fsencode(f".{target.name}.kept-{'0' * 12}")),
                   len(os.fsencode(f".{target.name}.records-aside-{'0' * 16}-999")))
@@ -695,7 +695,7 @@ def _check_scheduler(address):
 
     if not re.fullmatch(r"(tcp|tls|inproc|ws|wss)://[^\s/]+|[^\s/:]+:\d+", address):
         raise _BadInput(f"--scheduler: must be an address like tcp://127.0.0.1:8786, got {address!r}")
-    from validation import engine
+    from rk4h.validation import engine
 
     try:
         engine.scheduler_timeout()

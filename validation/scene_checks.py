@@ -1,5 +1,5 @@
-"""What scene loading (:mod:`validation.scenes`) and sweep expansion
-(:mod:`validation.sweeps`) share: the error they raise and the small checks
+"""What scene loading (:mod:`rk4h.validation.scenes`) and sweep expansion
+(:mod:`rk4h.validation.sweeps`) share: the error they raise and the small checks
 both make. Kept apart so that neither of the two imports the other's caller.
 """
 from __future__ import annotations
@@ -52,8 +52,8 @@ def unknown_keys(path, fld, table: dict, known) -> None:
 
 def check_model(path, model_name) -> None:
     """Refuse a ``model`` that is neither a built-in nor ``package.module:Class``."""
-    from rk4core import MODELS
-    from rk4core.models import resolve_model
+    from rk4h import MODELS
+    from rk4h.models import resolve_model
 
     try:
         resolve_model(model_name)
@@ -64,13 +64,13 @@ def check_model(path, model_name) -> None:
 
 def model_keys(model_name) -> set:
     """The parameter names (required and optional) of model ``model_name``."""
-    from rk4core.models import model_parameters
+    from rk4h.models import model_parameters
 
     required, optional = model_parameters(model_name)
     return set(required) | set(optional)
 
 
 def figure_stem(name: str) -> str:
-    """The stem ``validation.figures.slug`` makes of a scene name (figure files
+    """The stem ``rk4h.validation.figures.slug`` makes of a scene name (figure files
     start with it); repeated here to keep matplotlib out of scene loading."""
     return re.sub(r"[^a-z0-9]+", "_", name.lower()).strip("_")

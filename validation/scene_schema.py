@@ -3,27 +3,27 @@
 Every key a scene file may hold, its type, bounds, default, unit, example and
 meaning is declared here, and nowhere else -- but a model's ``[params]``,
 which are generated from the model's own declaration (its ``parameters``,
-:mod:`rk4core.models.params`): :mod:`validation.scenes` validates
+:mod:`rk4h.models.params`): :mod:`rk4h.validation.scenes` validates
 a document's structure with :data:`SCENE` and keeps only the checks a schema
 cannot express (the model's degrees of freedom, ``h`` dividing
 ``output_dt``, the solvers a scene's own methods add, sweeps). The reference
 and the JSON Schema are generated from these models::
 
-    python -m validation.scene_schema --markdown > docs/scene-reference.md
-    python -m validation.scene_schema --json-schema > docs/scene.schema.json
+    python -m rk4h.validation.scene_schema --markdown > docs/scene-reference.md
+    python -m rk4h.validation.scene_schema --json-schema > docs/scene.schema.json
 
-(``python -m validation.docs_gen`` writes both, with the other generated documents.)
+(``python -m rk4h.validation.docs_gen`` writes both, with the other generated documents.)
 
 The top level is a union on ``model``: one variant per built-in model
-(``rk4core.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
+(``rk4h.models.BUILTIN_CLASSES``), whose ``[params]`` table is generated
 from the model's declaration (:func:`params_table`), and one for a user's
 model (``"package.module:Class"``), whose ``[params]`` are checked by the
-table generated the same way from its class once :mod:`validation.scenes`
+table generated the same way from its class once :mod:`rk4h.validation.scenes`
 has resolved it (:func:`params_error`).
 A callable discriminator picks the variant (a string naming a built-in model
 selects it, anything else the user variant), so only one variant is
 validated and its errors name the document's own fields. ``[stability]`` is
-declared from :data:`validation.stability.params.PARAMS` and validated by its
+declared from :data:`rk4h.validation.stability.params.PARAMS` and validated by its
 ``validate_params`` (the bounds table stays the rule there).
 """
 from __future__ import annotations
@@ -36,23 +36,23 @@ from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Fiel
                       WrapValidator, create_model, model_validator)
 from pydantic_core import PydanticCustomError, PydanticUndefined, core_schema
 
-from references.registry import _METHOD_NAME, BUILTIN
-from rk4core.models import BUILTIN_CLASSES, Param, ParamRule, declared
-from rk4core.models.base import MASS_MIN
-from rk4core.models.params import is_declared
-from validation import outputs as _outputs
-from validation.plan import EULER_THETAS, RK4_THETAS
-from validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
+from rk4h.references.registry import _METHOD_NAME, BUILTIN
+from rk4h.models import BUILTIN_CLASSES, Param, ParamRule, declared
+from rk4h.models.base import MASS_MIN
+from rk4h.models.params import is_declared
+from rk4h.validation import outputs as _outputs
+from rk4h.validation.plan import EULER_THETAS, RK4_THETAS
+from rk4h.validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
 
 __all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP",
            "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
 
 #: What a scene may ask for in ``run.outputs``: the output registry's names
-#: (:mod:`validation.outputs`) when this module was imported; the schema
+#: (:mod:`rk4h.validation.outputs`) when this module was imported; the schema
 #: itself reads the registry at validation time (:class:`_OutputName`).
 OUTPUTS = _outputs.names()
 #: output -> (when it applies, so is in the default ``run.outputs``; what it adds to the report),
-#: from the registry. The rule is :func:`validation.scenes.default_outputs`.
+#: from the registry. The rule is :func:`rk4h.validation.scenes.default_outputs`.
 OUTPUT_HELP = _outputs.help_rows()
 NAME_PATTERN = "^[a-z0-9][a-z0-9_-]*$"
 NAME_MAX = 100
@@ -93,7 +93,7 @@ def _open_unit(x: float) -> float:
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-#: A mass, stiffness or length: a normal positive float (rk4core.models.base.MASS_MIN).
+#: A mass, stiffness or length: a normal positive float (rk4h.models.base.MASS_MIN).
 Normal = Annotated[float, Field(ge=MASS_MIN, allow_inf_nan=False)]
 #: In (0, 1), refused in one message (the bounds are written for the JSON Schema only).
 OpenUnit = Annotated[float, Field(allow_inf_nan=False, json_schema_extra={"exclusiveMinimum": 0,
@@ -111,7 +111,7 @@ def _output_name(name: str) -> str:
 
 
 class _OutputName(str):
-    """A name of :data:`validation.outputs.OUTPUTS`, read when a scene is
+    """A name of :data:`rk4h.validation.outputs.OUTPUTS`, read when a scene is
     validated (an output registered after import is accepted); its JSON
     Schema is the registry's names."""
 
@@ -146,7 +146,7 @@ class _Table(BaseModel):
 
 # -- [params], one table per model, generated from its declaration ---------------------------
 def _param_type(p: Param):
-    """The pydantic type of declared parameter ``p`` (:data:`rk4core.models.params.KINDS`)."""
+    """The pydantic type of declared parameter ``p`` (:data:`rk4h.models.params.KINDS`)."""
     lengths = {k: v for k, v in (("min_length", p.min_length), ("max_length", p.max_length)) if v is not None}
     if p.kind == "int":
         bounds = {k: v for k, v in (("ge", p.ge), ("le", p.le)) if v is not None}
@@ -189,7 +189,7 @@ def _check_rules(model_cls):
 
 def params_table(model_cls) -> type[BaseModel]:
     """The ``[params]`` table of model class ``model_cls``, generated from its
-    declared ``parameters`` (:func:`rk4core.models.params.declared`: its
+    declared ``parameters`` (:func:`rk4h.models.params.declared`: its
     constructor's arguments, of any type, when it declares none), with its
     ``check_parameters`` rules. Cached on the class."""
     cached = model_cls.__dict__.get("_params_table")
@@ -293,8 +293,8 @@ class MethodTable(_Table):
                                 default=None)
     description: str = _f("label in tables and figures", "-", "Ralston's second-order method", default="")
     python: str = _f("a step function f(fun, t, y, h) -> y_next, as 'package.module:function'", "-",
-                     "rk4core.steppers:rk4_step", default=None, pattern=_TARGET)
-    command: list[str] = _f("an external program speaking the file protocol (rk4core.command), as argv", "-",
+                     "rk4h.steppers:rk4_step", default=None, pattern=_TARGET)
+    command: list[str] = _f("an external program speaking the file protocol (rk4h.command), as argv", "-",
                             ["octave-cli", "step.m"], default=None, min_length=1, max_length=100)
     order: int = _f("the declared order of a python or command method (a tableau's is computed)", "-", 4,
                     default=None, ge=1, le=20)
@@ -303,7 +303,7 @@ class MethodTable(_Table):
 
 
 #: Horizons (periods of the slowest mode) and steps per fastest period of the
-#: ``energy_work_precision`` output (validation.energy_time.WP_HORIZONS; the CLI's steps).
+#: ``energy_work_precision`` output (rk4h.validation.energy_time.WP_HORIZONS; the CLI's steps).
 EWP_PERIODS = (1e2, 1e4)
 EWP_STEPS = (8, 16, 32, 64)
 
@@ -335,7 +335,7 @@ def _stability_field(p):
                              **({"default_text": text} if text else {}))
 
 
-#: The ``[stability]`` table, declared from validation.stability.params.PARAMS.
+#: The ``[stability]`` table, declared from rk4h.validation.stability.params.PARAMS.
 Stability = create_model("Stability", __config__=_STRICT, __doc__="The stability study (docs/stability-params.md).",
                          **{p.name: _stability_field(p) for p in PARAMS})
 
@@ -352,7 +352,7 @@ def _by_params(value, handler):
         raise _rule(e.problem, at=e.field[len("stability"):], **shown) from None
 
 
-#: A key of ``[ensemble]`` (validation.ensemble).
+#: A key of ``[ensemble]`` (rk4h.validation.ensemble).
 _ENSEMBLE_KEY = r"^(size|seed|map_h|map_steps|initial\.[xv]\[(0|[1-9][0-9]*)\]|params\.[A-Za-z_][A-Za-z0-9_]*(\[(0|[1-9][0-9]*)\])?)$"
 
 SweepValue = Union[bool, int, float, Annotated[str, Field(pattern=f"^{WORD}$")]]
@@ -367,7 +367,7 @@ def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
                       pattern=NAME_PATTERN, max_length=NAME_MAX)),
         description=(str, _f("what the scene shows, one line", "-", "Thesis Table 4.1: unequal masses", default="")),
         model=(model_type, _f(f"the model: {builtin} (its [params] below), or 'package.module:Class', a subclass of "
-                              f"rk4core.Model", "-", "chain")),
+                              f"rk4h.Model", "-", "chain")),
         quick=(bool, _f("part of the --quick subset", "-", True, default=False)),
         thesis_figures=(str, _f("the thesis figures this scene reproduces, quoted in its state figures' captions "
                                 "as '(thesis ...)'; empty: the scene reproduces none", "-", "Figs 4.1-4.2",
@@ -478,7 +478,7 @@ def first_error(exc, doc, variant=None) -> tuple[str, str, object]:
     field : str
         Dotted path into the document, ``run.h[1]`` (union tags dropped).
     problem : str
-        What is wrong, as :class:`validation.scenes.SceneError` words it.
+        What is wrong, as :class:`rk4h.validation.scenes.SceneError` words it.
     value : object
         The offending value; None when none is shown (a missing or unknown key).
 
@@ -672,7 +672,7 @@ _INTRO = """\
 # Scene files: every key
 
 Generated from `validation/scene_schema.py` (pydantic models, strict, unknown keys refused) by
-`python -m validation.scene_schema --markdown > docs/scene-reference.md`;
+`python -m rk4h.validation.scene_schema --markdown > docs/scene-reference.md`;
 `tests/test_scene_schema.py` checks that this file is current and that every key below is accepted.
 A scene is a TOML file in `validation/scenes/` (or anywhere, given by path): `--scene NAME` runs a
 shipped scene by its `name` or file stem. A malformed scene is refused before anything runs, with one
@@ -709,7 +709,7 @@ they import).
 _ENSEMBLE = """\
 ## `[ensemble]`
 
-`size` instances (1 to 10^8) of the scene's model, one batch (`rk4core.ensemble`, numba backend), for the
+`size` instances (1 to 10^8) of the scene's model, one batch (`rk4h.ensemble`, numba backend), for the
 `ensemble` and `stability_map` outputs. `seed` (default 0) seeds `numpy.random.default_rng`. Every other key
 is `"initial.x[i]"`, `"initial.v[i]"`, `"params.NAME"` or `"params.NAME[i]"` (a numeric parameter) = a
 distribution: `{ dist = "uniform", low, high }`, `{ dist = "normal", mean, std }`,
@@ -736,8 +736,8 @@ the docstring of `validation/sweeps.py`.
 _USER = """\
 ### `[params]` of a user's model
 
-With `model = "package.module:Class"` (a subclass of `rk4core.Model`, importable), the keys are the
-class's declared `parameters` (`rk4core.models.Param` rows: kind, unit, default, description; checked
+With `model = "package.module:Class"` (a subclass of `rk4h.Model`, importable), the keys are the
+class's declared `parameters` (`rk4h.models.Param` rows: kind, unit, default, description; checked
 as the built-ins' tables above are), or, when it declares none, the arguments of its `__init__`: those
 without a default are required, unknown keys are refused.
 """
@@ -765,19 +765,19 @@ def reference_markdown() -> str:
         parts += [f"### `[params]` of `model = \"{name}\"`\n", (cls.__doc__ or "").strip() + "\n", _table(cls), ""]
     parts += [_USER, "## `[initial]`\n", _table(Initial), "", "## `[run]`\n", _table(Run), "",
               "### Outputs\n", "`run.outputs` defaults to every output that applies to the model "
-              "(`validation.scenes.default_outputs`); a chain above 5000 degrees of freedom gets only "
+              "(`rk4h.validation.scenes.default_outputs`); a chain above 5000 degrees of freedom gets only "
               "`stability` (every other output needs a dense eigensolve).\n", _outputs_table(), "",
               "## `[convergence]`\n", _table(Convergence), "",
               "## `[energy_work_precision]`\n", "Read only when run.outputs lists `energy_work_precision`.\n",
               _table(EnergyWorkPrecision), "", "## `[methods.NAME]`\n",
               "Exactly one of a tableau (`A`, `b`, optional `c`; `A_v`, `b_v` make it partitioned), `python` or "
               "`command`; the last two need `order`.\n", _table(MethodTable), "",
-              "## `[stability]`\n", "Declared from `validation.stability.params.PARAMS`; the same keys with their "
+              "## `[stability]`\n", "Declared from `rk4h.validation.stability.params.PARAMS`; the same keys with their "
               "ranges: [stability-params.md](stability-params.md).\n", _table(Stability), "", _ENSEMBLE, _SWEEP]
     return "\n".join(parts)
 
 
-def main(argv=None, *, prog="python -m validation.scene_schema") -> int:
+def main(argv=None, *, prog="python -m rk4h.validation.scene_schema") -> int:
     """Print the scene reference (``--markdown``) or the JSON Schema
     (``--json-schema``); returns the exit status."""
     import argparse

@@ -1,13 +1,13 @@
 """Scene files: one physical situation and what to measure on it (docs/scene-reference.md).
 
 Every key a scene file may hold -- type, unit, default, an example -- is in
-``docs/scene-reference.md``, generated from :mod:`validation.scene_schema`,
+``docs/scene-reference.md``, generated from :mod:`rk4h.validation.scene_schema`,
 where the document's structure is declared once (pydantic, strict: TOML types
 kept, unknown keys refused; a union on ``model``). A short scene::
 
     name = "thesis-2dof-case1"          # [a-z0-9_-], unique; figure names start with it
-    model = "chain"                     # a key of rk4core.models.MODELS, or "package.module:Class"
-    [params]                            # the model's parameters (rk4core.make_model)
+    model = "chain"                     # a key of rk4h.models.MODELS, or "package.module:Class"
+    [params]                            # the model's parameters (rk4h.make_model)
     masses = [0.815, 3.099]
     springs = [41.5, 138.0, 157.8]
     [initial]
@@ -19,7 +19,7 @@ kept, unknown keys refused; a union on ``model``). A short scene::
                                         # outputs: default, every output that applies
 
 :func:`scene_from_dict` validates the document with
-:data:`validation.scene_schema.SCENE`, then checks here what a schema cannot
+:data:`rk4h.validation.scene_schema.SCENE`, then checks here what a schema cannot
 express: the model (a user's model imported and its parameters checked
 against its constructor), the parameters' model (rk4core builds it), ``x``
 and ``v`` against the model's degrees of freedom, a mode's shape, the solvers
@@ -44,7 +44,7 @@ overflows) is refused naming field ``params`` with rk4core's own line.
 Sweeps
 ------
 An optional ``[sweep]`` table makes the file stand for one scene per point of
-a parameter grid; :mod:`validation.sweeps` expands it (its docstring gives the
+a parameter grid; :mod:`rk4h.validation.sweeps` expands it (its docstring gives the
 rules, the point names and the errors). Each point is validated by
 :func:`scene_from_dict` as an ordinary scene.
 
@@ -90,8 +90,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from references.registry import MethodError, methods_from_tables, names, resolve
-from rk4core.solver import _SLACK as _STEP_SLACK
+from rk4h.references.registry import MethodError, methods_from_tables, names, resolve
+from rk4h.solver import _SLACK as _STEP_SLACK
 
 from . import scene_schema, sweeps
 from .scene_checks import SceneError
@@ -109,7 +109,7 @@ __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scene
 
 #: Degrees of freedom above which no dense eigenproblem is solved (modes,
 #: the exact modal reference): minutes of O(n^3) work; the budget
-#: (:mod:`validation.budget`) refuses such scenes, and the defaults skip
+#: (:mod:`rk4h.validation.budget`) refuses such scenes, and the defaults skip
 #: what would need one.
 MAX_DENSE_DOF = 5000
 SCENE_DIR = Path(__file__).resolve().parent / "scenes"
@@ -159,7 +159,7 @@ class Scene:
     methods: dict = field(default_factory=dict)
     #: the thesis figures the scene reproduces (``thesis_figures``; "" for none)
     thesis_figures: str = ""
-    #: the ``[ensemble]`` table as written (validation.ensemble), or None
+    #: the ``[ensemble]`` table as written (rk4h.validation.ensemble), or None
     ensemble: dict | None = None
 
     def __post_init__(self):
@@ -179,7 +179,7 @@ class Scene:
 
     def build_model(self):
         """The rk4core model the scene names."""
-        from rk4core import make_model
+        from rk4h import make_model
 
         return make_model(self.model, dict(self.params))
 
@@ -208,7 +208,7 @@ class Scene:
 
     @property
     def registry(self) -> dict:
-        """The scene's own methods by name (:class:`references.registry.Method`),
+        """The scene's own methods by name (:class:`rk4h.references.registry.Method`),
         built once per scene object."""
         cached = self.__dict__.get("_registry")
         if cached is None:
@@ -216,7 +216,7 @@ class Scene:
         return cached
 
     def method(self, name):
-        """The :class:`references.registry.Method` ``name`` names in this scene."""
+        """The :class:`rk4h.references.registry.Method` ``name`` names in this scene."""
         return resolve(name, self.registry)
 
     @property
@@ -248,7 +248,7 @@ def _divides(small: float, big: float) -> bool:
 
 
 def _validated(path, doc: dict):
-    """``doc`` validated by :data:`validation.scene_schema.SCENE` (the variant of
+    """``doc`` validated by :data:`rk4h.validation.scene_schema.SCENE` (the variant of
     its model), or the :class:`SceneError` of its first error."""
     try:
         return scene_schema.SCENE.validate_python(doc)
@@ -376,7 +376,7 @@ def load_scene(path, *, allow_code=None) -> Scene:
 
 def load_scene_points(path, *, allow_code=None) -> list[Scene]:
     """Read and validate one scene file: one :class:`Scene` per point of its
-    ``[sweep]`` (:mod:`validation.sweeps`), or the one scene of an unswept
+    ``[sweep]`` (:mod:`rk4h.validation.sweeps`), or the one scene of an unswept
     file. ``allow_code`` as for :func:`load_scene`."""
     return _load_file(path, allow_code)
 
@@ -541,7 +541,7 @@ def _first_order_start(path, model_name, model, ini, doc):
 
 def _first_order_solver(path, i, solver, methods) -> None:
     """Refuse a solver that needs a mechanical model on a first-order ODE."""
-    from references.solvers import mechanical_only
+    from rk4h.references.solvers import mechanical_only
 
     if mechanical_only(resolve(solver, methods)):
         raise SceneError(path, f"run.solvers[{i}]", "needs a mechanical model (y = [q, v], masses, a potential); "
@@ -550,7 +550,7 @@ def _first_order_solver(path, i, solver, methods) -> None:
 
 def default_outputs(model, *, stability: bool = False) -> list[str]:
     """What ``run.outputs`` is when a scene omits it: every output of
-    :data:`validation.outputs.OUTPUTS` whose ``applies`` holds for ``model``
+    :data:`rk4h.validation.outputs.OUTPUTS` whose ``applies`` holds for ``model``
     (an rk4core model), in the registry's order. Each output module states its
     rule; the built-ins:
 
@@ -559,7 +559,7 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
       (a stiffness matrix: its frequencies set the convergence grid);
     * ``linearization``: a nonlinear model with a linearization;
     * ``dispersion``: a uniform chain between walls (the rule the dispersion
-      output itself applies, :meth:`rk4core.models.Model.uniform_chain`);
+      output itself applies, :meth:`rk4h.models.Model.uniform_chain`);
     * ``stability``: when the scene has a ``[stability]`` table;
     * ``thesis_code``, ``trajectory``: never (the thesis' own programs; every
       run's states);
@@ -583,8 +583,8 @@ def _build_model(path, model_name, params):
     parameters (its constructor's, when it declares none), as the schema
     checks a built-in's; what rk4core still refuses is one line naming
     ``params``."""
-    from rk4core import MODELS, make_model
-    from rk4core.models import resolve_model
+    from rk4h import MODELS, make_model
+    from rk4h.models import resolve_model
 
     if model_name not in scene_schema.BUILTIN_MODELS:
         err = scene_schema.params_error(MODELS[resolve_model(model_name)], params)
@@ -631,8 +631,8 @@ def _mode_shape(path, model, ini) -> list:
 def _stability_method(path, name, solvers, methods) -> str:
     """``stability.method``: the classical tableau the studies integrate
     (given, or the first classical tableau of ``run.solvers``, else
-    :data:`references.registry.UNDER_TEST`)."""
-    from references.registry import UNDER_TEST, Kind
+    :data:`rk4h.references.registry.UNDER_TEST`)."""
+    from rk4h.references.registry import UNDER_TEST, Kind
 
     if name is None:
         return next((sv for sv in solvers if resolve(sv, methods).kind is Kind.TABLEAU), UNDER_TEST)
@@ -647,7 +647,7 @@ def _stability_method(path, name, solvers, methods) -> str:
 
 def scene_points_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True) -> list[Scene]:
     """Validate a parsed scene document: one :class:`Scene` per point of its
-    ``[sweep]`` (:mod:`validation.sweeps`), or ``[scene]`` without one.
+    ``[sweep]`` (:mod:`rk4h.validation.sweeps`), or ``[scene]`` without one.
     ``allow_code`` as for :func:`scene_from_dict`."""
     if not allow_code:
         _refuse_code(path, doc)
@@ -681,7 +681,7 @@ def resolve_scene(arg) -> Path:
 def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
     """Load ``paths`` (default: every ``*.toml`` in :data:`SCENE_DIR`, sorted).
 
-    Returns one :class:`Scene` per sweep point (:mod:`validation.sweeps`),
+    Returns one :class:`Scene` per sweep point (:mod:`rk4h.validation.sweeps`),
     file by file. A path may also name one point of a shipped scene,
     ``BASE@TOKEN=VALUE...``. With ``quick``, keep the scenes marked ``quick =
     true``. Every file is validated before any is run; the first bad one raises
@@ -697,7 +697,7 @@ def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
         scenes = [s for p in paths for s in _load_arg(p, allow)]
     seen = {}
     for s in scenes:
-        # figure files are named after the scene's stem (validation.figures.slug: '-', '_', '@', '='
+        # figure files are named after the scene's stem (rk4h.validation.figures.slug: '-', '_', '@', '='
         # and '.' alike): those stems must differ too
         key = _figure_stem(s.name)
         if key in seen:

@@ -1,7 +1,7 @@
 """Sweeps: a scene file that stands for one scene per point of a parameter grid.
 
 :func:`expand` turns a scene document holding ``[sweep]`` into one scene per
-point; :func:`validation.scenes.scene_points_from_dict` and the scene loaders
+point; :func:`rk4h.validation.scenes.scene_points_from_dict` and the scene loaders
 call it, handing it the validation of one unswept document.
 
 An optional ``[sweep]`` table makes the file stand for one scene per point of
@@ -40,14 +40,14 @@ does not hold, an empty or non-list value, and two keys of which one contains
 the other or which share a column or a name token.
 
 Each point is the document with every swept path set to the point's value and
-the ``[sweep]`` table dropped, validated by :func:`validation.scenes.scene_from_dict` as an
+the ``[sweep]`` table dropped, validated by :func:`rk4h.validation.scenes.scene_from_dict` as an
 ordinary scene: every rule above holds for every point, and an error names
 the first point that fails, e.g. ``FILE: field `sweep."params.masses[1]"[2]`:
 at params.masses[1] = -1.0: field `params.masses[1]`: must be > 0 (got
 -1.0)``; an error that every point of a sweep of several shares word for word
 (``run.solvers[1]``, a missing ``name``) is the file's and reads as it would
 without the sweep.
-``quick = true`` marks every point. A point's :class:`validation.scenes.Scene` has
+``quick = true`` marks every point. A point's :class:`rk4h.validation.scenes.Scene` has
 
 * ``base``: the ``name`` written in the file (for an unswept scene, its name);
 * ``sweep``: column -> value, in key order (empty for an unswept scene). The
@@ -62,7 +62,7 @@ without the sweep.
   alike under ``:g`` (``1.0000001`` and ``1.0000002``), a leading minus written
   ``m`` and an exponent's ``+`` dropped (``-0.5`` -> ``m0.5``, ``1e+06`` ->
   ``1e06``, ``1e-06`` stays): figure files are named after
-  ``validation.figures.slug(name)``, which turns every run of characters other
+  ``rk4h.validation.figures.slug(name)``, which turns every run of characters other
   than ``a-z0-9`` into ``_``, so ``=-0.5`` and ``=0.5`` would collide. Point
   names are unique within the file, also as figure-file stems (checked), at
   most :data:`_POINT_NAME_MAX` characters, and never match the rule for names
@@ -128,8 +128,8 @@ def expand(doc: dict, path, validate) -> list:
         The file (or ``"<scene>"``) that error lines name.
     validate : callable
         ``validate(point_doc) -> Scene``: an unswept document validated as a
-        scene (:func:`validation.scenes.scene_from_dict`); raises
-        :class:`~validation.scene_checks.SceneError`.
+        scene (:func:`rk4h.validation.scenes.scene_from_dict`); raises
+        :class:`~rk4h.validation.scene_checks.SceneError`.
 
     Returns
     -------

@@ -1,10 +1,10 @@
 """The report's tables: each one's columns in their written order
 (:data:`COLUMNS`), its timing columns (:data:`TIMING`: the only ones that
 change between two runs on one machine) and what it holds
-(:data:`DESCRIPTIONS`). Below :mod:`validation.columns` (each column's unit,
-type and description) and :mod:`validation.report` (which writes them).
+(:data:`DESCRIPTIONS`). Below :mod:`rk4h.validation.columns` (each column's unit,
+type and description) and :mod:`rk4h.validation.report` (which writes them).
 
-Which tables exist comes from the output registry (:mod:`validation.outputs`:
+Which tables exist comes from the output registry (:mod:`rk4h.validation.outputs`:
 each output names its tables) plus :data:`SCENE_TABLES`; the built-in
 tables' columns are declared below, an output's own tables in its module.
 """
@@ -27,10 +27,10 @@ _BUILTIN = {
     "energy": ["scene", "solver", "setting", "h", "rtol", "drift_per_time", "theory_drift_per_time",
                "energy_drift_max", "energy_growth_exponent", "energy_fit_t0", "energy_fit_t1",
                "phase_error_max", "phase_growth_exponent", "passed", "checked", "status"],
-    "cheapest": None,  # validation.trust.COLUMNS (filled below)
+    "cheapest": None,  # rk4h.validation.trust.COLUMNS (filled below)
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],
-    "stability": None,  # validation.stability.COLUMNS (filled below)
+    "stability": None,  # rk4h.validation.stability.COLUMNS (filled below)
     "linearization": ["scene", "amplitude_q", "error_max_q", "error_rel_q"],
     "modal_energy": ["scene", "solver", "setting", "h", "rtol", "mode", "omega_rad_s", "fraction_start", "fraction_min",
                      "t_min", "fraction_peak", "t_peak", "status"],
@@ -48,7 +48,7 @@ TIMING = {"accuracy": {"wall_s", "compile_s"}, "work_precision": {"wall_s", "wal
 
 
 def _stability_columns():
-    from validation.stability import COLUMNS as cols, TIMING_COLUMNS as timing
+    from rk4h.validation.stability import COLUMNS as cols, TIMING_COLUMNS as timing
 
     _BUILTIN["stability"] = list(cols)
     TIMING["stability"] = set(timing)
@@ -58,7 +58,7 @@ _stability_columns()
 
 
 def _trust_columns():
-    from validation.trust import COLUMNS as cols, TIMING_COLUMNS as timing
+    from rk4h.validation.trust import COLUMNS as cols, TIMING_COLUMNS as timing
 
     _BUILTIN["cheapest"] = list(cols)
     TIMING["cheapest"] = set(timing)
@@ -100,9 +100,9 @@ DESCRIPTIONS = {
                 "deterministic; equal counts: `tie`), `verdict_amortized` (time, compile excluded) and "
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
                 "medians differ 3x and the repeats do not overlap. Only a side with a measured run at most "
-                "the target can win; neither: `unmeasured` (validation.trust, validation.confirm); every time verdict "
+                "the target can win; neither: `unmeasured` (rk4h.validation.trust, rk4h.validation.confirm); every time verdict "
                 "is `tie` when the load average exceeded the CPUs during the timed runs; `time_context` "
-                "holds the loads before and after the timed runs and the CPUs (validation.timing_context).",
+                "holds the loads before and after the timed runs and the CPUs (rk4h.validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "
                   "`theory` the energy-weighted mean group velocity of the packet's spectrum, "
@@ -129,7 +129,7 @@ DESCRIPTIONS = {
                "the largest residual |b^T Phi(t) - 1/gamma(t)| of the order conditions of order p, the residual the "
                "coefficients' precision allows for that condition (`tolerance`; 0 for exact rationals), and "
                "whether every condition of order p holds; `order` is the computed order, `precision` what it "
-               "and the stability boundaries are judged at (rk4core.methods.Tableau.coefficient_tol); "
+               "and the stability boundaries are judged at (rk4h.methods.Tableau.coefficient_tol); "
                "`error_coefficient` the 2-norm of the method's order-(p+1) truncation-error coefficients "
                "(as nodepy computes it: RK4 0.01450); `nfev_per_step` the cost per step and "
                "`imaginary_axis_bound` the end of the stable interval of the imaginary axis (RK4 2 sqrt 2).",
@@ -137,7 +137,7 @@ DESCRIPTIONS = {
 
 
 def declare(table) -> None:
-    """Add a :class:`validation.outputs.Table` to :data:`COLUMNS`
+    """Add a :class:`rk4h.validation.outputs.Table` to :data:`COLUMNS`
     (:data:`DESCRIPTIONS`, :data:`TIMING`): a built-in's declared columns, or
     the columns an output declares itself. A built-in name without a
     declaration raises ``KeyError``."""
@@ -152,8 +152,8 @@ def declare(table) -> None:
 
 def forget(output) -> None:
     """Remove the tables only ``output`` declared itself (after
-    :func:`validation.outputs.unregister`)."""
-    from validation import outputs
+    :func:`rk4h.validation.outputs.unregister`)."""
+    from rk4h.validation import outputs
 
     for t in output.tables:
         if t.columns is not None and t.name not in outputs.table_names():
@@ -162,7 +162,7 @@ def forget(output) -> None:
 
 
 def _derive() -> None:
-    from validation import outputs
+    from rk4h.validation import outputs
 
     for o in outputs.OUTPUTS.values():
         for t in o.tables:

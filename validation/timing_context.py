@@ -7,7 +7,7 @@ time-verdict cells changed). So a report records the load average
 (:func:`os.getloadavg`: processes running or waiting for a CPU, averaged over
 1, 5 and 15 minutes, machine-wide) and the machine's CPU count just before and
 just after its timed runs (:func:`snapshot`, taken by
-:mod:`validation.engine`), and when the load exceeded the CPUs at either
+:mod:`rk4h.validation.engine`), and when the load exceeded the CPUs at either
 moment every time verdict is a tie (:func:`gate_time_verdicts`) and index.md
 says why (:func:`sentence`, :func:`environment_lines`).
 
@@ -27,7 +27,7 @@ __all__ = ["snapshot", "load_context", "is_loaded", "gate_time_verdicts", "conte
            "environment_lines", "findings",
            "TIME_VERDICT_COLUMNS"]
 
-#: The time-verdict columns of ``cheapest.csv`` (validation.trust).
+#: The time-verdict columns of ``cheapest.csv`` (rk4h.validation.trust).
 TIME_VERDICT_COLUMNS = ("verdict_amortized", "verdict_one_run")
 
 
@@ -76,7 +76,7 @@ def gate_time_verdicts(rows, ctx) -> list[dict]:
     """``cheapest.csv`` rows with their timing context in ``time_context``
     (a timing column: the loads and CPUs, :func:`context_text`) and, when
     the timed runs ran under load (:func:`is_loaded`), every time verdict
-    :data:`validation.trust.TIE`, the reason in ``time_context``. The
+    :data:`rk4h.validation.trust.TIE`, the reason in ``time_context``. The
     RHS-call verdict is deterministic and kept, and so is ``note``.
     Returns new dicts; ``ctx`` None (no timed run) leaves the rows as they
     are."""

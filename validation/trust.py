@@ -4,15 +4,15 @@ what that costs, the cheapest alternative and verdicts that survive a rerun.
 Pure functions of run rows (``work_precision`` rows: solver, setting,
 error_rel, nfev, n_steps, wall_s, wall_min, wall_max, compile_s, status, and
 the confirmation runs' rows of the same shape); no integration.
-:mod:`validation.measure` builds ``cheapest.csv`` with :func:`trust_rows`,
-:mod:`validation.advise` uses the same error-constant model to predict a step
+:mod:`rk4h.validation.measure` builds ``cheapest.csv`` with :func:`trust_rows`,
+:mod:`rk4h.validation.advise` uses the same error-constant model to predict a step
 before confirming it with one run.
 
 The step for a target
     A fixed-step method of order ``p`` has ``error_rel(h) ~ C h^p`` in its
     asymptotic range; ``C`` is fitted on the scene's runs whose relative
-    error lies between :data:`validation.metrics.ROUNDOFF_REL` and
-    :data:`validation.metrics.PREASYMPTOTIC_REL`, only where successive runs
+    error lies between :data:`rk4h.validation.metrics.ROUNDOFF_REL` and
+    :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`, only where successive runs
     show the order ``p`` (:func:`fit_constant`: three runs with two observed
     orders within :data:`ORDER_TOLERANCE` of ``p``, or the two finest; the
     largest ``err / h^p`` of them), and the step for a target is
@@ -28,7 +28,7 @@ The step for a target
     7.2e3 steps, where ``sqrt(n) eps = 1.9e-14``).
 
 A verdict needs a run
-    The predicted step is only a prediction: :mod:`validation.confirm` runs
+    The predicted step is only a prediction: :mod:`rk4h.validation.confirm` runs
     the method at it (on the output grid, :func:`on_grid`), and a side
     counts for a target only with a measured run whose ``error_rel`` is at
     most the target (:func:`pick_measured`; columns ``confirmed``,
@@ -89,7 +89,7 @@ COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h
 #: time verdicts are derived from them with a margin and are compared between
 #: runs on one machine only.
 TIMING_COLUMNS = {"time_s", "compile_s", "alt_time_s", "alt_compile_s", "verdict_one_run", "verdict_amortized",
-                  "time_context"}  # time_context: the load around the timed runs (validation.timing_context)
+                  "time_context"}  # time_context: the load around the timed runs (rk4h.validation.timing_context)
 
 
 #: An observed order ``log(e1/e2)/log(h1/h2)`` agrees with the method's order
@@ -292,7 +292,7 @@ def rhs_calls(row) -> float:
 
 def fixed_rhs(method, n_steps: int) -> int:
     """RHS calls of ``n_steps`` steps of the fixed-step ``method`` (a
-    :class:`references.registry.Method`): its first step's calls, then
+    :class:`rk4h.references.registry.Method`): its first step's calls, then
     ``nfev_per_step`` each (first-same-as-last reuse counted)."""
     per = int(method.nfev_per_step)
     first = int(getattr(method.tableau, "nfev_first_step", per) or per)
@@ -313,7 +313,7 @@ def stable_step(method, omega_max: float) -> float:
     """The largest stable step (s) of ``method`` on a mode of ``omega_max``
     rad/s: its imaginary-axis boundary over ``omega_max``; inf when unknown
     (no tableau, no modes, or no stable interval on the imaginary axis)."""
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.stability_function import imaginary_axis_boundary
 
     if method.tableau is None or not (math.isfinite(omega_max) and omega_max > 0):
         return math.inf
@@ -351,7 +351,7 @@ def on_grid(h: float, output_dt=None) -> float:
     ``output_dt / k`` with the smallest integer ``k`` (``output_dt`` itself
     when ``h`` exceeds it), so that every output time is a step and none is
     interpolated (off the step grid a fixed-step run interpolates its
-    outputs, a third-order error: :mod:`references.solvers.fixed`). ``h``
+    outputs, a third-order error: :mod:`rk4h.references.solvers.fixed`). ``h``
     unchanged when ``output_dt`` is None or not positive; NaN stays NaN."""
     if not math.isfinite(h) or h <= 0 or output_dt is None or not output_dt > 0:
         return h
@@ -365,7 +365,7 @@ def predicted_steps(rows, method, t_span: float, h_stab: float, targets) -> dict
     "observed_order", "steps": [(h, source, n_steps), ...]}``, one step per
     target (:func:`step_for` from the error constant, else
     :func:`measured_step`; ``h`` NaN where neither gives one). The prediction
-    a confirmation run checks (:mod:`validation.confirm`)."""
+    a confirmation run checks (:mod:`rk4h.validation.confirm`)."""
     ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"]) and r["solver"] == method.name]
     order = int(method.order)
     pts = sorted(((r["setting"], r["error_rel"]) for r in ok), reverse=True)
@@ -408,7 +408,7 @@ def _timing_of(r) -> tuple:
 def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
                setting_name=lambda s: "setting", confirmations=(), output_dt=None) -> list[dict]:
     """One row per target (:data:`COLUMNS`): the step ``method`` (a
-    :class:`references.registry.Method`: name, order, RHS calls per step)
+    :class:`rk4h.references.registry.Method`: name, order, RHS calls per step)
     needs over ``t_span`` s, its cost, the cheapest other run reaching the
     target (by RHS calls), and the three verdicts. ``h_stab``: the method's
     largest stable step on the model's fastest mode (inf when unknown).
@@ -416,7 +416,7 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
     ``rows`` are the scene's runs (``work_precision`` rows) and predict the
     step (:func:`predicted_steps`, put on the output grid with
     :func:`on_grid` when ``output_dt`` (s) is given); ``confirmations`` are
-    the extra runs made to check it (:mod:`validation.confirm`: the method
+    the extra runs made to check it (:mod:`rk4h.validation.confirm`: the method
     at the predicted steps, the references at tighter tolerances), rows of
     the same shape.
 

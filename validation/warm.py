@@ -1,6 +1,6 @@
 """Compile each numba loop of a plan once per machine, before the runs (issue 29).
 
-The compiled loops (:mod:`rk4core.fast`) are kept in numba's on-disk cache
+The compiled loops (:mod:`rk4h.fast`) are kept in numba's on-disk cache
 under ``RK4H_CACHE``; a loop missing there is compiled on its first call in a
 process. With several worker processes and a cold cache, every worker used
 to compile the same loops at the same time (each loop's compile time paid
@@ -29,9 +29,9 @@ _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
 def _loop_key(scene, solver):
     """What identifies the compiled code ``solver`` runs on ``scene``'s model
     (None: nothing compiled ahead: no compiled force, heyoka, a command...)."""
-    from references.registry import Kind
-    from rk4core import fast
-    from rk4core.fast.codegen import MAX_UNROLLED_DIM, _cache_key
+    from rk4h.references.registry import Kind
+    from rk4h import fast
+    from rk4h.fast.codegen import MAX_UNROLLED_DIM, _cache_key
 
     from .execute import problem
 
@@ -72,9 +72,9 @@ def warm_one(scene, solver) -> float:
     model; returns the seconds it took. Never raises."""
     start = time.perf_counter()
     try:
-        from references.registry import Kind
-        from references.solvers.base import compiled_rhs
-        from rk4core import fast
+        from rk4h.references.registry import Kind
+        from rk4h.references.solvers.base import compiled_rhs
+        from rk4h import fast
 
         from .execute import problem
 
@@ -93,7 +93,7 @@ def warm_one(scene, solver) -> float:
 
 def warm_pools(pools, jobs) -> int:
     """Compile every distinct loop of ``jobs`` once, spread over the worker
-    processes of ``pools`` (:class:`validation.engine.LocalPools`, started
+    processes of ``pools`` (:class:`rk4h.validation.engine.LocalPools`, started
     here), and wait for them; returns how many loops were handed out."""
     from concurrent.futures import wait
 

@@ -19,7 +19,7 @@ and ``w`` is at most the cores this process may use. A small scene (a
 process and starts no pool; the full report (minutes of work) uses every
 core. ``--workers N`` (or ``RK4H_WORKERS``) overrides the choice.
 
-The estimate is coarse by design: :func:`validation.budget.spec_steps` gives
+The estimate is coarse by design: :func:`rk4h.validation.budget.spec_steps` gives
 each spec's integration steps; a cost per step and per step and degree of
 freedom by kind of solver (:data:`STEP_SECONDS`) turns them into seconds, plus a fixed cost
 per spec and, with figures, per scene. The constants are CPU seconds on the
@@ -42,7 +42,7 @@ SPEC_SECONDS = 0.005
 #: CPU seconds per scene for drawing its figures (when figures are drawn).
 FIGURE_SECONDS = 1.0
 #: CPU seconds ``(per step, per step and degree of freedom)`` by the kind of
-#: stepper (:class:`references.registry.Kind` value): compiled fixed-step
+#: stepper (:class:`rk4h.references.registry.Kind` value): compiled fixed-step
 #: loops; Python-stepped references (scipy's DOP853 about 124 us per step on
 #: the 2-DOF case, CVODE a Python right-hand side per call; heyoka is
 #: compiled); a user's Python or command method. A quadruple-precision
@@ -56,7 +56,7 @@ def spec_seconds_function(quick: bool = False):
     """``seconds(scene, spec) -> float``: a spec's estimated CPU seconds on
     one process (see the module docstring); 0 beyond the fixed cost when its
     steps cannot be estimated."""
-    from validation import budget
+    from rk4h.validation import budget
 
     models = {}
 
@@ -115,7 +115,7 @@ def choose_workers(jobs, *, quick=False, figures=True, done=(), cores=None, seco
         Keys of specs whose records will be resumed (no work).
     cores : int or None
         At most this many workers (default: the cores this process may use,
-        :func:`validation.engine.default_workers`).
+        :func:`rk4h.validation.engine.default_workers`).
     seconds : callable(scene, spec) -> float, or None
         Per-spec CPU seconds (default :func:`spec_seconds_function`).
 
@@ -124,7 +124,7 @@ def choose_workers(jobs, *, quick=False, figures=True, done=(), cores=None, seco
     (int, str)
     """
     if cores is None:
-        from validation.engine import default_workers
+        from rk4h.validation.engine import default_workers
 
         cores = default_workers()
     total, longest = plan_seconds(jobs, quick=quick, figures=figures, done=done, seconds=seconds)

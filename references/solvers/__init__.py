@@ -3,16 +3,16 @@
 Solvers (``SOLVER_NAMES``)
 --------------------------
 Fixed-step methods (``rk4``, ``euler``, ``symplectic-euler``, ``stormer-verlet``, ``rk38``...; a scene's own tableaux)
-    ``rk4core.solve`` on ``model.rhs`` with the method's tableau (the compiled
-    loop of ``rk4core.fast`` when the model has one); ``setting`` is the step ``h`` (s).
+    ``rk4h.solve`` on ``model.rhs`` with the method's tableau (the compiled
+    loop of ``rk4h.fast`` when the model has one); ``setting`` is the step ``h`` (s).
 A scene's ``python`` and ``command`` methods
-    :mod:`references.solvers.stepper` and :mod:`references.solvers.command`;
+    :mod:`rk4h.references.solvers.stepper` and :mod:`rk4h.references.solvers.command`;
     ``setting`` is the step ``h`` (s).
 ``dop853``
     scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
-    (``rk4core.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
+    (``rk4h.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
     :func:`integrate_compiled` runs the same method as one compiled loop
-    (:mod:`rk4core.fast.dop853`), equal to scipy's to round-off, for untimed
+    (:mod:`rk4h.fast.dop853`), equal to scipy's to round-off, for untimed
     work (the trust table's confirmation runs); timed rows keep scipy's.
 ``cvode-adams``, ``cvode-bdf``
     SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
@@ -36,10 +36,10 @@ component's atol, ``run.extra["atol_state"]`` the whole vector.
 
 Arguments
 ---------
-``model`` must be an :class:`rk4core.models.Model` (a name such as
+``model`` must be an :class:`rk4h.models.Model` (a name such as
 ``"chain"`` is refused with a ``ValueError`` naming ``model``), and ``y0`` a
 state where the model's force and energy are finite
-(:meth:`rk4core.models.Model.check_state`): planar4 on an anchor or two
+(:meth:`rk4h.models.Model.check_state`): planar4 on an anchor or two
 triangle masses on top of each other (a spring of zero length) and states so
 large that the energy overflows raise ``ValueError`` naming ``y0`` before
 anything is integrated.
@@ -58,8 +58,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rk4core.models.base import Model
-from rk4core.validate import check_model_y0, check_output_times, positive
+from rk4h.models.base import Model
+from rk4h.validate import check_model_y0, check_output_times, positive
 
 from ..registry import Kind, resolve
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
@@ -77,7 +77,7 @@ __all__ = ["integrate", "integrate_compiled", "COMPILED_RUNNERS", "check_setting
 
 def check_setting(solver, setting) -> float:
     """Validate ``setting`` for ``solver`` (a built-in name or a
-    :class:`references.registry.Method`): a finite step ``h > 0`` for the
+    :class:`rk4h.references.registry.Method`): a finite step ``h > 0`` for the
     fixed-step methods, a relative tolerance in (0, 1) for adaptive ones.
 
     Raises ``ValueError`` naming the solver or the setting."""
@@ -92,22 +92,22 @@ def check_setting(solver, setting) -> float:
 
 
 def check_model(model):
-    """``model`` if it is an :class:`rk4core.models.Model`; else raise
+    """``model`` if it is an :class:`rk4h.models.Model`; else raise
     ``ValueError`` naming ``model`` (a model name is not a model: build it
-    with ``rk4core.make_model``)."""
+    with ``rk4h.make_model``)."""
     if not isinstance(model, Model):
-        hint = " (build it with rk4core.make_model(name, params))" if isinstance(model, str) else ""
-        raise ValueError(f"`model` must be an rk4core.models.Model instance{hint}, got {model!r:.80}")
+        hint = " (build it with rk4h.make_model(name, params))" if isinstance(model, str) else ""
+        raise ValueError(f"`model` must be an rk4h.models.Model instance{hint}, got {model!r:.80}")
     return model
 
 
 def as_model(model, y0):
-    """``model`` itself when it is an :class:`rk4core.models.Model`; a plain
+    """``model`` itself when it is an :class:`rk4h.models.Model`; a plain
     callable ``fun(t, y)`` (scipy's convention) as an
-    :class:`rk4core.models.FunctionOde` with ``len(y0)`` components; else
+    :class:`rk4h.models.FunctionOde` with ``len(y0)`` components; else
     ``ValueError`` naming ``model``."""
     if callable(model) and not isinstance(model, (Model, type)):
-        from rk4core.models.ode import FunctionOde
+        from rk4h.models.ode import FunctionOde
 
         try:
             n = int(np.asarray(y0, dtype=float).reshape(-1).shape[0])
@@ -123,7 +123,7 @@ MECHANICAL_ONLY = ("heyoka",)
 
 
 def mechanical_only(method) -> bool:
-    """Whether ``method`` (a :class:`references.registry.Method`) needs a
+    """Whether ``method`` (a :class:`rk4h.references.registry.Method`) needs a
     mechanical model: heyoka (equations from the force), a command method
     (the problem file holds masses and springs), a partitioned tableau (it
     integrates ``q' = v`` and uses only the acceleration half of ``fun``)."""
@@ -161,12 +161,12 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
 
     Parameters
     ----------
-    solver : str or references.registry.Method
+    solver : str or rk4h.references.registry.Method
         A built-in method's name (``SOLVER_NAMES``) or a method (a scene's
         own: ``Scene.method(name)``).
-    model : rk4core.models.Model or callable
+    model : rk4h.models.Model or callable
         A model, or a plain ``fun(t, y)`` (any first-order ODE; wrapped in
-        :class:`rk4core.models.FunctionOde`; not for ``heyoka`` or command
+        :class:`rk4h.models.FunctionOde`; not for ``heyoka`` or command
         methods).
     y0 : array_like, shape (2 n_dof,) or (n,)
         Initial state ``[q, v]`` (SI units of the model's coordinates), or
@@ -222,7 +222,7 @@ def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
                        max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
     """:func:`integrate` for untimed work (confirmation runs): a reference
     with a compiled loop (:data:`COMPILED_RUNNERS`: DOP853 stepped by
-    :func:`references.solvers.dop853.run_dop853_compiled`, equal to scipy's
+    :func:`rk4h.references.solvers.dop853.run_dop853_compiled`, equal to scipy's
     to round-off) runs it; every other solver, and a model without a
     compiled right-hand side, runs as :func:`integrate` runs it.
     ``run.extra["implementation"]`` is ``"compiled"`` where the compiled

@@ -6,7 +6,7 @@ fails never raises: it returns ``status`` FAILED or UNSTABLE with its message,
 and ``y`` is NaN from the first output time it did not reach.
 
 ``setting`` is the step ``h`` (s) for fixed-step solvers and the relative
-tolerance for adaptive ones (see ``references.solvers`` for the absolute
+tolerance for adaptive ones (see ``rk4h.references.solvers`` for the absolute
 tolerance rule).
 """
 from __future__ import annotations
@@ -31,7 +31,7 @@ class Status(str, Enum):
 
 
 #: Built-in fixed-step methods and adaptive references, from the registry
-#: (a scene's own methods are resolved with ``references.registry.resolve``).
+#: (a scene's own methods are resolved with ``rk4h.references.registry.resolve``).
 FIXED_STEP = tuple(n for n, m in BUILTIN.items() if m.fixed_step)
 ADAPTIVE = REFERENCES
 SOLVER_NAMES = FIXED_STEP + ADAPTIVE
@@ -91,13 +91,13 @@ class SolverRun:
 
 def compiled_rhs(model):
     """The model's right-hand side compiled from its definition
-    (:class:`rk4core.fast.CompiledRHS`), built once per model object and
+    (:class:`rk4h.fast.CompiledRHS`), built once per model object and
     kept on it, or None for a model without a compiled form (a subclass with
     a hand-written force: the solvers then call ``model.rhs``). Built before
     a solver's clock starts: compilation is never timed."""
     cached = model.__dict__.get("_references_rhs", False)
     if cached is False:
-        from rk4core import fast
+        from rk4h import fast
 
         cached = fast.compiled_rhs(model)
         model.__dict__["_references_rhs"] = cached

@@ -1,13 +1,13 @@
 """A ``command`` method: an external program run through the file protocol of
-:mod:`rk4core.command`, behind the solver interface (:class:`SolverRun`).
+:mod:`rk4h.command`, behind the solver interface (:class:`SolverRun`).
 
 The harness owns the grid, as for every fixed-step method: ``n =
 ceil((t_end - t0) / h)`` equal steps of ``h_used = (t_end - t0) / n``
-(``rk4core.solve``'s rule); ``t_eval`` must lie on that grid (the scenes'
+(``rk4h.solve``'s rule); ``t_eval`` must lie on that grid (the scenes'
 output grids do), other times end the run FAILED. The problem the program
 reads is built from the model (:func:`build_problem`); the states it returns
 at ``t_eval`` are judged like a fixed-step run's: the first output with a
-non-finite component, or one beyond :data:`references.solvers.fixed.MAX_GROWTH`
+non-finite component, or one beyond :data:`rk4h.references.solvers.fixed.MAX_GROWTH`
 times its group scale, ends the run UNSTABLE (``y`` NaN from there).
 
 Status: ``ok``; ``failed`` (non-zero exit, timeout, malformed output: the
@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rk4core.command import DEFAULT_TIMEOUT, LAYOUT, PROTOCOL_VERSION, run_command
-from rk4core.solver import grid_times, step_count
+from rk4h.command import DEFAULT_TIMEOUT, LAYOUT, PROTOCOL_VERSION, run_command
+from rk4h.solver import grid_times, step_count
 
 from .base import SolverRun, Status
 from .fixed import MAX_GROWTH
@@ -69,7 +69,7 @@ def build_problem(model, y0, t_eval, h: float, *, t0: float | None = None) -> tu
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
     y0 : array_like, shape (2 n_dof,)
         Initial state ``[q, v]`` at ``t0`` (SI units).
     t_eval : array_like, shape (m,)
@@ -144,8 +144,8 @@ def run_command_method(name: str, argv, model, y0, t_eval, h: float, *, nfev_per
     name : str
         The method's name (``SolverRun.solver``).
     argv : list of str
-        Its command line, with the placeholders of :mod:`rk4core.command`.
-    model : rk4core.models.Model
+        Its command line, with the placeholders of :mod:`rk4h.command`.
+    model : rk4h.models.Model
     y0 : array_like, shape (2 n_dof,)
     t_eval : array_like, shape (m,)
         Output times (s) on the step grid; the run starts at ``t0``.

@@ -3,7 +3,7 @@ orders 1-12) and BDF (``cvode-bdf``, orders 1-5), both with Newton iteration.
 
 Every option that matters is set explicitly (scikit-sundae's defaults are BDF,
 rtol 1e-5, atol 1e-6 and 500 steps per output): ``method``, ``rtol``, ``atol``
-(the vector of :mod:`references.solvers.tolerances`), ``max_num_steps`` and the
+(the vector of :mod:`rk4h.references.solvers.tolerances`), ``max_num_steps`` and the
 linear solver (dense with an analytic Jacobian, or banded with CVODE's own
 banded difference-quotient Jacobian).
 

@@ -222,7 +222,7 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
 def run_dop853_compiled(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray,
                         max_steps: int = DEFAULT_MAX_STEPS, *, name: str = "dop853") -> SolverRun:
     """:func:`run_dop853` with scipy's DOP853 loop compiled
-    (:mod:`rk4core.fast.dop853`): the same method, step size control, first
+    (:mod:`rk4h.fast.dop853`): the same method, step size control, first
     step, dense output, caps, statuses and messages, with the stage sums
     taken left to right instead of by BLAS, so states, errors and step
     counts equal scipy's to round-off (``tests/test_dop853_compiled.py``).
@@ -238,8 +238,8 @@ def run_dop853_compiled(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, 
         run.solver = name
         run.extra["implementation"] = "scipy"
         return run
-    from rk4core.fast import force_kernel
-    from rk4core.fast.dop853 import STATUS_TEXT, coefficients, dop853_loop
+    from rk4h.fast import force_kernel
+    from rk4h.fast.dop853 import STATUS_TEXT, coefficients, dop853_loop
 
     kern = force_kernel(model)
     m, n2 = t_eval.shape[0], y0.shape[0]

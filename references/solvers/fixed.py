@@ -1,7 +1,7 @@
 """The tableau methods of the system under test (``rk4``, ``euler``,
 ``symplectic-euler``, any scene's own tableau). Built-in models run through the compiled fast path
-(``rk4core.fast.solve_model``: the same numbers as ``rk4core.solve`` on
-``model.rhs``, tested to 1e-14); any other model through ``rk4core.solve`` on
+(``rk4h.fast.solve_model``: the same numbers as ``rk4h.solve`` on
+``model.rhs``, tested to 1e-14); any other model through ``rk4h.solve`` on
 ``model.rhs``. Compile/cache-load time of the fast path is ``compile_s``, kept
 out of ``wall_s``; ``extra["path"]`` says which path ran.
 
@@ -10,13 +10,13 @@ out of ``wall_s``; ``extra["path"]`` says which path ran.
 the step grid are returned exactly, others by cubic Hermite interpolation
 (``extra["dense"]`` says which). ``nfev`` is the method's own count
 (``Tableau.nfev_per_step`` per step, first-same-as-last reuse counted: see
-``rk4core.solve``), plus one end-slope evaluation per step that holds
+``rk4h.solve``), plus one end-slope evaluation per step that holds
 off-grid outputs.
 
 A run is UNSTABLE (with ``t_fail``; ``y`` NaN from the first output time not
 reached) at the first step where a component is non-finite or exceeds
 :data:`MAX_GROWTH` times its group scale (``s_q`` for positions, ``s_v`` for
-velocities: :func:`references.solvers.tolerances.state_scale`, the amplitude of
+velocities: :func:`rk4h.references.solvers.tolerances.state_scale`, the amplitude of
 a state with the initial energy). Why that bound: on a linear conservative
 model a step inside the method's stability region (``|R(i omega_j h)| <= 1`` on
 every mode) never increases the energy, so every component stays below
@@ -33,11 +33,11 @@ import time
 
 import numpy as np
 
-import rk4core
-import rk4core.fast as fast
+import rk4h
+import rk4h.fast as fast
 
-from rk4core.fast.solve import solve_checked
-from rk4core.solver import _DBL_MAX
+from rk4h.fast.solve import solve_checked
+from rk4h.solver import _DBL_MAX
 
 from .base import SolverRun, Status
 from .tolerances import group_scales, state_scale
@@ -51,13 +51,13 @@ MAX_GROWTH = 1e6
 
 def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> SolverRun:
     """Integrate ``model`` with the tableau ``method`` (an
-    ``rk4core.methods.Tableau`` or a built-in name); never raises.
+    ``rk4h.methods.Tableau`` or a built-in name); never raises.
 
-    The arguments are those :func:`references.solvers.integrate` has checked:
+    The arguments are those :func:`rk4h.references.solvers.integrate` has checked:
     ``y0`` a finite float64 array of length ``2 n_dof`` (a state where the
     model's force is finite), ``t_eval`` a finite, strictly increasing
     float64 array of at least 2 times (s), ``h > 0`` finite (s)."""
-    tab = rk4core.get_method(method)
+    tab = rk4h.get_method(method)
     name = tab.name
     m = t_eval.shape[0]
     use_fast = fast.supports(model)
@@ -79,7 +79,7 @@ def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> So
         elif use_fast:
             res = fast.solve_model(model, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=tab, **bound)
         else:
-            res = rk4core.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=tab,
+            res = rk4h.solve(model.rhs, (t_eval[0], t_eval[-1]), y0, h=h, t_eval=t_eval, method=tab,
                                 **bound)
     except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
         return SolverRun(name, h, t_eval, np.full((y0.shape[0], m), np.nan), 0, 0, time.perf_counter() - start, compile_s, status=Status.FAILED,

@@ -1,12 +1,12 @@
 """A user's Python step function, run on the generic fixed-step loop.
 
-A ``python`` method (:mod:`references.registry`) is a function
+A ``python`` method (:mod:`rk4h.references.registry`) is a function
 ``step(fun, t, y, h) -> y_next`` that advances the state ``y`` (shape (n,),
 ``[q, v]``) from ``t`` to ``t + h`` (s) using only ``fun(t, y) -> dy/dt``.
 The loop here owns the grid (``n = ceil((t_end - t0) / h)`` equal steps, as
-``rk4core.solve``), counts every call of ``fun`` (``nfev``), and stops a run
+``rk4h.solve``), counts every call of ``fun`` (``nfev``), and stops a run
 as UNSTABLE at the same bound as the built-in fixed-step methods
-(:data:`references.solvers.fixed.MAX_GROWTH` times the state scale). An
+(:data:`rk4h.references.solvers.fixed.MAX_GROWTH` times the state scale). An
 exception inside the step, or a step that returns an array of another
 shape, ends the run FAILED with the
 message; nothing raises.
@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from rk4core.solver import grid_time, step_count
+from rk4h.solver import grid_time, step_count
 
 from .base import SolverRun, Status
 from .fixed import MAX_GROWTH

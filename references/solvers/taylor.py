@@ -1,13 +1,13 @@
 """heyoka's adaptive Taylor integrator (``heyoka.taylor_adaptive``), in double
 precision for the ``heyoka`` solver and in quadruple precision
-(``heyoka.real128``) for :mod:`references.truth`.
+(``heyoka.real128``) for :mod:`rk4h.references.truth`.
 
 Equations: ``model.heyoka_system()``, i.e. the model's one ``_force`` evaluated
 on heyoka expressions, rewritten for the scaled state ``z = y / s`` with the
 two scales ``s = (s_q, s_v)`` as runtime parameters ``par[0], par[1]``:
 ``zq' = (s_v / s_q) zv``, ``zv' = a(s_q zq) / s_v``. heyoka's single
 tolerance is absolute while ``max |z_i| < 1`` and relative above it; with
-``tol = rtol`` and ``s`` from :mod:`references.solvers.tolerances` this is the
+``tol = rtol`` and ``s`` from :mod:`rk4h.references.solvers.tolerances` this is the
 rule ``atol_i = rtol * s_i`` of the other adaptive solvers. The model constants
 are Python floats in the expressions, so the real128 integration uses exactly
 the doubles the double-precision solvers use.
@@ -85,7 +85,7 @@ def scaled_system(model):
     """
     import heyoka as hy
 
-    from rk4core.models import HEYOKA
+    from rk4h.models import HEYOKA
 
     n = model.n_dof
     names = [f"z{i}" for i in range(2 * n)]
@@ -151,7 +151,7 @@ def propagate(ta, model, y0, scales, t_eval, dtype=float, max_steps: int = DEFAU
     Parameters
     ----------
     ta : heyoka.taylor_adaptive
-    model : rk4core.models.Model
+    model : rk4h.models.Model
     y0 : ndarray, shape (2n,)
     scales : (float, float)
         ``(s_q, s_v)`` of the tolerance rule.

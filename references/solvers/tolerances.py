@@ -34,7 +34,7 @@ __all__ = ["omega_bound", "group_scales", "state_scale", "absolute_tolerance"]
 def omega_bound(model) -> float:
     """Gershgorin upper bound (rad/s) on the model's largest linearised natural
     angular frequency: ``sqrt(max_i sum_j |K_ij| / m_i)``. O(nnz(K)) for a chain
-    (:meth:`rk4core.models.Model.omega_bound`)."""
+    (:meth:`rk4h.models.Model.omega_bound`)."""
     return model.omega_bound()
 
 

@@ -1,8 +1,8 @@
-"""The jax backend of :func:`rk4core.ensemble`.
+"""The jax backend of :func:`rk4h.ensemble`.
 
 One step is printed from the method's tableau and the force kernel's
 straight-line code (:meth:`ForceKernel.scalar_lines`, the text the numba
-loops inline), with the arithmetic of :mod:`rk4core.fast.codegen`: products
+loops inline), with the arithmetic of :mod:`rk4h.fast.codegen`: products
 ``h a_ij`` and ``h b_i`` formed once, stage sums left to right over the
 nonzero coefficients, a partitioned stage's velocity and position in the
 order the tableau gives, a first-same-as-last method's last force carried
@@ -102,7 +102,7 @@ def _first_force_source(tab, kern) -> str:
 
 def _compile(text: str, name: str):
     ns = {"math": _MATH}
-    exec(compile(text, f"<rk4core.batch jax {name}>", "exec"), ns)
+    exec(compile(text, f"<rk4h.batch jax {name}>", "exec"), ns)
     return ns[name]
 
 

@@ -1,6 +1,6 @@
-"""The numba backend of :func:`rk4core.ensemble`: the loop of
-:func:`rk4core.fast.solve_model` (straight-line for the small states, the
-array loop beyond; :mod:`rk4core.fast.codegen`) called once per instance
+"""The numba backend of :func:`rk4h.ensemble`: the loop of
+:func:`rk4h.fast.solve_model` (straight-line for the small states, the
+array loop beyond; :mod:`rk4h.fast.codegen`) called once per instance
 inside a ``prange`` over instances. The per-instance call is the very
 compiled loop the scalar path runs, so each instance's numbers are the
 scalar path's bit for bit."""

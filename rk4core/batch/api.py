@@ -1,17 +1,17 @@
-"""``rk4core.ensemble``: one model, many instances, one batch.
+"""``rk4h.ensemble``: one model, many instances, one batch.
 
 An *instance* is one initial state ``y0[b]`` and, optionally, its own values
 of the model's numeric parameters. Every instance runs the fixed-step method
 with the same step ``h`` over the same ``t_span``; each obeys the
-instability rule of :func:`rk4core.solve` alone (a diverging instance stops
+instability rule of :func:`rk4h.solve` alone (a diverging instance stops
 at its own step, with its own ``t_fail``; the others run on).
 
 Backends (both compiled from the model's one symbolic definition, as
-:mod:`rk4core.fast`):
+:mod:`rk4h.fast`):
 
-* ``"numba"`` -- the loop :func:`rk4core.fast.solve_model` runs, called once
+* ``"numba"`` -- the loop :func:`rk4h.fast.solve_model` runs, called once
   per instance inside a ``prange`` over instances (all cores). Per instance
-  the numbers are those of ``rk4core.solve(model.rhs, ...)`` bit for bit.
+  the numbers are those of ``rk4h.solve(model.rhs, ...)`` bit for bit.
 * ``"jax"`` -- the same tableau products and the same straight-line force
   expressions, traced with ``jax.numpy`` on arrays of shape (B,) (one lane per
   instance) inside a ``lax.scan``; float64 by default (jax's x64 mode is
@@ -61,7 +61,7 @@ class EnsembleResult:
     status : ndarray of int, shape (B,)
         0: reached ``t_span[1]``; -1: stopped by the instability rule.
     t_fail : ndarray of float, shape (B,)
-        Time (s) of the first step past the bound (as ``rk4core.solve``'s
+        Time (s) of the first step past the bound (as ``rk4h.solve``'s
         ``t_fail``); NaN where ``status == 0``.
     n_steps : ndarray of int, shape (B,)
         Steps completed by each instance.
@@ -158,8 +158,8 @@ def instance_parameters(model, params: Mapping | None, B: int):
 
     Parameters
     ----------
-    model : rk4core.models.Model
-        A model with a compiled force (:func:`rk4core.fast.supports`).
+    model : rk4h.models.Model
+        A model with a compiled force (:func:`rk4h.fast.supports`).
     params : mapping or None
         Numeric parameters of the model (names of ``model.params()``; an
         element of a list parameter as ``"name[i]"``) to arrays of length B
@@ -185,7 +185,7 @@ def instance_parameters(model, params: Mapping | None, B: int):
 
     kern = force_kernel(model)
     if kern is None:
-        raise ValueError(f"`model` must have a compiled force (see rk4core.fast.supports) for an ensemble, "
+        raise ValueError(f"`model` must have a compiled force (see rk4h.fast.supports) for an ensemble, "
                          f"got {type(model).__name__}")
     fp0 = np.ascontiguousarray(kern.fp, dtype=np.float64)
     mass0 = np.ascontiguousarray(model.mass, dtype=np.float64)
@@ -256,7 +256,7 @@ def instance_parameters(model, params: Mapping | None, B: int):
 
 
 def _growth_bounds(y0: np.ndarray, max_growth, y_scale):
-    """Per-instance :func:`rk4core.solver.growth_bound`: ``(bound (B, n), pending (B,))``."""
+    """Per-instance :func:`rk4h.solver.growth_bound`: ``(bound (B, n), pending (B,))``."""
     B, n = y0.shape
     bound = np.full((B, n), _DBL_MAX)
     pending = np.zeros(B)
@@ -298,18 +298,18 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
         A model with a compiled force (every shipped model; see
-        :func:`rk4core.fast.supports`); state ``y = [q, v]`` in its units.
+        :func:`rk4h.fast.supports`); state ``y = [q, v]`` in its units.
     y0 : array_like, shape (B, n)
         Initial state of each instance, ``n = 2 model.n_dof``.
     t_span : (float, float)
         ``(t0, t1)`` (s), ``t1 > t0``.
     h : float
-        Step (s), as :func:`rk4core.solve`: ``N = step_count(t_span, h)``
+        Step (s), as :func:`rk4h.solve`: ``N = step_count(t_span, h)``
         steps of ``(t1 - t0) / N``.
     method : str or Tableau
-        Any fixed-step method of ``rk4core.METHODS`` (partitioned ones
+        Any fixed-step method of ``rk4h.METHODS`` (partitioned ones
         included) or a tableau.
     params : mapping, optional
         Numeric model parameters per instance: ``{"alpha": a}`` with ``a``
@@ -322,7 +322,7 @@ def ensemble(model, y0, t_span, *, h, method="rk4", params=None, t_eval=None, ba
     dtype : {"float64", "float32"}
         Arithmetic precision; float32 with the jax backend only.
     max_growth, y_scale
-        The instability rule of :func:`rk4core.solve`, per instance
+        The instability rule of :func:`rk4h.solve`, per instance
         (``y_scale``: (n,) or (B, n)).
     chunk : int, optional
         Instances per chunk (default from :data:`CHUNK_BYTES`).

@@ -82,7 +82,7 @@ def stability_map(model, param: str, values, h, *, y0, n_steps: int = 2000, meth
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
         Base model (compiled force); its other parameters are kept.
     param : str
         A numeric parameter of ``model.params()``, or ``"name[i]"``.
@@ -96,7 +96,7 @@ def stability_map(model, param: str, values, h, *, y0, n_steps: int = 2000, meth
         after ``log(max_growth) / log(g)`` steps, so just past the boundary
         ``n_steps`` must be large.
     method, max_growth, backend
-        As :func:`rk4core.ensemble`.
+        As :func:`rk4h.ensemble`.
     """
     values = np.asarray(values, dtype=float).reshape(-1)
     hs = np.asarray(h, dtype=float).reshape(-1)
@@ -126,7 +126,7 @@ def float32_floor(model, y0, t_end: float, n_steps, *, method="rk4"):
 
     Parameters
     ----------
-    model : rk4core.models.Model
+    model : rk4h.models.Model
     y0 : array_like, shape (B, n)
         Instances (their spread averages the random walk).
     t_end : float

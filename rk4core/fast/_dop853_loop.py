@@ -1,8 +1,8 @@
-"""The compiled DOP853 loop, shared by every model (:mod:`rk4core.fast.dop853`).
+"""The compiled DOP853 loop, shared by every model (:mod:`rk4h.fast.dop853`).
 
 The model's right-hand side is an argument, a first-class function of
 signature :data:`RHS_SIG`, so this loop is compiled once per machine (numba's
-on-disk cache beside this file, as :mod:`rk4core.fast._kernels`) and only the
+on-disk cache beside this file, as :mod:`rk4h.fast._kernels`) and only the
 small wrapper of each model structure's right-hand side is compiled per
 structure. Compiled when this module is imported (explicit signature):
 import it only where the loop runs.

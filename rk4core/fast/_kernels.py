@@ -1,8 +1,8 @@
 """What the generated loops share: status codes and the cubic Hermite output.
 
 The force kernels and the loops themselves are generated per model
-definition and per method by :mod:`rk4core.fast.codegen` (from
-:mod:`rk4core.models.compiled`); nothing here depends on a model.
+definition and per method by :mod:`rk4h.fast.codegen` (from
+:mod:`rk4h.models.compiled`); nothing here depends on a model.
 
 Everything numba compiles from a fixed file lives in this one module on
 purpose: numba's on-disk cache (``cache=True``) is invalidated by the
@@ -31,7 +31,7 @@ DBL_MAX = np.finfo(np.float64).max
 def hermite_weights(th, step):
     """Weights ``(h00, h10 h, h01, h11 h)`` of the cubic Hermite interpolant
     ``h00 y0 + h10 h f0 + h01 y1 + h11 h f1`` at fraction ``th`` of a step
-    ``h`` (as ``rk4core.solver._emit``)."""
+    ``h`` (as ``rk4h.solver._emit``)."""
     h00 = (1 + 2 * th) * (1 - th) ** 2
     h10 = th * (1 - th) ** 2
     h01 = th * th * (3 - 2 * th)

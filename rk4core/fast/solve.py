@@ -1,9 +1,9 @@
 """Fixed-step integration of a symbolically defined model with compiled kernels.
 
-:func:`solve_model` has the semantics of :func:`rk4core.solve` applied to
+:func:`solve_model` has the semantics of :func:`rk4h.solve` applied to
 ``model.rhs`` -- same step-count rule, same output grid or ``t_eval`` handling
 (grid points exact, cubic Hermite in between), same blow-up status and message
--- and returns the same :class:`~rk4core.solver.FixedStepResult`, with the
+-- and returns the same :class:`~rk4h.solver.FixedStepResult`, with the
 numbers equal to round-off (bit for bit where the elementary functions agree).
 The instability rule (``max_growth``, ``y_scale``) is applied at the same
 step with the same bounds, so ``t_fail``, ``reason`` and the message are the
@@ -175,13 +175,13 @@ def solve_checked(model, t_eval, y0, h, method, bound) -> FixedStepResult | None
     arguments a caller has already checked; None when ``model`` has no
     compiled force.
 
-    The caller guarantees (``references.solvers.run_fixed`` does): ``y0`` a
+    The caller guarantees (``rk4h.references.solvers.run_fixed`` does): ``y0`` a
     finite float64 array of length ``2 n_dof`` (copied: the loop works on
     the copy); ``t_eval`` a finite, strictly increasing float64 array of at
     least 2 times (s; ``t_span = (t_eval[0], t_eval[-1])``); ``h > 0``
-    finite (s); ``method`` a :class:`~rk4core.methods.Tableau`; ``bound``
+    finite (s); ``method`` a :class:`~rk4h.methods.Tableau`; ``bound``
     the growth bounds ``min(max_growth * y_scale, DBL_MAX)`` of
-    :func:`rk4core.solver.growth_bound` for finite scales ``y_scale > 0``
+    :func:`rk4h.solver.growth_bound` for finite scales ``y_scale > 0``
     (a float64 array the loop may not keep). The step count and the output
     size are checked as :func:`solve_model` checks them (same errors). The
     numbers are those of ``solve_model(..., max_growth=max_growth,
@@ -202,7 +202,7 @@ def solve_checked(model, t_eval, y0, h, method, bound) -> FixedStepResult | None
 
 def _output_points(t0, step, n, t_eval, record_every):
     """Step index and fraction inside the step of every output point (as
-    ``rk4core.solve``), and how they are produced (``"grid"``/``"hermite"``)."""
+    ``rk4h.solve``), and how they are produced (``"grid"``/``"hermite"``)."""
     if t_eval is None:
         idx = np.arange(0, n + 1, record_every, dtype=np.int64)
         if idx[-1] != n:
@@ -258,23 +258,23 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
 
     Parameters
     ----------
-    model : rk4core.models.Model
-        A model with a compiled force (see :func:`rk4core.fast.supports`); its right-hand
+    model : rk4h.models.Model
+        A model with a compiled force (see :func:`rk4h.fast.supports`); its right-hand
         side is ``model.rhs`` (``y = [q, v]``, SI units of the model).
     t_span, y0, h, n_steps, t_eval, method, max_growth, y_scale
-        As :func:`rk4core.solve` (same caps on the step count and the output
+        As :func:`rk4h.solve` (same caps on the step count and the output
         size, same instability rule). ``y0`` is real (a complex ``y0`` is
         refused), of length ``2 * model.n_dof``; ``y_scale`` has the same
         length (m for positions, m/s for velocities, or the model's units).
     record_every : int, optional
         Without ``t_eval``: keep every ``record_every``-th step (and always
         the last one reached), to integrate long runs or large chains without
-        storing each step. Default 1 (every step, as ``rk4core.solve``).
+        storing each step. Default 1 (every step, as ``rk4h.solve``).
 
     Returns
     -------
     FixedStepResult
-        ``nfev`` counts force evaluations as ``rk4core.solve`` counts
+        ``nfev`` counts force evaluations as ``rk4h.solve`` counts
         right-hand-side calls: ``nfev_count(tab, N) = tab.nfev_first_step +
         (N - 1) tab.nfev_per_step`` for ``N`` steps attempted (a
         first-same-as-last method evaluates its reused stage once before the
@@ -286,9 +286,9 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     -----
     A state of up to ``codegen.MAX_UNROLLED_DIM`` components (the 2-DOF
     models) runs a loop generated from the method's tableau with the state in
-    registers (:mod:`rk4core.fast.codegen`); larger states run an array loop
+    registers (:mod:`rk4h.fast.codegen`); larger states run an array loop
     generated from the same tableau. Both give the numbers of
-    ``rk4core.solve(model.rhs, ...)`` bit for bit wherever the elementary
+    ``rk4h.solve(model.rhs, ...)`` bit for bit wherever the elementary
     functions agree. The first call in a process for a method and a force
     structure compiles the loop,
     or loads it from numba's on-disk cache; call :func:`warm_up` (with the
@@ -300,7 +300,7 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
     kern = force_kernel(model)
     if kern is None:
         raise ValueError(f"`model` must have a compiled force (a model defined by a potential, a network or "
-                         f"a chain; see rk4core.fast.supports) for the fast path, got {type(model).__name__}")
+                         f"a chain; see rk4h.fast.supports) for the fast path, got {type(model).__name__}")
     t0, t1 = check_t_span(t_span)
     y = check_model_y0(model, y0)
     max_growth = check_max_growth(max_growth)
@@ -338,9 +338,9 @@ def _finish(prep, tab, y, t0, t1, step, n, idx, theta, dense, t_eval, bound, pen
     message = "The solver successfully reached the end of the integration interval."
     t_fail, reason = None, "ok"
     if status != K.STATUS_OK:
-        t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4core.solve
+        t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4h.solve
         reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step, scale_from)
-    # As rk4core.solve, the stages of the step that failed are counted.
+    # As rk4h.solve, the stages of the step that failed are counted.
     nfev = nfev_count(tab, n_done + (status != K.STATUS_OK)) + int(n_extra)
     if t_eval is None:
         t_out = grid_times(t0, t1, step, idx[:n_out], n)
@@ -358,7 +358,7 @@ def warm_up(model=None, method="rk4") -> float:
     or load them from numba's on-disk cache.
 
     Each (method, force structure) has its own generated loop
-    (:mod:`rk4core.fast.codegen`): straight-line up to ``MAX_UNROLLED_DIM``
+    (:mod:`rk4h.fast.codegen`): straight-line up to ``MAX_UNROLLED_DIM``
     state components, an array loop beyond. Without ``model`` the loops of a
     two-mass chain and of a longer chain are prepared.
 

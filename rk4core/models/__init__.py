@@ -4,7 +4,7 @@
 
 A model of your own is one Python file: subclass :class:`Defined` and build
 its definition -- a :class:`PotentialModel` (the potential as text or
-:mod:`rk4core.expr` expressions) or a :class:`Network` -- in the constructor
+:mod:`rk4h.expr` expressions) or a :class:`Network` -- in the constructor
 (``self._adopt(lambda: PotentialModel(...), "param")``), so that the force,
 the Hessian, the compiled kernels and heyoka's equations are derived from it;
 or subclass :class:`Model` and write ``_potential``/``_force`` by hand (the
@@ -13,7 +13,7 @@ numpy path, no compiled kernel). Give it a unique ``name``, and either call
 "package.module:ClassName"`` (the module must be importable, e.g. on
 ``PYTHONPATH``; it is imported, so it must be your own code). Its
 constructor's keyword arguments are the scene's ``[params]``: declare them
-once as ``parameters`` (:class:`~rk4core.models.params.Param` rows: kind,
+once as ``parameters`` (:class:`~rk4h.models.params.Param` rows: kind,
 unit, default, description) and the scene schema, its checks and the scene
 reference are generated from them; without a declaration they are read from
 the constructor's signature.
@@ -58,7 +58,7 @@ def register_model(cls: type[Model], *, replace: bool = False) -> type[Model]:
     so it can decorate the class. A name already taken by another class is
     refused unless ``replace``. Raises ``ValueError`` naming the problem."""
     if not (isinstance(cls, type) and issubclass(cls, Model)) or cls is Model:
-        raise ValueError(f"`cls` must be a subclass of rk4core.models.Model, got {cls!r}")
+        raise ValueError(f"`cls` must be a subclass of rk4h.models.Model, got {cls!r}")
     name = getattr(cls, "name", None)
     if not isinstance(name, str) or not _NAME.fullmatch(name) or name == Model.name:
         raise ValueError(f"`{getattr(cls, '__name__', cls)}.name` must be a lowercase name of its own "
@@ -93,7 +93,7 @@ def resolve_model(name: str) -> str:
 def model_parameters(name: str) -> tuple[list[str], list[str]]:
     """(required, optional) parameter names of model ``name``: its declared
     ``parameters``, else its constructor's arguments
-    (:func:`rk4core.models.params.declared`)."""
+    (:func:`rk4h.models.params.declared`)."""
     ps = declared(MODELS[resolve_model(name)])
     return [p.name for p in ps if p.required], [p.name for p in ps if not p.required]
 

@@ -301,7 +301,7 @@ class Model:
     mass: np.ndarray
     coord_names: list[str]
     #: The constructor's keyword arguments, declared once
-    #: (:class:`rk4core.models.params.Param` rows); None: read from the signature.
+    #: (:class:`rk4h.models.params.Param` rows); None: read from the signature.
     parameters: ClassVar[tuple | None] = None
     #: One line on what the model is (the scene reference's ``[params]`` heading).
     summary: ClassVar[str] = ""
@@ -313,7 +313,7 @@ class Model:
     def check_parameters(cls, values: dict) -> None:
         """Rules between parameters that no single :class:`Param` row states;
         ``values`` holds every declared parameter (defaults filled in). Raise
-        :class:`rk4core.models.params.ParamRule` naming the parameter blamed.
+        :class:`rk4h.models.params.ParamRule` naming the parameter blamed.
         The default checks nothing."""
 
     # -- to implement -----------------------------------------------------
@@ -362,7 +362,7 @@ class Model:
         return (float(mass[0]), k) if uniform else None
 
     def force_kernel(self):
-        """The compiled form of the force (:mod:`rk4core.models.compiled`),
+        """The compiled form of the force (:mod:`rk4h.models.compiled`),
         printed from the model's symbolic definition, or None (a model with a
         hand-written ``_force``: it runs on the numpy path)."""
         return None
@@ -485,8 +485,8 @@ class Model:
     def check_state(self, y, name: str = "y0") -> np.ndarray:
         """``y`` as a float array if :meth:`state_problem` finds nothing wrong.
 
-        Used by ``references.solvers.integrate`` and
-        ``references.truth.reference_solution`` on the initial state.
+        Used by ``rk4h.references.solvers.integrate`` and
+        ``rk4h.references.truth.reference_solution`` on the initial state.
 
         Parameters
         ----------
@@ -597,7 +597,7 @@ class Model:
         ``f * fl(1/m)`` with the reciprocal rounded to double: exact to an ulp in
         double precision, but a different mass (relative ~1e-17) in ``real128``.
         The solvers therefore integrate
-        :func:`references.solvers.taylor.scaled_system`, which builds on the
+        :func:`rk4h.references.solvers.taylor.scaled_system`, which builds on the
         same ``_force`` and passes the masses as runtime parameters."""
         import heyoka as hy
 
@@ -651,7 +651,7 @@ class Model:
 
 class Defined(Model):
     """A model whose mechanics is another model's definition -- a spring
-    :class:`~rk4core.models.Network` or a :class:`~rk4core.models.PotentialModel`
+    :class:`~rk4h.models.Network` or a :class:`~rk4h.models.PotentialModel`
     -- under its own parameters, name and coordinate names.
 
     Subclasses set ``self.definition`` (and ``name``, ``coord_names``,

@@ -12,7 +12,7 @@ has N-1. Equation of motion (thesis eq. 2.42, sign corrected, erratum 6):
 Fermi-Pasta-Ulam-Tsingou chains: with ``alpha`` (N/m^2) or ``beta`` (N/m^3)
 non-zero every spring's energy is ``k r^2/2 + alpha r^3/3 + beta r^4/4`` in its
 extension ``r`` -- the one spring-energy expression of
-:mod:`rk4core.models.network`, whose derivative gives the tension -- and the
+:mod:`rk4h.models.network`, whose derivative gives the tension -- and the
 chain is nonlinear. With ``alpha = beta = 0`` it is the linear chain, bit for
 bit. Long uniform chains need no spelled-out lists: ``masses = 0.815``,
 ``springs = 41.5``, ``n = 100``.

@@ -1,13 +1,13 @@
 """The compiled form of a model's force, printed from its symbolic definition.
 
-A model's one definition (:mod:`rk4core.expr` expressions: the potential of a
-:class:`~rk4core.models.PotentialModel`, or the one spring-energy template of
-:mod:`rk4core.models.network` applied over an edge list) is turned here into
-the source text of scalar code that numba compiles (:mod:`rk4core.fast`): the
+A model's one definition (:mod:`rk4h.expr` expressions: the potential of a
+:class:`~rk4h.models.PotentialModel`, or the one spring-energy template of
+:mod:`rk4h.models.network` applied over an edge list) is turned here into
+the source text of scalar code that numba compiles (:mod:`rk4h.fast`): the
 fixed-step loops and the right-hand side the references call. Nothing in it is
 written per model: the text is printed from the same expression trees the
-numpy right-hand side (:func:`rk4core.expr.lambdify`) and heyoka's equations
-(:func:`rk4core.expr.to_heyoka`) are printed from, with the operations in the
+numpy right-hand side (:func:`rk4h.expr.lambdify`) and heyoka's equations
+(:func:`rk4h.expr.to_heyoka`) are printed from, with the operations in the
 same order as the numpy path, so both give the same numbers (bit for bit where
 the elementary functions agree).
 
@@ -147,7 +147,7 @@ class ForceKernel:
 
 
 class ExprKernel(ForceKernel):
-    """The force ``-grad V`` of a :class:`~rk4core.models.PotentialModel`:
+    """The force ``-grad V`` of a :class:`~rk4h.models.PotentialModel`:
     one expression per coordinate, its numbers moved into ``fp``."""
 
     def __init__(self, force_exprs, coordinates):
@@ -180,7 +180,7 @@ class ExprKernel(ForceKernel):
 
 def _tension_source(linear: bool, consts: _Constants | None = None):
     """``(lines, result)``: the tension ``E'(r)`` of the one spring-energy
-    template (:data:`rk4core.models.spring_template.SPRING_ENERGY`) in the locals
+    template (:data:`rk4h.models.spring_template.SPRING_ENERGY`) in the locals
     ``_Fr`` (extension), ``_Fk``, ``_Fal``, ``_Fbe``; with ``alpha = beta =
     0`` substituted when ``linear`` (it is then ``k r``)."""
     e = ex.substitute(TENSION, {"alpha": 0.0, "beta": 0.0}) if linear else TENSION
@@ -190,7 +190,7 @@ def _tension_source(linear: bool, consts: _Constants | None = None):
 
 
 class SpringKernel(ForceKernel):
-    """The force of a spring network (:class:`~rk4core.models.Network`): the
+    """The force of a spring network (:class:`~rk4h.models.Network`): the
     tension of the spring-energy template over the edge list, with exact
     geometry, accumulated as the numpy path does (``np.add.at`` on the ``a``
     ends in spring order, then on the ``b`` ends).
@@ -358,7 +358,7 @@ class SpringKernel(ForceKernel):
 
 
 class ChainKernel(ForceKernel):
-    """The force of a 1-D chain (:class:`~rk4core.models.Chain`): tensions
+    """The force of a 1-D chain (:class:`~rk4h.models.Chain`): tensions
     ``T_j = E'(r_j)`` of the extensions ``r_j = u_{j+1} - u_j`` of the
     wall-padded displacements (zero tension beyond a free end), ``F_i =
     T_{i+1} - T_i``; each tension formed once and carried to the next mass.

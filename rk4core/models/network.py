@@ -14,7 +14,7 @@ reference positions. Its energy is one template in the extension,
 
     E(r) = k r^2 / 2 + alpha r^3 / 3 + beta r^4 / 4      (J; alpha = beta = 0 here)
 
-written once as an expression (:mod:`rk4core.expr`); its derivatives, the
+written once as an expression (:mod:`rk4h.expr`); its derivatives, the
 tension ``E'(r)`` (N) and the stiffness ``E''(r)`` (N/m), are derived from it
 symbolically, never written by hand. The force on ``a`` is ``E'(r) (P_b -
 P_a) / L`` and on ``b`` its opposite; the Hessian at the reference state is
@@ -46,7 +46,7 @@ _STIFFNESS = ex.diff(_TENSION, "r")
 _np_energy, _np_tension, _np_stiffness = (ex.lambdify(e, _NAMES) for e in (SPRING_ENERGY, _TENSION, _STIFFNESS))
 #: The tension with ``alpha = beta = 0`` substituted (it is ``k r``): the
 #: harmonic springs' numpy path, printed from the same template as the
-#: compiled kernels' (:mod:`rk4core.models.compiled`).
+#: compiled kernels' (:mod:`rk4h.models.compiled`).
 _TENSION_HARMONIC = ex.substitute(_TENSION, {"alpha": 0.0, "beta": 0.0})
 _np_tension_harmonic = ex.lambdify(_TENSION_HARMONIC, ("r", "k"), broadcast=False)
 

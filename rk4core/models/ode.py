@@ -6,7 +6,7 @@ Scene key ``ode`` (``[params]``):
 * ``variables`` -- list of distinct names (at most :data:`MAX_VARIABLES`),
   the state ``y`` in this order; ``t`` is the time and may not be one;
 * ``equations`` -- one expression per variable, ``dy_i/dt``, in the grammar
-  of :mod:`rk4core.expr` (numbers, the variables, ``t``, the constants,
+  of :mod:`rk4h.expr` (numbers, the variables, ``t``, the constants,
   ``+ - * / ** ^``, parentheses, ``sin cos tan sinh cosh tanh exp log
   sqrt``), parsed by the harness's own parser, never by ``eval``;
 * ``constants`` -- optional table of named numbers used in the texts;
@@ -29,7 +29,7 @@ invariant ``energy`` is NaN.
 
 :class:`FunctionOde` wraps a plain ``fun(t, y)`` (scipy's convention) with
 an optional ``exact(t)`` and ``invariant(y)``; it is what
-``references.solvers.integrate(solver, fun, ...)`` builds from a callable.
+``rk4h.references.solvers.integrate(solver, fun, ...)`` builds from a callable.
 """
 from __future__ import annotations
 
@@ -189,7 +189,7 @@ class OdeModel(_FirstOrder):
     """
 
     name = "ode"
-    summary = ("Any first-order ODE typed as text: dy/dt = f(t, y) over named variables (parsed by rk4core.expr, "
+    summary = ("Any first-order ODE typed as text: dy/dt = f(t, y) over named variables (parsed by rk4h.expr, "
                "never eval'd); the initial state is `[initial] y`.")
     parameters = (
         Param("variables", "list[str]", "-", "names of the state components, in order (not `t`: the time)",

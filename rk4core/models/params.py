@@ -1,11 +1,11 @@
 """A model's parameters, declared once on the model class.
 
-Each :class:`~rk4core.models.Model` subclass lists its constructor's keyword
+Each :class:`~rk4h.models.Model` subclass lists its constructor's keyword
 arguments as :class:`Param` rows in the class attribute ``parameters`` (with
 ``summary``, one line on what the model is). That one declaration is what
 the scene file's ``[params]`` table is generated from (type, unit, default,
-example, description; :mod:`validation.scene_schema`), what
-:func:`rk4core.models.model_parameters` reports and what the scene reference
+example, description; :mod:`rk4h.validation.scene_schema`), what
+:func:`rk4h.models.model_parameters` reports and what the scene reference
 prints. A rule that spans several parameters (a chain's spring count follows
 its mass count and walls) is the class method ``check_parameters``, raising
 :class:`ParamRule`.
@@ -17,7 +17,7 @@ kind ``"any"``, required when it has no default.
 Kinds (``Param.kind``), all in SI units of the row's ``unit``:
 
 ``"normal"``
-    a float >= :data:`~rk4core.models.base.MASS_MIN` (1e-300), finite: a mass,
+    a float >= :data:`~rk4h.models.base.MASS_MIN` (1e-300), finite: a mass,
     stiffness or length;
 ``"finite"``
     any finite float;

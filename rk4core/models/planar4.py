@@ -23,7 +23,7 @@ from .potential import PotentialModel
 class Planar4(Defined):
     """Parameters: ``m`` (kg), ``k`` (N/m, each spring), ``l`` (m), ``linear`` (bool).
 
-    Defined as a :class:`~rk4core.models.Network` (one mass at the origin,
+    Defined as a :class:`~rk4h.models.Network` (one mass at the origin,
     four anchors, springs of natural length ``l``), or, when ``linear``, as
     the potential ``k (x^2 + y^2)``."""
 

@@ -7,24 +7,24 @@ Scene key ``potential`` (``[params]``):
 * ``masses`` -- one positive number per coordinate, or one number for all
   (kg for lengths, kg m^2 for angles);
 * ``potential`` -- the text of ``V(q)`` (J) in the grammar of
-  :mod:`rk4core.expr` (numbers, names, ``+ - * / ** ^``, parentheses, ``sin
+  :mod:`rk4h.expr` (numbers, names, ``+ - * / ** ^``, parentheses, ``sin
   cos tan sinh cosh tanh exp log sqrt``), parsed by the harness's own parser,
   never by ``eval``;
 * ``constants`` -- optional table of named numbers used in the text
   (substituted as their double values).
 
 The text's cost is bounded before it is paid: besides the parser's length and
-nesting limits, a product of more than :data:`rk4core.expr.MAX_FACTORS`
+nesting limits, a product of more than :data:`rk4h.expr.MAX_FACTORS`
 factors is refused while parsing, and the gradient and Hessian together may
-take at most :data:`rk4core.expr.MAX_DERIVATIVE_WORK` units of work (a
-:class:`rk4core.expr.Budget`); either refusal is a ``ValueError`` naming
+take at most :data:`rk4h.expr.MAX_DERIVATIVE_WORK` units of work (a
+:class:`rk4h.expr.Budget`); either refusal is a ``ValueError`` naming
 ``potential`` and the limit, in seconds.
 
 Everything else is derived from the one parsed expression, never written by
 hand: the force ``F = -grad V`` by symbolic differentiation
-(:func:`rk4core.expr.diff`); the numpy right-hand side from the
-:func:`rk4core.expr.lambdify`-compiled force (vectorised over states); heyoka's
-equations from :func:`rk4core.expr.to_heyoka` of the same force expressions;
+(:func:`rk4h.expr.diff`); the numpy right-hand side from the
+:func:`rk4h.expr.lambdify`-compiled force (vectorised over states); heyoka's
+equations from :func:`rk4h.expr.to_heyoka` of the same force expressions;
 the stiffness matrix from the symbolic Hessian.
 
 Reference state: ``q = 0``. :meth:`PotentialModel.stiffness_matrix` is the
@@ -85,18 +85,18 @@ class PotentialModel(Model):
 
     Attributes
     ----------
-    V : rk4core.expr.Expr
+    V : rk4h.expr.Expr
         The parsed potential.
-    force_exprs : list of rk4core.expr.Expr
+    force_exprs : list of rk4h.expr.Expr
         ``-dV/dq_i``, derived symbolically.
-    hessian_exprs : list of list of rk4core.expr.Expr
+    hessian_exprs : list of list of rk4h.expr.Expr
         ``d2V/dq_i dq_j``.
     digest : str
         SHA-256 of the canonical text of V (a cache key for derived code).
     """
 
     name = "potential"
-    summary = "Any potential typed as text: V(q) over named coordinates (parsed by rk4core.expr, never eval'd)."
+    summary = "Any potential typed as text: V(q) over named coordinates (parsed by rk4h.expr, never eval'd)."
     parameters = (
         Param("coordinates", "list[str]", "-", "names of the generalized coordinates, as used in `potential`",
               ["x", "y"], min_length=1, max_length=MAX_COORDINATES),
@@ -130,7 +130,7 @@ class PotentialModel(Model):
         names = self.coordinates
         try:
             # one budget for every derivative, so a V whose derivatives would take
-            # minutes is refused in about a second (rk4core.expr.MAX_DERIVATIVE_WORK)
+            # minutes is refused in about a second (rk4h.expr.MAX_DERIVATIVE_WORK)
             budget = ex.Budget()
             self.force_exprs = [ex.neg(g) for g in ex.gradient(self.V, names, budget=budget)]
             self.hessian_exprs = ex.hessian(self.V, names, budget=budget)
@@ -233,7 +233,7 @@ class PotentialModel(Model):
     def potential_above_rest(self, q) -> np.ndarray | float:
         """``V(q) - V(0)`` (J), ``q`` of shape (n_dof,) or (n_dof, m): ``V(0)`` is
         subtracted from the expression before evaluation, so a constant in ``V``
-        cancels exactly (the energy of the motion, :mod:`rk4core.energy`)."""
+        cancels exactly (the energy of the motion, :mod:`rk4h.energy`)."""
         fn = self.__dict__.get("_V_above_fn")
         if fn is None:
             V0 = ex.substitute(self.V, {c: ex.Num(0.0) for c in self.coordinates})

@@ -3,8 +3,8 @@
 ``E(r) = k r^2/2 + alpha r^3/3 + beta r^4/4`` (J) in the extension ``r``
 (m), stiffness ``k`` (N/m) and the Fermi-Pasta-Ulam-Tsingou coefficients
 ``alpha`` (N/m^2) and ``beta`` (N/m^3). Its tension ``E'(r)`` (N) is
-derived, never written by hand; :mod:`rk4core.models.network` evaluates
-both and :mod:`rk4core.models.compiled` prints the tension into the
+derived, never written by hand; :mod:`rk4h.models.network` evaluates
+both and :mod:`rk4h.models.compiled` prints the tension into the
 compiled kernels.
 """
 from __future__ import annotations

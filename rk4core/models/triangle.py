@@ -23,7 +23,7 @@ _PAIRS = ((0, 1), (1, 2), (0, 2))
 class Triangle(Defined):
     """Parameters: ``m`` (kg, each mass), ``k`` (N/m, each spring), ``side`` (m).
 
-    Defined as a :class:`~rk4core.models.Network` of three masses at the rest
+    Defined as a :class:`~rk4h.models.Network` of three masses at the rest
     positions and three springs of natural length ``side``."""
 
     name = "triangle"

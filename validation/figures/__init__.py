@@ -10,20 +10,20 @@ runner computes and records, these modules draw.
 
 One job per module:
 
-* :mod:`~validation.figures.style`: the style kit (sizes, fonts, solver
+* :mod:`~rk4h.validation.figures.style`: the style kit (sizes, fonts, solver
   colours, canvas, titles, legends, log axes, the final draw, the PNG writer,
   number formats), used by every figure of the report;
-* :mod:`~validation.figures.captions`: :class:`Caption` and the reading guides;
-* :mod:`~validation.figures.scene`: the physics drawings of a scene's
+* :mod:`~rk4h.validation.figures.captions`: :class:`Caption` and the reading guides;
+* :mod:`~rk4h.validation.figures.scene`: the physics drawings of a scene's
   trajectory (:func:`scene_figures`);
-* :mod:`~validation.figures.measurement`: work-precision, convergence,
+* :mod:`~rk4h.validation.figures.measurement`: work-precision, convergence,
   energy error, modal energy, dispersion, crossover.
 
 This package re-exports the public names of all four, so
-``from validation import figures as F; F.work_precision(...)``,
+``from rk4h.validation import figures as F; F.work_precision(...)``,
 ``F.new_figure()`` and ``F.slug(...)`` work. Module-level settings that code
 changes at run time (:data:`style.SAVE_HOOK`, :data:`style.MINOR_SUBS`) are
-read where they live: set them on :mod:`validation.figures.style`.
+read where they live: set them on :mod:`rk4h.validation.figures.style`.
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from references.registry import UNDER_TEST
+from rk4h.references.registry import UNDER_TEST
 
 from . import style as kit
 from .captions import Caption
@@ -441,13 +441,13 @@ def dispersion(out_dir, m, k, d, finite_n, finite_omega, packets, *, scene_name=
     ``omega = sqrt(4k/m) |sin(kp d / 2)|``, ``v_p = omega / kp`` and
     ``v_g = d omega / d kp = d sqrt(k/m) cos(kp d / 2) sign(kp)`` for
     ``|kp| < 2 pi / d`` (thesis eqs. 2.49-2.54 with erratum 7), all from
-    :mod:`references.dispersion`. Both velocities jump at ``kp = 0`` (where
+    :mod:`rk4h.references.dispersion`. Both velocities jump at ``kp = 0`` (where
     ``|sin|`` has its kink); the curves are drawn in two pieces there, not
     joined by a vertical line. The first Brillouin zone ``|kp| <= pi / d`` is
     shaded.
     """
-    from references.dispersion import finite_chain_wavenumbers, group_velocity, omega, phase_velocity
-    from rk4core.validate import positive
+    from rk4h.references.dispersion import finite_chain_wavenumbers, group_velocity, omega, phase_velocity
+    from rk4h.validate import positive
 
     m, k, d = positive("m", m), positive("k", k), positive("d", d)
     finite_omega = np.asarray(finite_omega, dtype=float).ravel()

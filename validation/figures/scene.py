@@ -6,7 +6,7 @@ The figures are chosen from the model's drawing (``model.drawing()``), never
 from its name. Nothing here integrates or solves an eigenproblem: the modal
 content the sentences quote (frequencies, the initial state's energy per
 mode, how the dominant mode keeps its energy) comes with the trajectory, as
-the run's record holds it (:func:`validation.execute.modal_content`). The
+the run's record holds it (:func:`rk4h.validation.execute.modal_content`). The
 numbers derived here are display aids (axis windows, SI prefixes) and facts
 read off the data drawn (a path's principal axes, peak values, ranges).
 
@@ -75,7 +75,7 @@ def _zoom_end(modal, t):
 
 def _modal_text(model, modal, t) -> tuple[str, bool]:
     """``(text, single)``: what the recorded modal content of the run
-    (:func:`validation.execute.modal_content`) says about the motion drawn --
+    (:func:`rk4h.validation.execute.modal_content`) says about the motion drawn --
     the initial state's modes (one frequency, or which modes and whether they
     beat) and, for a one-frequency start, whether that mode keeps its energy
     over the run (a nonlinear model may share it) -- and whether the motion
@@ -590,8 +590,8 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title, thesis=None, modal
         Directory for the PNGs (created if missing).
     scene_name : str
         Stem of the file names (made lowercase with underscores).
-    model : rk4core.models.Model
-        The scene's model; its :meth:`~rk4core.models.Model.drawing` (never
+    model : rk4h.models.Model
+        The scene's model; its :meth:`~rk4h.models.Model.drawing` (never
         its name) selects the figures by ``layout``:
 
         * ``"line"`` with at most 10 masses: displacement and velocity of each
@@ -629,7 +629,7 @@ def scene_figures(out_dir, scene_name, model, t, y, *, title, thesis=None, modal
         reproduces a thesis figure.
     modal : dict or None
         The trajectory's modal content as its record holds it
-        (:func:`validation.execute.modal_content`): ``"omega"`` (rad/s, one
+        (:func:`rk4h.validation.execute.modal_content`): ``"omega"`` (rad/s, one
         per mode of the linearization), ``"fraction0"`` (the initial state's
         share of the linear modal energy per mode), ``"share_min"`` and
         ``"share_t"`` (s) (the lowest share of the dominant mode over the run

@@ -2,9 +2,9 @@
 titles, legends, log axes, the final draw with its house rules, the PNG
 writer and the number formats every figure's text uses.
 
-Every figure of the report (:mod:`validation.figures.scene`,
-:mod:`validation.figures.measurement`, :mod:`validation.stability.plots`,
-:mod:`validation.draw`) is drawn with these functions, so one style holds
+Every figure of the report (:mod:`rk4h.validation.figures.scene`,
+:mod:`rk4h.validation.figures.measurement`, :mod:`rk4h.validation.stability.plots`,
+:mod:`rk4h.validation.draw`) is drawn with these functions, so one style holds
 everywhere.
 
 Conventions
@@ -45,7 +45,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from PIL import Image
 
-from references.registry import BUILTIN, resolve
+from rk4h.references.registry import BUILTIN, resolve
 
 __all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "SOLVER_STYLE", "UNKNOWN_STYLE",
            "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
@@ -61,7 +61,7 @@ FONT_MIN = 8.0           # pt: no text smaller, anywhere
 FONT_SMALL = 8.0         # pt: legends, panel titles, annotations
 FONT_TITLE = 10.0        # pt: figure titles
 
-#: colour and marker of each built-in method (``references.registry``), the
+#: colour and marker of each built-in method (``rk4h.references.registry``), the
 #: same in every figure; a scene's own methods get theirs from the registry
 #: while :func:`scene_methods` is in effect.
 SOLVER_STYLE = {name: (m.style.color, m.style.marker) for name, m in BUILTIN.items()}
@@ -91,7 +91,7 @@ def slug(name: str) -> str:
 @contextlib.contextmanager
 def scene_methods(local):
     """Draw with the styles and orders of a scene's own methods (name ->
-    ``references.registry.Method``) besides the built-ins."""
+    ``rk4h.references.registry.Method``) besides the built-ins."""
     global _LOCAL
     saved, _LOCAL = _LOCAL, dict(local or {})
     try:
@@ -118,7 +118,7 @@ def solver_of(label: str) -> str:
 
 
 def method_of(solver):
-    """The registry method (``references.registry.Method``) ``solver`` names:
+    """The registry method (``rk4h.references.registry.Method``) ``solver`` names:
     a built-in or one of the drawn scene's own; ValueError when unknown."""
     return resolve(solver, _LOCAL)
 

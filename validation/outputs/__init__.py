@@ -9,19 +9,19 @@ names. A new output outside the package goes through :func:`register`
 The rest of the harness iterates the registry:
 
 * the scene schema's ``run.outputs`` enum and the scene reference
-  (:mod:`validation.scene_schema`), from :attr:`Output.name`,
+  (:mod:`rk4h.validation.scene_schema`), from :attr:`Output.name`,
   :attr:`Output.when` and :attr:`Output.what`;
-* the default ``run.outputs`` (:func:`validation.scenes.default_outputs`),
+* the default ``run.outputs`` (:func:`rk4h.validation.scenes.default_outputs`),
   from :attr:`Output.applies`;
-* the plan (:func:`validation.plan.plan`), from :attr:`Output.plan` and
+* the plan (:func:`rk4h.validation.plan.plan`), from :attr:`Output.plan` and
   :attr:`Output.run_keep`; the execution of a purpose no built-in executes
   (:func:`executor`);
-* the measurement (:func:`validation.measure.measure`), from
+* the measurement (:func:`rk4h.validation.measure.measure`), from
   :attr:`Output.measure`;
 * the report's tables, ``columns.json`` and ``docs/columns.md``
-  (:mod:`validation.tables`, :mod:`validation.columns`), from
+  (:mod:`rk4h.validation.tables`, :mod:`rk4h.validation.columns`), from
   :attr:`Output.tables`;
-* figures (:mod:`validation.draw`) and other files of the report
+* figures (:mod:`rk4h.validation.draw`) and other files of the report
   (:func:`write_files`), from :attr:`Output.draw` and :attr:`Output.write`.
 
 Nothing here imports the modules that iterate the registry (the layers test
@@ -51,9 +51,9 @@ class Table:
     """A report table an output writes.
 
     ``columns`` is ``((name, unit, dtype, description), ...)`` in written
-    order (units and dtypes as in :mod:`validation.columns`); None for a
-    built-in table declared in :mod:`validation.tables` and
-    :mod:`validation.columns`. ``timing`` names the columns that hold
+    order (units and dtypes as in :mod:`rk4h.validation.columns`); None for a
+    built-in table declared in :mod:`rk4h.validation.tables` and
+    :mod:`rk4h.validation.columns`. ``timing`` names the columns that hold
     timings (not reproducible between two runs)."""
 
     name: str
@@ -90,7 +90,7 @@ class Output:
         purpose -> what a run of it records (documentation; ``docs/outputs.md``).
     execute : mapping
         purpose -> ``fn(scene, spec, quick) -> RunRecord`` for purposes no
-        built-in executor knows (:mod:`validation.execute`).
+        built-in executor knows (:mod:`rk4h.validation.execute`).
     run_keep : callable or None
         ``run_keep(draw: bool) -> tuple``: what the scene's timed ``run``
         specs keep in their records for this output (``"energy"``,
@@ -104,7 +104,7 @@ class Output:
         The tables it writes (their columns and descriptions).
     draw : mapping
         figure kind -> ``fn(out_dir, job, scene) -> [(Path, sentence)]`` for
-        kinds :mod:`validation.draw` does not know.
+        kinds :mod:`rk4h.validation.draw` does not know.
     write : callable or None
         ``write(out_dir, jobs: [FileJob]) -> [(Path, sentence)]``: files
         other than tables and figures (called once per report with every
@@ -131,7 +131,7 @@ class Output:
 class ModelFacts:
     """What :attr:`Output.applies` reads about a scene's model: computed once,
     on demand. ``dense`` is False above the dense-eigensolve limit
-    (:data:`validation.scenes.MAX_DENSE_DOF`), where only outputs that need
+    (:data:`rk4h.validation.scenes.MAX_DENSE_DOF`), where only outputs that need
     no eigensolve apply; ``stability`` whether the scene has a
     ``[stability]`` table."""
 
@@ -170,7 +170,7 @@ class ModelFacts:
 class Planning:
     """What :attr:`Output.plan` receives: the scene, the outputs it wants,
     whether figures are drawn, the quick flag, timing repeats, and
-    ``spec(purpose, **fields)`` making a :class:`validation.plan.RunSpec` of
+    ``spec(purpose, **fields)`` making a :class:`rk4h.validation.plan.RunSpec` of
     the scene."""
 
     scene: Any
@@ -190,7 +190,7 @@ class Planning:
 class Measuring:
     """What :attr:`Output.measure` receives: the scene, its specs by purpose,
     the records (key -> RunRecord), the scene's
-    :class:`validation.measure.SceneTables` to fill, the quick flag and
+    :class:`rk4h.validation.measure.SceneTables` to fill, the quick flag and
     whether figures are drawn."""
 
     scene: Any
@@ -248,7 +248,7 @@ def unregister(name: str) -> None:
             hook(out)
 
 
-#: Called with each newly registered output (validation.tables declares its tables).
+#: Called with each newly registered output (rk4h.validation.tables declares its tables).
 _ON_REGISTER: list[Callable[[Output], None]] = []
 
 
@@ -270,7 +270,7 @@ def _discover() -> None:
         module = importlib.import_module(f"{__name__}.{info.name}")
         out = getattr(module, "OUTPUT", None)
         if not isinstance(out, Output):
-            raise TypeError(f"{module.__name__} defines no OUTPUT (an validation.outputs.Output)")
+            raise TypeError(f"{module.__name__} defines no OUTPUT (an rk4h.validation.outputs.Output)")
         _REGISTRY[out.name] = out
     _sort()
 
@@ -352,7 +352,7 @@ def drawer(kind: str) -> Callable | None:
 
 def write_files(out_dir, results) -> tuple[list, list]:
     """Every output's files (:attr:`Output.write`) from the scenes' results
-    (:class:`validation.measure.SceneTables`, their ``files``).
+    (:class:`rk4h.validation.measure.SceneTables`, their ``files``).
 
     Returns
     -------

@@ -7,8 +7,8 @@ from __future__ import annotations
 def plan(p) -> list:
     """The reference on the scene's output grid, then every solver at every
     step or tolerance of the scene, timed ``p.repeats`` times, keeping what
-    the wanted outputs ask of them (:attr:`validation.outputs.Output.run_keep`)."""
-    from validation.plan import settings_of
+    the wanted outputs ask of them (:attr:`rk4h.validation.outputs.Output.run_keep`)."""
+    from rk4h.validation.plan import settings_of
 
     out = [p.spec("truth", grid="scene")]
     for solver in p.scene.solvers:
@@ -21,8 +21,8 @@ def plan(p) -> list:
 def measure(m) -> None:
     """``accuracy`` rows, and the ``energy``/``work_precision``/``cheapest``
     rows and figures of the outputs the scene lists
-    (:func:`validation.measure.measure_runs`)."""
-    from validation.measure import measure_runs
+    (:func:`rk4h.validation.measure.measure_runs`)."""
+    from rk4h.validation.measure import measure_runs
 
     measure_runs(m.scene, m.specs("run"), m.records, m.res, m.draw, m.specs("confirm"))
 

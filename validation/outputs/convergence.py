@@ -1,11 +1,11 @@
 """``convergence``: the observed order of every fixed-step method."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
-    """Per method (:func:`validation.plan.order_methods`), a reference on the
+    """Per method (:func:`rk4h.validation.plan.order_methods`), a reference on the
     sweep's grid and one run per ``theta = omega_max h`` of ``[convergence]``."""
-    from validation.plan import order_methods
+    from rk4h.validation.plan import order_methods
 
     out = []
     for method, key, default in order_methods(p.scene):
@@ -17,7 +17,7 @@ def plan(p) -> list:
 
 
 def measure(m) -> None:
-    from validation.measure import measure_convergence
+    from rk4h.validation.measure import measure_convergence
 
     if m.specs("order"):
         measure_convergence(m.scene, m.specs("order"), m.records, m.res, m.draw)

@@ -1,5 +1,5 @@
 """``dispersion``: a uniform chain against the lattice's dispersion relation."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def applies(facts) -> bool:
@@ -8,15 +8,15 @@ def applies(facts) -> bool:
 
 
 def plan(p) -> list:
-    from references.registry import UNDER_TEST
-    from validation.plan import PACKET_KP, under_test
+    from rk4h.references.registry import UNDER_TEST
+    from rk4h.validation.plan import PACKET_KP, under_test
 
     packet_method = under_test(p.scene) or UNDER_TEST
     return [p.spec("dispersion")] + [p.spec("packet", solver=packet_method, setting=float(kp)) for kp in PACKET_KP]
 
 
 def measure(m) -> None:
-    from validation.measure import measure_dispersion
+    from rk4h.validation.measure import measure_dispersion
 
     measure_dispersion(m.scene, m.specs("dispersion"), m.specs("packet"), m.records, m.res, m.draw)
 

@@ -1,5 +1,5 @@
 """``energy``: the energy drift of the scene's runs, against theory where one applies."""
-from validation.outputs import Output, Table, _runs
+from rk4h.validation.outputs import Output, Table, _runs
 
 OUTPUT = Output(
     name="energy", rank=20, plan_rank=10, measure_rank=10,

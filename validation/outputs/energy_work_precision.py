@@ -12,10 +12,10 @@ SciMLBenchmarks draws it for its dynamical-ODE benchmarks:
 * an adaptive reference runs at each of ``run.tolerances``.
 
 Each run's energy is sampled 16 times per fastest period
-(:func:`validation.energy_time.dense_samples`) and its growth exponent fitted
-(:func:`validation.energy_time.growth_exponent`). The numbers come from
-:func:`validation.energy_time.work_precision_rows`, the code the opt-in CLI
-``python -m validation.energy_study`` runs. Never a default: its runs are long.
+(:func:`rk4h.validation.energy_time.dense_samples`) and its growth exponent fitted
+(:func:`rk4h.validation.energy_time.growth_exponent`). The numbers come from
+:func:`rk4h.validation.energy_time.work_precision_rows`, the code the opt-in CLI
+``python -m rk4h.validation.energy_study`` runs. Never a default: its runs are long.
 
 Check: every symplectic method's energy error stays bounded over every
 horizon of at least :data:`CHECK_MIN_PERIODS` periods (growth exponent below
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 #: A symplectic method's energy error counts as bounded while the fitted
 #: growth exponent of its running maximum stays below this (secular growth: 1).
@@ -35,14 +35,14 @@ BOUNDED_EXPONENT = 0.1
 CHECK_MIN_PERIODS = 100.0
 #: The run purpose of this output.
 PURPOSE = "energy_wp"
-#: The figure kind (validation.figures.GENERIC_CAPTIONS).
+#: The figure kind (rk4h.validation.figures.GENERIC_CAPTIONS).
 FIGURE = "energy_work_precision"
 
 
 def settings(scene) -> tuple[list[float], list[int]]:
     """``(periods, steps)`` of ``scene``: its ``[energy_work_precision]`` keys,
     the defaults where it sets none (a repeated value once, in order)."""
-    from validation.scene_schema import EWP_PERIODS, EWP_STEPS
+    from rk4h.validation.scene_schema import EWP_PERIODS, EWP_STEPS
 
     cfg = getattr(scene, "energy_work_precision", None) or {}
     periods = list(dict.fromkeys(float(x) for x in cfg.get("periods", EWP_PERIODS)))
@@ -58,11 +58,11 @@ def plan(p) -> list:
 
 
 def execute(scene, spec, quick):
-    """The rows of one solver over one horizon (:func:`validation.energy_time.work_precision_rows`)."""
-    import rk4core.fast as fast
-    from validation.energy_time import is_symplectic, work_precision_rows
-    from validation.execute import problem
-    from validation.records import RunRecord
+    """The rows of one solver over one horizon (:func:`rk4h.validation.energy_time.work_precision_rows`)."""
+    import rk4h.fast as fast
+    from rk4h.validation.energy_time import is_symplectic, work_precision_rows
+    from rk4h.validation.execute import problem
+    from rk4h.validation.records import RunRecord
 
     model, y0 = problem(scene)
     method = scene.method(spec.solver)
@@ -89,7 +89,7 @@ def execute(scene, spec, quick):
 
 COLUMNS = (
     ("scene", "", "str", "scene name"),
-    ("solver", "", "category", "method name (references.registry or the scene's [methods.NAME])"),
+    ("solver", "", "category", "method name (rk4h.references.registry or the scene's [methods.NAME])"),
     ("symplectic", "", "bool", "whether the method is symplectic (a partitioned tableau: splittings, compositions)"),
     ("periods", "1", "float", "horizon in periods of the slowest linearized mode"),
     ("t_end", "s", "float", "horizon: periods times the slowest period"),
@@ -107,7 +107,7 @@ COLUMNS = (
 
 def measure(m) -> None:
     """Rows, the bounded-energy check of every symplectic method and the figure job."""
-    from validation.measure import FigureJob
+    from rk4h.validation.measure import FigureJob
 
     rows = []
     for spec in m.specs(PURPOSE):
@@ -188,13 +188,13 @@ HORIZON_STYLES = ("-", "--", ":", "-.")
 def figure(out_dir, scene_name, rows):
     """``<scene>_energy_work_precision.png``: max |E(t) - E0| / E_motion against
     RHS calls (left) and wall time (right), log-log, one line per (method,
-    horizon) in the report's house style (:mod:`validation.figures.style`),
+    horizon) in the report's house style (:mod:`rk4h.validation.figures.style`),
     markers at the method's steps or tolerances; rows that did not end ok are
     left out. Returns ``(Path, Caption)``."""
     import numpy as np
 
-    from validation.figures import Caption
-    from validation.figures import style as kit
+    from rk4h.validation.figures import Caption
+    from rk4h.validation.figures import style as kit
 
     fig = kit.new_figure()
     kit.suptitle(fig, f"{scene_name}: energy work-precision over horizons in periods of the slowest mode")

@@ -1,6 +1,6 @@
 """``ensemble``: error and energy-error statistics over a scene's ``[ensemble]``,
 run as one batch per fixed-step solver and step."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 #: The statistics of each quantity (median, 95th percentile, maximum over the instances).
 STATS = ("median", "p95", "max")
@@ -26,9 +26,9 @@ def execute(scene, spec, quick):
     exact modal solution."""
     import numpy as np
 
-    import rk4core
-    from validation.ensemble import draw_instances, instance_errors, statistics
-    from validation.records import RunRecord
+    import rk4h
+    from rk4h.validation.ensemble import draw_instances, instance_errors, statistics
+    from rk4h.validation.records import RunRecord
 
     model = scene.build_model()
     y0, params = draw_instances(scene.ensemble, model, scene.initial_x, scene.initial_v)
@@ -41,7 +41,7 @@ def execute(scene, spec, quick):
     for lo in range(0, B, chunk):
         sl = slice(lo, min(B, lo + chunk))
         part = {k: np.asarray(v)[sl] for k, v in params.items()}
-        res = rk4core.ensemble(model, y0[sl], (0.0, scene.t_end), h=spec.setting, method=tableau,
+        res = rk4h.ensemble(model, y0[sl], (0.0, scene.t_end), h=spec.setting, method=tableau,
                                params=part or None, t_eval=t_eval, backend="numba")
         e, ee, f = instance_errors(model, res, y0[sl], part or None, built)
         errs.append(e)

@@ -1,11 +1,11 @@
 """``figures``: the figures of the other outputs and the state figures."""
-from validation.outputs import Output
+from rk4h.validation.outputs import Output
 
 
 def plan(p) -> list:
     """The trajectory of the state figures: the method under test at the
     scene's finest step, else the reference, on the figure grid."""
-    from validation.plan import under_test
+    from rk4h.validation.plan import under_test
 
     if not p.draw:
         return []
@@ -16,7 +16,7 @@ def plan(p) -> list:
 
 
 def measure(m) -> None:
-    from validation.measure import measure_state_figure
+    from rk4h.validation.measure import measure_state_figure
 
     measure_state_figure(m.scene, m.specs("figure") + [s for s in m.specs("truth") if s.grid == "figure"],
                          m.records, m.res)

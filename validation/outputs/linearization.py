@@ -1,9 +1,9 @@
 """``linearization``: the linearized model's exact solution against the nonlinear truth."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
-    from validation.plan import _nonlinear
+    from rk4h.validation.plan import _nonlinear
 
     out = [p.spec("truth", grid="scene")]
     if _nonlinear(p.scene):
@@ -12,7 +12,7 @@ def plan(p) -> list:
 
 
 def measure(m) -> None:
-    from validation.measure import measure_linearization
+    from rk4h.validation.measure import measure_linearization
 
     measure_linearization(m.scene, m.specs("linearization"), m.records, m.res)
 

@@ -1,16 +1,16 @@
 """``modal_energy``: the energy in the lowest linear modes against time (FPUT)."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
-    from validation.plan import settings_of
+    from rk4h.validation.plan import settings_of
 
     return [p.spec("modal", solver=solver, setting=float(min(settings_of(p.scene, solver))), grid="scene",
                    keep=("modal",)) for solver in p.scene.solvers]
 
 
 def measure(m) -> None:
-    from validation.measure import measure_modal
+    from rk4h.validation.measure import measure_modal
 
     measure_modal(m.scene, m.specs("modal"), m.records, m.res, m.draw)
 

@@ -1,5 +1,5 @@
 """``modes``: the natural frequencies of the model's linearization."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
@@ -7,7 +7,7 @@ def plan(p) -> list:
 
 
 def measure(m) -> None:
-    from validation.measure import measure_modes
+    from rk4h.validation.measure import measure_modes
 
     measure_modes(m.scene, m.specs("modes"), m.records, m.res)
 

@@ -1,16 +1,16 @@
 """``stability``: the stability study of a scene's ``[stability]`` table,
 and the stability regions in the complex plane of the methods it is about."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
-    from validation import stability
+    from rk4h.validation import stability
 
     return [p.spec("stability", unit=u) for u in stability.units(p.scene, p.quick)]
 
 
 def measure(m) -> None:
-    from validation.measure import FigureJob, measure_stability
+    from rk4h.validation.measure import FigureJob, measure_stability
 
     if m.specs("stability"):
         measure_stability(m.scene, m.specs("stability"), m.records, m.res, m.quick)
@@ -22,8 +22,8 @@ def region_methods(scene) -> list[str]:
     ``stability.method``, the tableau methods in its ``run.solvers`` (its own
     and the built-in fixed-step ones) and, when it runs the ``boundary``
     study, the built-ins every boundary study measures
-    (:data:`references.registry.BOUNDARY_ALWAYS`), in that order."""
-    from references.registry import BOUNDARY_ALWAYS, UNDER_TEST, resolve
+    (:data:`rk4h.references.registry.BOUNDARY_ALWAYS`), in that order."""
+    from rk4h.references.registry import BOUNDARY_ALWAYS, UNDER_TEST, resolve
 
     st = scene.stability or {}
     local = getattr(scene, "registry", None) or {}
@@ -32,7 +32,7 @@ def region_methods(scene) -> list[str]:
         try:
             if resolve(name, local).tableau is not None:
                 names.append(name)
-        except ValueError:  # not a method of the registry (validation.scenes refused it before)
+        except ValueError:  # not a method of the registry (rk4h.validation.scenes refused it before)
             continue
     if "boundary" in (st.get("studies") or ()):
         names += list(BOUNDARY_ALWAYS)
@@ -43,10 +43,10 @@ def draw_region(out_dir, job, scene) -> list:
     """The stability-region figure of ``job.data["methods"]`` (names of the
     scene's registry or built-ins): ``[(Path, Caption)]``, caption kind
     ``stability_region``. Evaluates the stability functions on the figure's
-    grid (:func:`validation.stability.region.region_plot`); integrates
+    grid (:func:`rk4h.validation.stability.region.region_plot`); integrates
     nothing."""
-    from references.registry import resolve
-    from validation.stability import draw, region
+    from rk4h.references.registry import resolve
+    from rk4h.validation.stability import draw, region
 
     local = getattr(scene, "registry", None) or {}
     tabs = [resolve(name, local).tableau for name in job.data["methods"]]
@@ -62,6 +62,6 @@ OUTPUT = Output(
          "of the methods it is about (`<scene>_stability_region.png`)",
     applies=lambda facts: facts.stability,
     plan=plan, measure=measure, draw={"stability_region": draw_region},
-    purposes={"stability": "one unit of the stability study (validation.stability.units)"},
+    purposes={"stability": "one unit of the stability study (rk4h.validation.stability.units)"},
     tables=(Table("stability"),),
 )

@@ -1,6 +1,6 @@
 """``stability_map``: the largest stable ``omega_max h`` over a 2-D grid of
 (one model parameter, h), from a scene's ``[ensemble]`` table."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def _method(scene) -> str:
@@ -17,10 +17,10 @@ def plan(p) -> list:
 
 def execute(scene, spec, quick):
     """One batch per grid step ``h``, every parameter value in it
-    (:func:`rk4core.batch.maps.stability_map`), from the scene's initial state."""
-    from rk4core.batch.maps import stability_map
-    from validation.ensemble import map_settings
-    from validation.records import RunRecord
+    (:func:`rk4h.batch.maps.stability_map`), from the scene's initial state."""
+    from rk4h.batch.maps import stability_map
+    from rk4h.validation.ensemble import map_settings
+    from rk4h.validation.records import RunRecord
 
     model = scene.build_model()
     param, values, h, n_steps = map_settings(scene.ensemble, model)
@@ -34,7 +34,7 @@ def execute(scene, spec, quick):
 def _limit(solver):
     """The imaginary-axis stability limit of ``solver``'s stability function,
     when it is known in closed form (RK4: 2 sqrt(2)), else None."""
-    from rk4core.batch.maps import RK4_IMAGINARY_LIMIT
+    from rk4h.batch.maps import RK4_IMAGINARY_LIMIT
 
     return RK4_IMAGINARY_LIMIT if solver == "rk4" else None
 
@@ -42,7 +42,7 @@ def _limit(solver):
 def measure(m) -> None:
     import numpy as np
 
-    from validation.measure import FigureJob
+    from rk4h.validation.measure import FigureJob
 
     for spec in m.specs("stability_map"):
         rec = m.records[spec.key]
@@ -85,8 +85,8 @@ def draw(out_dir, job, scene):
 
     import numpy as np
 
-    from rk4core.batch.maps import StabilityMap
-    from validation.ensemble import stability_map_figure
+    from rk4h.batch.maps import StabilityMap
+    from rk4h.validation.ensemble import stability_map_figure
 
     d = job.data
     smap = StabilityMap(param=d["param"], values=np.asarray(d["values"]), h=np.asarray(d["h"]),

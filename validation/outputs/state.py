@@ -1,5 +1,5 @@
 """``state``: every solver at every step or tolerance against the reference."""
-from validation.outputs import Output, Table, _runs
+from rk4h.validation.outputs import Output, Table, _runs
 
 OUTPUT = Output(
     name="state", rank=10, plan_rank=10, measure_rank=10,

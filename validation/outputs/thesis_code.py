@@ -1,5 +1,5 @@
 """``thesis_code``: the thesis' own programs in GNU Octave against rk4core."""
-from validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table
 
 
 def plan(p) -> list:
@@ -7,7 +7,7 @@ def plan(p) -> list:
 
 
 def measure(m) -> None:
-    from validation.measure import measure_thesis_code
+    from rk4h.validation.measure import measure_thesis_code
 
     measure_thesis_code(m.scene, m.specs("thesis_code"), m.records, m.res)
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import re
 
-from validation.outputs import FileJob, Output, Table, _runs
+from rk4h.validation.outputs import FileJob, Output, Table, _runs
 
 #: The state's and energy's units, written as attributes.
 UNITS = "time: s; y: [q, v] in the model's units (m, m/s; rad, rad/s); energy: J"
@@ -65,7 +65,7 @@ def dataset(scene: str, runs: list, references=None):
     import xarray as xr
 
     if references is None:
-        from references.registry import REFERENCES as references
+        from rk4h.references.registry import REFERENCES as references
     kept = [r for r in runs if r["t"] is not None]
     t = kept[0]["t"] if kept else np.zeros(0)
     n_state = kept[0]["y"].shape[0] if kept else 0
@@ -127,7 +127,7 @@ OUTPUT = Output(
     purposes={"run": "as for `state`, keeping the run's time, state and energy arrays"},
     tables=(Table("trajectory", columns=(
         ("scene", "", "str", "scene name"),
-        ("solver", "", "category", "method name (references.registry)"),
+        ("solver", "", "category", "method name (rk4h.references.registry)"),
         ("setting", "s or 1", "float", "the run's setting: step h (s) or rtol"),
         ("h", "s", "float", "step size of a fixed-step run; NaN for an adaptive reference"),
         ("rtol", "1", "float", "relative tolerance of an adaptive reference's run; NaN for a fixed-step method"),

@@ -1,5 +1,5 @@
 """``work_precision``: error against cost, and the trust table of the method under test."""
-from validation.outputs import Output, Table, _runs
+from rk4h.validation.outputs import Output, Table, _runs
 
 OUTPUT = Output(
     name="work_precision", rank=40, plan_rank=10, measure_rank=10,
@@ -9,6 +9,6 @@ OUTPUT = Output(
     applies=lambda facts: facts.dense,
     plan=_runs.plan, measure=_runs.measure,
     purposes={**_runs.PURPOSES, "confirm": "a run confirming a verdict of the trust table, planned from the "
-                                           "records (validation.confirm)"},
+                                           "records (rk4h.validation.confirm)"},
     tables=(Table("work_precision"), Table("cheapest")),
 )

@@ -15,7 +15,7 @@ report):
 ``assemble(scene, quick, {unit: StudyResult}) -> StudyResult``
     the merge (one cost plot and one finding per sweep ...); integrates nothing;
 ``draw(plot, out_dir) -> (Path, sentence)``
-    one plot description drawn in the style of :mod:`validation.figures`
+    one plot description drawn in the style of :mod:`rk4h.validation.figures`
     (the only place the study imports matplotlib);
 ``unit_steps(scene, unit, quick) -> float``
     the integration steps of one unit, estimated without integrating;

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-import rk4core
+import rk4h
 
 from ..metrics import error_max
 
@@ -48,7 +48,7 @@ class StudyCapError(ValueError):
 
 @dataclass
 class StudyResult:
-    """What :func:`validation.stability.run_unit` / :func:`~validation.stability.assemble`
+    """What :func:`rk4h.validation.stability.run_unit` / :func:`~rk4h.validation.stability.assemble`
     return (plain data: picklable, and storable in a run record).
 
     Attributes
@@ -60,9 +60,9 @@ class StudyResult:
     plots : list of dict
         Plot descriptions ``{"kind", "scene", "name", "data"}``: ``data`` a dict
         of numpy arrays, floats, strings (and dicts of those); drawn by
-        :func:`validation.stability.draw`.
+        :func:`rk4h.validation.stability.draw`.
     figures : list of (Path, str)
-        Only filled by :func:`validation.stability.run` (the old entry point),
+        Only filled by :func:`rk4h.validation.stability.run` (the old entry point),
         which draws the plots.
     """
 
@@ -82,7 +82,7 @@ def row(scene, study, solver, quantity, measured, theory=math.nan, passed=None, 
         wall_s=math.nan, measured_timed=math.nan, **params):
     """One ``stability.csv`` row (keys :data:`COLUMNS`). ``passed`` is None
     when the quantity is informative only (``checked`` False; the written
-    table then says ``passed`` False, validation.columns); ``params`` are
+    table then says ``passed`` False, rk4h.validation.columns); ``params`` are
     :data:`PARAM_COLUMNS` (others raise ``TypeError``); the quantity is a bare
     name, its parameters go into those columns."""
     bad = set(params) - set(PARAM_COLUMNS)
@@ -102,8 +102,8 @@ def row(scene, study, solver, quantity, measured, theory=math.nan, passed=None, 
 
 
 def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method="rk4", record_every=1):
-    """Fixed-step run of ``model``: the compiled loop (``rk4core.fast.solve_model``)
-    exactly when ``rk4core.fast.supports(model)``, else :func:`rk4core.solve` on
+    """Fixed-step run of ``model``: the compiled loop (``rk4h.fast.solve_model``)
+    exactly when ``rk4h.fast.supports(model)``, else :func:`rk4h.solve` on
     ``model.rhs``. An exception on either path propagates (the caller's unit
     becomes a ``failed`` row); there is no silent fallback. ``record_every``
     keeps every k-th step (and the last).
@@ -116,19 +116,19 @@ def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, met
     (``max_growth``) is switched off: a blow-up here ends on a non-finite
     state, as the study's theory (``log(DBL_MAX) / log g`` steps) assumes.
     """
-    from rk4core import fast
+    from rk4h import fast
 
     kw = {"h": h} if n_steps is None else {"n_steps": int(n_steps)}
     steps = float(n_steps) if n_steps is not None else (
         math.ceil((t_span[1] - t_span[0]) / h) if h and math.isfinite(h) and h > 0 else math.inf)
     if steps * model.n_dof > MAX_STEP_WORK:
         raise StudyCapError(f"a {method} run of {steps:.3g} steps on {model.n_dof} degrees of freedom exceeds the "
-                            f"study cap of {MAX_STEP_WORK:.3g} step x DOF (validation.stability._common.MAX_STEP_WORK)")
+                            f"study cap of {MAX_STEP_WORK:.3g} step x DOF (rk4h.validation.stability._common.MAX_STEP_WORK)")
     with np.errstate(all="ignore"):
         if fast.supports(model):
             return fast.solve_model(model, t_span, y0, t_eval=t_eval, method=method, record_every=record_every,
                                     max_growth=None, **kw), "fast"
-        res = rk4core.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, max_growth=None, **kw)
+        res = rk4h.solve(model.rhs, t_span, y0, t_eval=t_eval, method=method, max_growth=None, **kw)
         if record_every > 1 and t_eval is None:
             keep = np.unique(np.r_[np.arange(0, res.t.shape[0], record_every), res.t.shape[0] - 1])
             res.t, res.y = res.t[keep], res.y[:, keep]
@@ -137,7 +137,7 @@ def integrate_fixed(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, met
 
 def error_rel(model, y, y_ref, scale) -> float:
     """The study's one error metric: ``max_i |q_i - q_i^ref| / scale`` over the
-    position components (and output times) of ``y`` (validation.metrics.error_max
+    position components (and output times) of ``y`` (rk4h.validation.metrics.error_max
     of the positions, divided by ``scale``, e.g. ``max |q(0)|``); NaN when ``y``
     is not finite."""
     n = model.n_dof
@@ -169,7 +169,7 @@ def mode_amplitudes(model, y, modes=None):
 def frequency_range(model) -> tuple[float, float]:
     """``(omega_min, omega_max)`` (rad/s): the slowest non-zero and the fastest
     natural angular frequency of ``model``'s linearization, from
-    ``model.frequency_range()`` (see :mod:`validation.stability.estimate`)."""
+    ``model.frequency_range()`` (see :mod:`rk4h.validation.stability.estimate`)."""
     lo, hi = model.frequency_range()
     return float(lo), float(hi)
 

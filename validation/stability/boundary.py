@@ -15,7 +15,7 @@ the stability function ``R(i theta)``, ``theta = omega_j h``:
 Definition of "stable" used here: ``h`` is stable when the spectral radius of
 the *measured* one-step map over the oscillating modes, ``rho(S(h)) <= 1 +
 tol`` with ``tol = 1e-12`` (see :func:`spectral_radius`). ``S(h)`` is assembled by applying the integrator's own step
-(:func:`rk4core.rk_step`) to the columns of the identity, so it is the code
+(:func:`rk4h.rk_step`) to the columns of the identity, so it is the code
 under test, not a formula. For a linear autonomous system ``y_n = S^n y_0``,
 so ``sup_n ||y_n||`` is finite for every ``y_0`` iff ``rho(S) < 1``, or
 ``rho(S) = 1`` with semisimple unimodular eigenvalues (the symplectic case; the
@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from rk4core import get_method, rk_step
+from rk4h import get_method, rk_step
 
 from ._common import integrate_fixed, mode_amplitudes
 
@@ -53,10 +53,10 @@ MAX_BISECTIONS = 100
 def theory_growth(method, theta):
     """Growth factor per step (spectral radius of a harmonic mode's one-step
     map) at ``theta = omega h``, from the method's tableau: ``|R(i theta)|``
-    for a classical tableau (``rk4core.stability_function.R``), the spectral
+    for a classical tableau (``rk4h.stability_function.R``), the spectral
     radius of the 2x2 step matrix for a partitioned one (symplectic Euler,
     Stormer-Verlet). ``method`` is a tableau or a built-in name."""
-    from rk4core.stability_function import R, partitioned_step_matrix
+    from rk4h.stability_function import R, partitioned_step_matrix
 
     tab = get_method(method)
     th = np.asarray(theta, dtype=float)
@@ -70,10 +70,10 @@ def theory_growth(method, theta):
 def theory_boundary(method, omega_max: float) -> float:
     """Largest stable ``h`` (s) on a mode of ``omega_max`` (rad/s): the
     method's imaginary-axis boundary over ``omega_max``
-    (``rk4core.stability_function.imaginary_axis_boundary``: 2 sqrt(2) for
+    (``rk4h.stability_function.imaginary_axis_boundary``: 2 sqrt(2) for
     RK4, 2 for symplectic Euler and Stormer-Verlet, 0 for explicit Euler, which
     has no stable step)."""
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.stability_function import imaginary_axis_boundary
 
     return imaginary_axis_boundary(get_method(method)) / omega_max
 

@@ -1,7 +1,7 @@
 """How many integration steps the stability study of a scene will take, estimated
 before running it (for the runner's budget).
 
-:func:`unit_steps` estimates one work unit (:func:`validation.stability.units`);
+:func:`unit_steps` estimates one work unit (:func:`rk4h.validation.stability.units`);
 :func:`estimate_steps` is the sum over the scene's units, so a budget can be
 summed over a plan. Each adds up the steps of every run the unit makes
 (fixed-step RK4/Euler steps, adaptive solvers' accepted steps,
@@ -14,7 +14,7 @@ integration, and no model is named here:
   other models a dense eigensolve of the linearization, which they refuse
   beyond 400 DOF (a ``ValueError``);
 * the amplitude and singular studies run only for a model drawn as the
-  four-spring mass (:func:`validation.stability.geometry.four_spring_params`);
+  four-spring mass (:func:`rk4h.validation.stability.geometry.four_spring_params`);
 * the stiffness and mass-ratio sweeps integrate the study's own 8- and 2-DOF
   chains, whatever the scene: their modes (an 8 x 8 problem, microseconds)
   give RK4's error at each step of the halving loop from the exact per-step
@@ -30,9 +30,9 @@ with ``P_fast`` the periods of the fastest mode and ``P_exc`` those of the
 fastest mode excited above 1e-3 of the amplitude; a tolerance ladder is
 assumed to need ``target / 10`` (heyoka, DOP853) or ``target / 1000``
 (CVODE-BDF, whose global error is larger than its rtol), and the guided
-search (:func:`validation.stability.stiffness.ladder_search`) to run the
+search (:func:`rk4h.validation.stability.stiffness.ladder_search`) to run the
 two loosest rungs, that rung and its looser neighbour; a skipped solver
-(:func:`validation.stability.stiffness.skip_reason`) counts 0. Measured on
+(:func:`rk4h.validation.stability.stiffness.skip_reason`) counts 0. Measured on
 the shipped stability scenes (``--quick``): the totals are within 0.7x-1.0x
 of the steps counted in a real run, which ``tests/test_hostile_references.py``
 checks to a factor of 2 (the fixed-step part, which dominates, to 5 %); one
@@ -45,7 +45,7 @@ import math
 
 import numpy as np
 
-from references.registry import BUILTIN
+from rk4h.references.registry import BUILTIN
 
 from .boundary import MAX_BISECTIONS, growth_steps, theory_growth
 from .geometry import four_spring_params
@@ -58,7 +58,7 @@ from .studies import COST_REFERENCES, GROWTH_ALWAYS, LONG_REFERENCES, context_me
 __all__ = ["estimate_steps", "unit_steps", "frequency_range", "heyoka_steps"]
 
 _FMAX_LOG = math.log(np.finfo(float).max)
-_ADAPTIVE_CAP = 5_000_000  # references.solvers' default max_steps
+_ADAPTIVE_CAP = 5_000_000  # rk4h.references.solvers' default max_steps
 _EXCITED = 1e-3
 
 
@@ -123,7 +123,7 @@ def _fixed_error(tab, omega, phi, amp, t_end, h, scale):
 
 
 def _sweep(model, y0, target, ladder, skipped, meth, tab, max_rk4_steps=5e7):
-    """Steps per solver of :func:`validation.stability.stiffness.cost_at_target`."""
+    """Steps per solver of :func:`rk4h.validation.stability.stiffness.cost_at_target`."""
     omega, phi, amp = _modal_amplitudes(model, y0)
     pos = omega > 0
     w_lo, w_hi = float(omega[pos][0]), float(omega[-1])
@@ -262,11 +262,11 @@ def unit_steps(scene, unit: str, quick: bool = False, *, detail: bool = False):
 
 def estimate_steps(scene, quick: bool = False, *, detail: bool = False):
     """Estimated total integration steps of the stability study of ``scene``:
-    the sum of :func:`unit_steps` over :func:`validation.stability.units`.
+    the sum of :func:`unit_steps` over :func:`rk4h.validation.stability.units`.
 
     Parameters
     ----------
-    scene : validation.scenes.Scene
+    scene : rk4h.validation.scenes.Scene
         A scene with a ``[stability]`` table (none: 0).
     quick : bool
         Estimate the ``--quick`` settings (the ``*_quick`` parameters, the

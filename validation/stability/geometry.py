@@ -22,8 +22,8 @@ import math
 
 import numpy as np
 
-import rk4core
-from rk4core.energy import energy_scale
+import rk4h
+from rk4h.energy import energy_scale
 
 from ._common import integrate_fixed, loglog_slope
 
@@ -88,8 +88,8 @@ def linearization_error(params: dict, amplitudes, periods: float = 5.0, steps_pe
     by default; at 400 steps per period its own error is far below the
     difference measured). Returns an array of errors."""
     p = {k: params[k] for k in ("m", "k", "l")}
-    nl = rk4core.make_model("planar4", {**p, "linear": False})
-    lin = rk4core.make_model("planar4", {**p, "linear": True})
+    nl = rk4h.make_model("planar4", {**p, "linear": False})
+    lin = rk4h.make_model("planar4", {**p, "linear": True})
     T = 2 * math.pi / math.sqrt(2 * p["k"] / p["m"])
     n = int(round(periods * steps_per_period))
     errs = []
@@ -137,7 +137,7 @@ def singular_pass(params: dict, offset: float, h: float, t_end: float, start_on_
     when), ``d_min`` (m), ``anchor``, ``t_min`` (s), ``energy_jump`` (relative
     energy change over the run), ``result``.
     """
-    model = rk4core.make_model("planar4", {k: params[k] for k in ("m", "k", "l")} | {"linear": False})
+    model = rk4h.make_model("planar4", {k: params[k] for k in ("m", "k", "l")} | {"linear": False})
     l_ = float(params["l"])
     anchors = model.drawing().anchors
     q0 = np.array([l_, 0.0]) if start_on_anchor else np.array([2 * l_, offset])

@@ -2,7 +2,7 @@
 
 Cost is counted two ways. *Work*: RK4 makes 4 right-hand-side calls per step
 whatever N, each touching O(N) numbers; the bytes it allocates are measured
-with :mod:`tracemalloc` on the generic path (:func:`rk4core.solve`, whose
+with :mod:`tracemalloc` on the generic path (:func:`rk4h.solve`, whose
 arrays are all numpy arrays and hence traced): the peak over a short run must
 grow like N (a dense N x N matrix anywhere would make it grow like N^2).
 *Time*: the wall time per step of the compiled path, minimum over repeats
@@ -28,7 +28,7 @@ import tracemalloc
 
 import numpy as np
 
-import rk4core
+import rk4h
 
 from ._common import integrate_fixed, loglog_slope
 
@@ -38,7 +38,7 @@ __all__ = ["uniform_chain", "step_cost", "peak_bytes", "cvode_band_cost", "dense
 def uniform_chain(N: int, m: float = 1.0, k: float = 1.0):
     """``N`` equal masses (kg) and ``N + 1`` equal springs (N/m), walls both
     ends; initial state: the lowest mode shape with amplitude 1e-3 m, at rest."""
-    model = rk4core.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1), "walls": "both"})
+    model = rk4h.make_model("chain", {"masses": [m] * N, "springs": [k] * (N + 1), "walls": "both"})
     x = 1e-3 * np.sin(np.pi * np.arange(1, N + 1) / (N + 1))
     return model, model.state(x)
 
@@ -66,7 +66,7 @@ def peak_bytes(N: int, n_steps: int = 3, method="rk4") -> int:
     try:
         tracemalloc.reset_peak()
         base = tracemalloc.get_traced_memory()[0]
-        rk4core.solve(model.rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps], method=method)
+        rk4h.solve(model.rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps], method=method)
         peak = tracemalloc.get_traced_memory()[1] - base
     finally:
         tracemalloc.stop()
@@ -86,7 +86,7 @@ def dense_rhs_peak_bytes(N: int, n_steps: int = 3) -> int:
     try:
         tracemalloc.reset_peak()
         base = tracemalloc.get_traced_memory()[0]
-        rk4core.solve(rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps])
+        rk4h.solve(rhs, (0.0, 0.1 * n_steps), y0, n_steps=n_steps, t_eval=[0.1 * n_steps])
         peak = tracemalloc.get_traced_memory()[1] - base
     finally:
         tracemalloc.stop()

@@ -1,6 +1,6 @@
 """Long horizons: a tableau method's energy drift and phase error per step
 (RK4 below; any classical tableau through its stability function,
-:func:`validation.metrics.energy_loss` and :func:`validation.metrics.phase_lag`),
+:func:`rk4h.validation.metrics.energy_loss` and :func:`rk4h.validation.metrics.phase_lag`),
 the references' drift on the same run, and the round-off floor.
 
 In each normal mode (``theta = omega h``) one RK4 step multiplies the complex
@@ -27,10 +27,10 @@ import math
 
 import numpy as np
 
-from references.exact import modal_solution
+from rk4h.references.exact import modal_solution
 
-from rk4core.energy import energy_scale
-from rk4core.methods import RK4
+from rk4h.energy import energy_scale
+from rk4h.methods import RK4
 
 from ..metrics import phase_lag, rk4_energy_loss
 
@@ -84,7 +84,7 @@ def rk4_phase_arg(theta):
 
 def rk4_phase_lag_per_step(theta, leading=False):
     """Phase lag (rad) per RK4 step of a mode, ``theta - arg R(i theta)``:
-    :func:`validation.metrics.phase_lag` of classical RK4 (continuous
+    :func:`rk4h.validation.metrics.phase_lag` of classical RK4 (continuous
     argument, no ``2 pi`` jump at ``theta = sqrt 6``; negative, a phase lead,
     beyond about 2.3; a few ulp relative for every ``theta``).
 
@@ -166,10 +166,10 @@ def roundoff_sweep(model, y0, t_end, hs, method="rk4"):
 
 
 def reference_drift(solver, model, y0, t_end, setting, n_out=200, max_steps=None):
-    """Run a reference solver through ``references.solvers.integrate`` and
+    """Run a reference solver through ``rk4h.references.solvers.integrate`` and
     return ``(run, t, rel_energy_error)``; ``max_steps`` (default: the
     solver interface's) caps its steps."""
-    from references.solvers import integrate
+    from rk4h.references.solvers import integrate
 
     t_eval = np.linspace(0.0, t_end, n_out)
     kw = {} if max_steps is None else {"max_steps": int(max_steps)}

@@ -48,7 +48,7 @@ def omega_sq_naive(k: float, m1: float, mu: float):
 
 def omega_sq_eig(k: float, m1: float, mu: float):
     """Squared frequencies from ``K phi = omega^2 M phi`` of the chain model."""
-    from rk4core.models import Chain
+    from rk4h.models import Chain
 
     omega, _ = Chain([m1, m1 * mu], [k, k, k]).modes()
     return float(omega[0] ** 2), float(omega[1] ** 2)
@@ -63,8 +63,8 @@ def omega_sq_limits(k: float, m1: float, mu: float):
 
 
 def closed_form_sq(k: float, m1: float, mu: float):
-    """``references.closed_forms.two_dof_equal_k`` squared: (low, high)."""
-    from references.closed_forms import two_dof_equal_k
+    """``rk4h.references.closed_forms.two_dof_equal_k`` squared: (low, high)."""
+    from rk4h.references.closed_forms import two_dof_equal_k
 
     lo, hi = two_dof_equal_k(k, m1=m1, mu=mu)
     return float(lo) ** 2, float(hi) ** 2

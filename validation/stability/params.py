@@ -8,7 +8,7 @@ bisection cannot ask for more precision than double round-off allows, the long
 run at most ``1e7`` periods, the large-N chains at most ``1e6`` masses, every
 list at most :data:`MAX_LIST` entries. A value outside raises one line naming
 the field ``stability.<key>`` (see :func:`validate_params`). ``docs/stability-params.md``
-is :func:`params_document` (``python -m validation.docs_gen`` writes it).
+is :func:`params_document` (``python -m rk4h.validation.docs_gen`` writes it).
 """
 from __future__ import annotations
 
@@ -99,7 +99,7 @@ class StabilityParamError(ValueError):
     def __init__(self, where: str, key: str, problem: str, value=None, has_value=True):
         self.key, self.field, self.problem, self.value = key, f"stability.{key}", problem, value
         got = f", got {value!r}" if has_value else ""
-        # Called by validation.scenes with the file as ``where``: it prefixes the
+        # Called by rk4h.validation.scenes with the file as ``where``: it prefixes the
         # field with "stability." itself ("FILE: field `stability.KEY`: problem
         # (got VALUE)"), so the message names the key alone. Otherwise ``where``
         # is the prefix of the field ("stability" by default).
@@ -150,7 +150,7 @@ def validate_params(params, where: str = "stability") -> dict:
     where : str
         Prefix of the field names in messages (default ``"stability"``: a bad
         value raises "`stability.bisection_rtol` must lie in [1e-12, 0.001],
-        got 1e-300"). :mod:`validation.scenes` passes the scene file here and
+        got 1e-300"). :mod:`rk4h.validation.scenes` passes the scene file here and
         prefixes ``stability.`` itself, so its one-line error reads ``FILE:
         field `stability.bisection_rtol`: must lie in ... (got 1e-300)``.
 
@@ -224,8 +224,8 @@ def params_table_markdown() -> str:
 def params_document() -> str:
     """The text of ``docs/stability-params.md`` (generated; a test keeps it current)."""
     return ("# `[stability]` keys of a scene\n\n"
-            "Generated from `validation.stability.params.PARAMS` by "
-            "`python -m validation.stability.params > docs/stability-params.md`; "
+            "Generated from `rk4h.validation.stability.params.PARAMS` by "
+            "`python -m rk4h.validation.stability.params > docs/stability-params.md`; "
             "`tests/test_hostile_references.py` checks it is current. A value outside its range "
             "is refused with one line naming `stability.<key>` (exit 2).\n\n"
             + params_table_markdown() + "\n")

@@ -1,11 +1,11 @@
 """Drawing of the stability study's plot descriptions: the only module of the
-study that imports matplotlib (through :mod:`validation.figures`, whose style
+study that imports matplotlib (through :mod:`rk4h.validation.figures`, whose style
 it shares: size, dpi, fonts (nothing under 8 pt), solver colours and markers,
 a title on every figure, legends below the axes, log axes, file names
 ``<scene>_stability_<name>.png``).
 
-A plot description is plain data made by :func:`validation.stability.run_unit`
-or :func:`validation.stability.assemble`: ``{"kind", "scene", "study",
+A plot description is plain data made by :func:`rk4h.validation.stability.run_unit`
+or :func:`rk4h.validation.stability.assemble`: ``{"kind", "scene", "study",
 "name", "data"}``. :func:`draw` computes nothing but display aids (axis
 windows, guide lines) and the numbers its sentence quotes from the data.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.lines import Line2D
 
-from references.registry import BUILTIN
+from rk4h.references.registry import BUILTIN
 
 from .. import figures as F
 from ._common import FREQUENCY_RATIO, SWEEP_NAMES, cost_at_point, stiffest_index
@@ -30,7 +30,7 @@ def _stem(plot) -> str:
 
 
 def _log_axes(ax, x=True, y=True):
-    """The figures' log axes (:func:`validation.figures.style.log_axes`)."""
+    """The figures' log axes (:func:`rk4h.validation.figures.style.log_axes`)."""
     F.log_axes(ax, x=x, y=y)
 
 
@@ -274,7 +274,7 @@ def _amplitude(plot, out_dir):
 
 def _region(plot, out_dir):
     """Stability regions in the complex plane of ``z = h lambda`` (data of
-    :func:`validation.stability.region.region_plot`): classical methods'
+    :func:`rk4h.validation.stability.region.region_plot`): classical methods'
     ``|R(z)| = 1`` (solid) left, partitioned methods' ``rho(M(z)) = 1 +
     margin`` on ``q'' = lambda^2 q`` (dashed) right, each method's stable
     interval of the imaginary axis as a bar beside the axis."""
@@ -332,11 +332,11 @@ KINDS = {"growth": _growth, "drift": _drift, "long_energy": _long_energy, "round
 
 def draw(plot: dict, out_dir) -> tuple[Path, str]:
     """Draw one plot description into ``out_dir``: ``(path, caption)``, the
-    caption a :class:`validation.figures.Caption` of kind ``"stability_" +
+    caption a :class:`rk4h.validation.figures.Caption` of kind ``"stability_" +
     plot["kind"]``. ValueError for a kind it does not know (e.g. a unit's
-    part that :func:`validation.stability.assemble` has not merged)."""
+    part that :func:`rk4h.validation.stability.assemble` has not merged)."""
     kind = plot.get("kind") if isinstance(plot, dict) else None
     if kind not in KINDS:
         raise ValueError(f"`plot` kind {kind!r} is not drawable (kinds: {', '.join(KINDS)}; parts are merged by "
-                         f"validation.stability.assemble)")
+                         f"rk4h.validation.stability.assemble)")
     return KINDS[kind](plot, out_dir)

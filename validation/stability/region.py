@@ -3,7 +3,7 @@
 What is drawn
 -------------
 Classical tableaux: the boundary ``|R(z)| = 1`` of the stability region of
-``y' = lambda y``, ``z = h lambda`` (:func:`rk4core.stability_function.R`;
+``y' = lambda y``, ``z = h lambda`` (:func:`rk4h.stability_function.R`;
 HW II, sec. IV.2), and the interval ``[-i y*, i y*]`` of the imaginary axis
 inside it, ``y* = imaginary_axis_boundary`` (RK4 ``2 sqrt 2``, Heun's third
 order ``sqrt 3``, Euler none).
@@ -12,7 +12,7 @@ Partitioned tableaux have no scalar test equation. They are drawn on their
 ``q-v`` test equation ``q'' = lambda^2 q`` (``q' = v``, ``v' = lambda^2 q``,
 eigenvalues ``+-lambda``; ``lambda = +-i w`` is the undamped oscillator), with
 ``z = h lambda``: one step is the 2 x 2 matrix ``M`` of
-:func:`rk4core.stability_function.partitioned_step_matrix` at ``(h w)^2 =
+:func:`rk4h.stability_function.partitioned_step_matrix` at ``(h w)^2 =
 -z^2``, and the region is where its spectral radius ``rho(M(z)) <= 1``. A
 symplectic method has ``det M = 1`` for every ``z``, so ``rho >= 1``
 everywhere and ``rho = 1`` only on its imaginary-axis interval: its region
@@ -28,7 +28,7 @@ drawn function itself: sign changes of ``|R(i y)| - 1`` (``rho - 1`` for a
 partitioned method, which is >= 0 on a symplectic method's axis: there the
 end of the interval is where ``rho`` leaves 1) on a grid, refined by
 bisection to 1e-13; they agree with the exact
-:func:`rk4core.stability_function.imaginary_axis_boundary`.
+:func:`rk4h.stability_function.imaginary_axis_boundary`.
 
 Units: ``z`` is dimensionless (step times eigenvalue).
 """
@@ -46,7 +46,7 @@ RHO_MARGIN = 0.05
 
 
 def _poly(tab):
-    from rk4core.stability_function import _step_matrix_poly, stability_polynomial
+    from rk4h.stability_function import _step_matrix_poly, stability_polynomial
 
     if tab.partitioned:
         return [[[float(a) for a in p] for p in row] for row in _step_matrix_poly(tab)]
@@ -66,7 +66,7 @@ def amplification(tab, z):
 
     Parameters
     ----------
-    tab : rk4core.methods.Tableau
+    tab : rk4h.methods.Tableau
     z : complex or array_like of complex
         ``h lambda`` (dimensionless).
 
@@ -120,10 +120,10 @@ def region_data(tab, re=(-4.0, 1.0), im=(-4.0, 4.0), n: int = 401) -> dict:
         ``x`` (n,), ``y`` (n,) the real and imaginary parts of ``z``;
         ``amp`` (n, n) :func:`amplification` on the grid (rows: ``y``);
         ``interval`` ``y*`` from
-        :func:`rk4core.stability_function.imaginary_axis_boundary` (exact);
+        :func:`rk4h.stability_function.imaginary_axis_boundary` (exact);
         ``crossing`` :func:`axis_crossing`; ``partitioned`` bool.
     """
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.stability_function import imaginary_axis_boundary
 
     x = np.linspace(re[0], re[1], n)
     y = np.linspace(im[0], im[1], n)
@@ -135,7 +135,7 @@ def region_data(tab, re=(-4.0, 1.0), im=(-4.0, 4.0), n: int = 401) -> dict:
 def region_plot(scene_name: str, tabs, *, n: int = 241) -> dict:
     """The report's stability-region figure of ``tabs`` as a plot description
     of the stability study (``{"kind": "region", ...}``, drawn by
-    :func:`validation.stability.plots.draw`): per method its
+    :func:`rk4h.validation.stability.plots.draw`): per method its
     :func:`region_data` on a window that holds every method's axis
     interval (classical: ``Re z`` in ``[-4, 1]``; partitioned: ``[-0.6,
     0.6]``, where the ``1 + RHO_MARGIN`` band lies).
@@ -143,7 +143,7 @@ def region_plot(scene_name: str, tabs, *, n: int = 241) -> dict:
     Parameters
     ----------
     scene_name : str
-    tabs : sequence of rk4core.methods.Tableau
+    tabs : sequence of rk4h.methods.Tableau
         Named as the scene names them (``tab.name``), in legend order.
     n : int
         Grid points per axis.
@@ -155,7 +155,7 @@ def region_plot(scene_name: str, tabs, *, n: int = 241) -> dict:
         :func:`region_data` dicts (``name`` the method); ``rho_margin``;
         ``im_max`` the half-height of the window (dimensionless ``Im z``).
     """
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.stability_function import imaginary_axis_boundary
 
     finite = [b for b in map(imaginary_axis_boundary, tabs) if math.isfinite(b)]
     im_max = max([3.5] + [1.2 * b for b in finite])
@@ -217,11 +217,11 @@ def draw_regions(tabs, path, *, n: int = 401) -> tuple[Path, str]:
 
 
 def main(argv=None) -> int:
-    """``python -m validation.stability.region --out FILE [METHOD ...]``: draw
-    the regions of the named methods of ``rk4core.METHODS`` (default: all)."""
+    """``python -m rk4h.validation.stability.region --out FILE [METHOD ...]``: draw
+    the regions of the named methods of ``rk4h.METHODS`` (default: all)."""
     import argparse
 
-    from rk4core.methods import METHODS
+    from rk4h.methods import METHODS
 
     p = argparse.ArgumentParser(description="Draw linear stability regions (|R(z)| = 1; partitioned methods "
                                             "on q'' = lambda^2 q).")

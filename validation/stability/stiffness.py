@@ -38,9 +38,9 @@ import time
 
 import numpy as np
 
-import rk4core
-from references.exact import modal_solution
-from references.registry import CostUnit, resolve
+import rk4h
+from rk4h.references.exact import modal_solution
+from rk4h.references.registry import CostUnit, resolve
 
 from ._common import error_rel, integrate_fixed
 
@@ -62,14 +62,14 @@ def stiff_chain(ratio: float, N: int = 8):
     """Chain with one stiff middle spring: (model, y0)."""
     springs = [1.0] * (N + 1)
     springs[N // 2] = float(ratio)
-    model = rk4core.make_model("chain", {"masses": [1.0] * N, "springs": springs})
+    model = rk4h.make_model("chain", {"masses": [1.0] * N, "springs": springs})
     x = 0.01 * np.sin(np.pi * np.arange(1, N + 1) / (N + 1))
     return model, model.state(x)
 
 
 def mass_ratio_chain(mu: float):
     """Two masses 1 and ``mu`` kg on three 1 N/m springs: (model, y0)."""
-    model = rk4core.make_model("chain", {"masses": [1.0, float(mu)], "springs": [1.0, 1.0, 1.0]})
+    model = rk4h.make_model("chain", {"masses": [1.0, float(mu)], "springs": [1.0, 1.0, 1.0]})
     return model, model.state([0.01, 0.01])
 
 
@@ -95,7 +95,7 @@ def skip_reason(solver: str, what: str, ratio: float, exc_ratio: float, quick: b
     """Why ``solver`` is skipped at a sweep point (``what``: "ratio" for the
     stiff chain, "mu" for the two-mass chain), or None; see the module
     docstring. ``ratio``/``exc_ratio`` from :func:`excited_ratio`."""
-    from references.registry import BUILTIN
+    from rk4h.references.registry import BUILTIN
 
     m = BUILTIN.get(solver)
     if m is None or not m.adaptive:  # the fixed-step method under study is never skipped
@@ -197,8 +197,8 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
     "not-reached", "skipped", or the run's failure status), note (deterministic),
     and ``omega_max``, ``omega_min``, ``stiffness_ratio``.
     """
-    from rk4core.methods import RK4
-    from rk4core.stability_function import imaginary_axis_boundary
+    from rk4h.methods import RK4
+    from rk4h.stability_function import imaginary_axis_boundary
 
     fixed = {"rk4": RK4} if fixed is None else fixed
     omega = model.modes()[0]
@@ -236,7 +236,7 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
                     break
                 h /= 2
         else:
-            from references.solvers import integrate
+            from rk4h.references.solvers import integrate
 
             def one(rtol, solver=solver):
                 with np.errstate(all="ignore"):

@@ -31,7 +31,7 @@ RK4's and heyoka's.
 
 Timings: a row's ``wall_s`` (and ``measured_timed``, for the large-N time
 exponents) is the only non-reproducible content; every other column is the
-same bit for bit on a rerun (:data:`validation.stability.COLUMNS`).
+same bit for bit on a rerun (:data:`rk4h.validation.stability.COLUMNS`).
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS, UNDER_TEST, long_references, with_role
+from rk4h.references.registry import BOUNDARY_ALWAYS, BUILTIN, GROWTH_ALWAYS, UNDER_TEST, long_references, with_role
 
 from . import boundary as B
 from . import geometry as G
@@ -91,7 +91,7 @@ class Context:
 
     def __post_init__(self):
         if self.tab is None:
-            from rk4core.methods import get_method
+            from rk4h.methods import get_method
 
             self.tab = self.tableaux.get(self.method) or get_method(self.method)
 
@@ -108,8 +108,8 @@ def context(scene, quick: bool) -> Context:
 
 def context_method(scene, params) -> tuple:
     """``(name, tableau)`` of the scene's ``stability.method`` (validated by
-    :mod:`validation.scenes`; :data:`UNDER_TEST` when absent)."""
-    from rk4core.methods import get_method
+    :mod:`rk4h.validation.scenes`; :data:`UNDER_TEST` when absent)."""
+    from rk4h.methods import get_method
 
     method = params.get("method") or UNDER_TEST
     own = getattr(scene, "registry", {})
@@ -317,7 +317,7 @@ def _long_drift(ctx, part):
 
 
 def _long_method(ctx, part):
-    from rk4core import fast
+    from rk4h import fast
 
     res, s, m, p = StudyResult(), ctx.scene, ctx.model, ctx.params
     meth, tab = ctx.method, ctx.tab
@@ -327,7 +327,7 @@ def _long_method(ctx, part):
     n = int(math.ceil(periods * 2 * math.pi / w_lo / h))
     if n > 2_000_000 and not fast.supports(m):
         res.rows.append(row(s, "long_horizon", meth, "long_run", math.nan, status="skipped", periods=periods,
-                            note=f"{n} steps and no compiled path for {m.name} (rk4core.fast.supports)"))
+                            note=f"{n} steps and no compiled path for {m.name} (rk4h.fast.supports)"))
         return res
     t0 = time.perf_counter()
     d = LH.measure_drift_and_phase(m, ctx.y0, h, n, method=tab, record_every=max(1, n // 20000))
@@ -540,7 +540,7 @@ def _closed_form(ctx: Context) -> StudyResult:
                                     abs(cf[i] / lim[i] - 1) <= x * x, mu=mu,
                                     note="two-term expansion, remainder O(mu^2) (or O(mu^-2))"))
     try:
-        from references.closed_forms import two_dof_equal_k
+        from rk4h.references.closed_forms import two_dof_equal_k
         two_dof_equal_k(1.0, m1=1.0, mu=0.0)
         refused, msg = False, "mu = 0 accepted"
     except ValueError as e:
@@ -703,4 +703,4 @@ def assemble(scene, quick: bool, results: dict) -> StudyResult:
     return out
 
 
-_ = integrate_fixed  # the study's one fixed-step entry point (validation.stability._common)
+_ = integrate_fixed  # the study's one fixed-step entry point (rk4h.validation.stability._common)

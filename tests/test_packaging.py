@@ -1,0 +1,30 @@
+"""The three folders install under one import name, ``rk4h``
+(pyproject.toml's package-dir): every folder holding an ``__init__.py`` is
+a listed package, so a wheel carries all of them."""
+import tomllib
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+CONFIG = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+
+
+def _installed_name(folder: Path) -> str:
+    rel = folder.relative_to(REPO).as_posix()
+    for name, base in sorted(CONFIG["package-dir"].items(), key=lambda kv: -len(kv[1])):
+        if rel == base or rel.startswith(base + "/"):
+            return ".".join([name, *Path(rel).relative_to(base).parts])
+    raise AssertionError(f"{rel} is in no mapped folder")
+
+
+def test_every_package_folder_is_listed():
+    folders = [p.parent for top in ("rk4core", "references", "validation") for p in (REPO / top).rglob("__init__.py")
+               if "__pycache__" not in p.parts]
+    assert len(folders) >= 3
+    missing = sorted(_installed_name(f) for f in folders if _installed_name(f) not in CONFIG["packages"])
+    assert not missing, f"add to [tool.setuptools] packages: {missing}"
+
+
+def test_one_import_name():
+    assert {name.split(".")[0] for name in CONFIG["packages"]} == {"rk4h"}
+    assert CONFIG["package-dir"] == {"rk4h": "rk4core", "rk4h.references": "references",
+                                     "rk4h.validation": "validation"}
