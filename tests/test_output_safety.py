@@ -140,7 +140,9 @@ def test_out_that_may_be_replaced(tmp_path, scene, capsys, state):
     assert rc == 0, err
     marker = atomic.read_marker(out)
     assert marker["state"] == "complete" and marker["scope"] == "subset" and marker["scenes"] == ["tiny"]
-    assert set(marker["manifest"]) == {"accuracy.csv", "accuracy.parquet", "columns.json", "index.md"}
+    written = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file() and p.name != atomic.MARKER}
+    assert set(marker["manifest"]) == written  # the manifest names every file the run wrote, and only those
+    assert {"accuracy.csv", "accuracy.parquet", "columns.json", "index.md"} <= written
     assert sorted(p.name for p in tmp_path.iterdir()) == [".out.lock", "out", "tiny.toml"]
 
 
