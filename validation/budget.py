@@ -155,6 +155,8 @@ def spec_steps(scene, spec, model, w, quick=False) -> tuple[float, float]:
         return 4e4, 0.0  # wavepacket.measure_group_velocity: 400 sites, about 4e4 steps
     if p == "ensemble":  # every instance of [ensemble] at this step
         return float(scene.ensemble["size"] * _steps(scene.t_end, spec.setting)), 0.0
+    if p == "amplitude_ensemble":  # every instance at h, a few at h/2
+        return float(scene.ensemble["size"] * _steps(scene.t_end, spec.setting)), 0.0
     if p == "stability_map":  # every (value, h) of the map, map_steps steps each at most
         from .ensemble import map_settings
 

@@ -497,7 +497,7 @@ def _ensemble(path, table, outputs, model, x, v):
 
     from .ensemble import draw_instances, map_settings
 
-    wants = [o for o in ("ensemble", "stability_map") if o in outputs]
+    wants = [o for o in ("ensemble", "stability_map", "amplitude_ensemble") if o in outputs]
     if table is None:
         if wants:
             raise SceneError(path, "run.outputs", f"`{wants[0]}` needs an [ensemble] table", wants[0])
@@ -509,9 +509,10 @@ def _ensemble(path, table, outputs, model, x, v):
     except ValueError as e:
         m = re.match(r"`([^`]+)` (.*)", str(e))
         raise SceneError(path, m.group(1) if m else "ensemble", m.group(2) if m else str(e)) from None
-    if wants and not getattr(model, "linear", False):
-        raise SceneError(path, "run.outputs", f"`{wants[0]}` needs a linear model (each instance's exact modal "
-                         f"solution, omega_max); {model.name} is nonlinear", wants[0])
+    linear_only = [o for o in wants if o != "amplitude_ensemble"]  # it compares with the linearization
+    if linear_only and not getattr(model, "linear", False):
+        raise SceneError(path, "run.outputs", f"`{linear_only[0]}` needs a linear model (each instance's exact modal "
+                         f"solution, omega_max); {model.name} is nonlinear", linear_only[0])
     return dict(table)
 
 
