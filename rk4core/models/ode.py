@@ -34,13 +34,13 @@ an optional ``exact(t)`` and ``invariant(y)``; it is what
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 
 import numpy as np
 
 from .. import expr as ex
 from .base import Model
 from .params import Param
+from .potential import check_constants, check_names
 
 __all__ = ["OdeModel", "FunctionOde", "MAX_VARIABLES", "EXACT_Y0_RTOL"]
 
@@ -208,10 +208,12 @@ class OdeModel(_FirstOrder):
     )
 
     def __init__(self, variables, equations, constants=None, invariant=None, exact=None):
-        names = self._check_variables(variables)
+        names = check_names("variables", variables, MAX_VARIABLES,
+                            reserved={"t": "`variables` may not hold `t`: it is the time"})
         self._setup(names)
         n = len(names)
-        self.constants = self._check_constants(constants, names)
+        self.constants = check_constants(constants, set(names) | {"t"},
+                                         "`constants.{k}`: `{k}` is also a variable or the time")
         if isinstance(equations, (str, bytes)) or not isinstance(equations, (list, tuple)):
             raise ValueError(f"`equations` must be a list of {n} expressions (one per variable), "
                              f"got {_short(equations)}")
@@ -238,43 +240,6 @@ class OdeModel(_FirstOrder):
             raise ValueError(f"`equations`: {e}") from None
 
     # -- validation -----------------------------------------------------------
-    @staticmethod
-    def _check_variables(variables) -> list:
-        if isinstance(variables, (str, bytes)) or not isinstance(variables, (list, tuple)):
-            raise ValueError(f"`variables` must be a list of names, got {_short(variables)}")
-        if not 1 <= len(variables) <= MAX_VARIABLES:
-            raise ValueError(f"`variables` must have 1 to {MAX_VARIABLES} names, got {len(variables)}")
-        seen = set()
-        for i, c in enumerate(variables):
-            problem = ex.check_name(c)
-            if problem:
-                raise ValueError(f"`variables[{i}]` must be a name: {problem}")
-            if c == "t":
-                raise ValueError("`variables` may not hold `t`: it is the time")
-            if c in seen:
-                raise ValueError(f"`variables` must be distinct names, got {c!r} twice")
-            seen.add(c)
-        return list(variables)
-
-    @staticmethod
-    def _check_constants(constants, names) -> dict:
-        if constants is None:
-            return {}
-        if not isinstance(constants, Mapping):
-            raise ValueError(f"`constants` must be a table of names to numbers, got {_short(constants)}")
-        out = {}
-        for k, v in constants.items():
-            problem = ex.check_name(k)
-            if problem:
-                raise ValueError(f"`constants` must have names as keys: {problem}")
-            if k in names or k == "t":
-                raise ValueError(f"`constants.{k}`: `{k}` is also a variable or the time")
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(float(v)):
-                raise ValueError(f"`constants.{k}` must be a finite number, got {_short(v)}")
-            out[k] = float(v)
-        return out
-
     def _parse(self, field, text, names):
         if not isinstance(text, str):
             raise ValueError(f"`{field}` must be a string (an expression), got {_short(text)}")

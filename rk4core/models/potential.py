@@ -68,6 +68,48 @@ def _short(value, limit=60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def check_names(field: str, names, limit: int, *, reserved=None) -> list:
+    """``names`` as a list of 1 to ``limit`` distinct expression names
+    (:func:`rk4core.expr.check_name`); ``reserved`` maps a name the list may
+    not hold to the message refusing it. Raises ValueError naming ``field``."""
+    if isinstance(names, (str, bytes)) or not isinstance(names, (list, tuple)):
+        raise ValueError(f"`{field}` must be a list of names, got {_short(names)}")
+    if not 1 <= len(names) <= limit:
+        raise ValueError(f"`{field}` must have 1 to {limit} names, got {len(names)}")
+    seen = set()
+    for i, c in enumerate(names):
+        problem = ex.check_name(c)
+        if problem:
+            raise ValueError(f"`{field}[{i}]` must be a name: {problem}")
+        if reserved and c in reserved:
+            raise ValueError(reserved[c])
+        if c in seen:
+            raise ValueError(f"`{field}` must be distinct names, got {c!r} twice")
+        seen.add(c)
+    return list(names)
+
+
+def check_constants(constants, taken: set, clash: str) -> dict:
+    """``constants`` (None or a mapping of names to finite numbers) as a dict
+    of floats; a key in ``taken`` is refused with ``clash.format(k=key)``."""
+    if constants is None:
+        return {}
+    if not isinstance(constants, Mapping):
+        raise ValueError(f"`constants` must be a table of names to numbers, got {_short(constants)}")
+    out = {}
+    for k, v in constants.items():
+        problem = ex.check_name(k)
+        if problem:
+            raise ValueError(f"`constants` must have names as keys: {problem}")
+        if k in taken:
+            raise ValueError(clash.format(k=k))
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                or not math.isfinite(float(v)):
+            raise ValueError(f"`constants.{k}` must be a finite number, got {_short(v)}")
+        out[k] = float(v)
+    return out
+
+
 class PotentialModel(Model):
     """A model defined by the text of its potential (see the module docstring).
 
@@ -109,13 +151,14 @@ class PotentialModel(Model):
     )
 
     def __init__(self, coordinates, masses, potential, constants=None):
-        self.coordinates = self._check_coordinates(coordinates)
+        self.coordinates = check_names("coordinates", coordinates, MAX_COORDINATES)
         n = len(self.coordinates)
         if isinstance(masses, (str, bytes)) or not hasattr(masses, "__len__"):
             self.mass = check_masses("masses", np.full(n, positive("masses", masses)))
         else:
             self.mass = check_masses("masses", float_list("masses", masses, length=n, positive_items=True))
-        self.constants = self._check_constants(constants, self.coordinates)
+        self.constants = check_constants(constants, set(self.coordinates),
+                                         "`constants.{k}`: `{k}` is both a coordinate and a constant")
         if not isinstance(potential, str):
             raise ValueError(f"`potential` must be a string (the expression of V), got {_short(potential)}")
         self.potential_text = potential
@@ -163,41 +206,6 @@ class PotentialModel(Model):
         self.linear = bool(constant_hessian and np.all(F0 == 0.0) and self._semidefinite(K))
 
     # -- validation -----------------------------------------------------------
-    @staticmethod
-    def _check_coordinates(coordinates) -> list:
-        if isinstance(coordinates, (str, bytes)) or not isinstance(coordinates, (list, tuple)):
-            raise ValueError(f"`coordinates` must be a list of names, got {_short(coordinates)}")
-        if not 1 <= len(coordinates) <= MAX_COORDINATES:
-            raise ValueError(f"`coordinates` must have 1 to {MAX_COORDINATES} names, got {len(coordinates)}")
-        seen = set()
-        for i, c in enumerate(coordinates):
-            problem = ex.check_name(c)
-            if problem:
-                raise ValueError(f"`coordinates[{i}]` must be a name: {problem}")
-            if c in seen:
-                raise ValueError(f"`coordinates` must be distinct names, got {c!r} twice")
-            seen.add(c)
-        return list(coordinates)
-
-    @staticmethod
-    def _check_constants(constants, coordinates) -> dict:
-        if constants is None:
-            return {}
-        if not isinstance(constants, Mapping):
-            raise ValueError(f"`constants` must be a table of names to numbers, got {_short(constants)}")
-        out = {}
-        for k, v in constants.items():
-            problem = ex.check_name(k)
-            if problem:
-                raise ValueError(f"`constants` must have names as keys: {problem}")
-            if k in coordinates:
-                raise ValueError(f"`constants.{k}`: `{k}` is both a coordinate and a constant")
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(float(v)):
-                raise ValueError(f"`constants.{k}` must be a finite number, got {_short(v)}")
-            out[k] = float(v)
-        return out
-
     @staticmethod
     def _semidefinite(K) -> bool:
         if K.size == 0 or not np.any(K):
