@@ -115,6 +115,16 @@ def first_step(fun, t0: float, y0: np.ndarray, t1: float, f0: np.ndarray, rtol: 
     return min(100 * h0, h1, interval)
 
 
+def _closing_message(status, message: str, t_fail, note: str) -> str:
+    """A DOP853 run's message (scipy's loop and the compiled one alike): the
+    end reached, or what stopped it with the time of the last step."""
+    if status is Status.OK:
+        return "dop853: reached the end of the interval" + note
+    if t_fail is not None and f"{t_fail:.6g}" not in message:
+        message += f" (last step ended at t = {t_fail:.6g})"
+    return message + note
+
+
 def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.ndarray,
                max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
     """Integrate ``model`` with DOP853 at ``rtol``/``atol``; never raises, and
@@ -206,12 +216,8 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         status, message = Status.FAILED, f"dop853: {type(exc).__name__}: {exc}"
         t_fail = float(solver.t) if solver is not None else t0
     wall = time.perf_counter() - start
-    if status is Status.OK:
-        message = "dop853: reached the end of the interval" + note
-    else:
-        if t_fail is not None and f"{t_fail:.6g}" not in message:
-            message += f" (last step ended at t = {t_fail:.6g})"
-        message += note
+    message = _closing_message(status, message, t_fail, note)
+    if status is not Status.OK:
         y[:, k:] = np.nan
     nfev = (int(solver.nfev) + extra_evals) if solver is not None else calls[0]
     extra["nfev_calls"] = calls[0]
@@ -331,12 +337,8 @@ def run_dop853_compiled(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, 
         status, message, t_fail, k = Status.FAILED, f"dop853: {type(exc).__name__}: {exc}", t0, 1
     wall = time.perf_counter() - start
     y = ys.T.copy()
-    if status is Status.OK:
-        message = "dop853: reached the end of the interval" + note
-    else:
-        if t_fail is not None and f"{t_fail:.6g}" not in message:
-            message += f" (last step ended at t = {t_fail:.6g})"
-        message += note
+    message = _closing_message(status, message, t_fail, note)
+    if status is not Status.OK:
         y[:, k:] = np.nan
     extra["nfev_calls"] = nfev
     return SolverRun(name, rtol, t_eval, y, nfev, n_steps, wall, compile_s=compile_s, status=status,
