@@ -189,6 +189,24 @@ def _tension_source(linear: bool, consts: _Constants | None = None):
     return lines, result
 
 
+def _tension_over_length(dim: int, t_lines, t_res) -> list:
+    """Source lines (inside the loop over springs ``s``, the extension
+    vector in ``_Fd0..``) computing the spring's length ``_FL``, extension
+    ``_Fr`` and tension over length ``_FtL``; shared by the two-pass force
+    and the fused slope, so both compute the same numbers."""
+    L = ["        _FL2 = _Fd0 * _Fd0"]
+    if dim == 2:
+        L.append("        _FL2 = _FL2 + _Fd1 * _Fd1")
+    L += [
+        "        _FL = math.sqrt(_FL2)",
+        "        _Fr = _FL - fp[ore + s]",
+        "        _Fk, _Fal, _Fbe = fp[ok + s], fp[oal + s], fp[obe + s]",
+    ]
+    L += ["        " + line for line in t_lines]
+    L += [f"        _FtL = {t_res} / _FL"]
+    return L
+
+
 class SpringKernel(ForceKernel):
     """The force of a spring network (:class:`~rk4h.models.Network`): the
     tension of the spring-energy template over the edge list, with exact
@@ -239,16 +257,7 @@ class SpringKernel(ForceKernel):
                       "        else:",
                       f"            _FP{end}{c} = fp[oA + ({end} - nm) * {D} + {c}]"]
         L += [f"        _Fd{c} = _FPb{c} - _FPa{c}" for c in range(D)]
-        L.append("        _FL2 = _Fd0 * _Fd0")
-        if D == 2:
-            L.append("        _FL2 = _FL2 + _Fd1 * _Fd1")
-        L += [
-            "        _FL = math.sqrt(_FL2)",
-            "        _Fr = _FL - fp[ore + s]",
-            "        _Fk, _Fal, _Fbe = fp[ok + s], fp[oal + s], fp[obe + s]",
-        ]
-        L += ["        " + line for line in t_lines]
-        L += [f"        _FtL = {t_res} / _FL"]
+        L += _tension_over_length(D, t_lines, t_res)
         for c in range(D):
             L += [f"        w[s * {D} + {c}] = _FtL * _Fd{c}",
                   f"        if a < nm:",
@@ -289,16 +298,7 @@ class SpringKernel(ForceKernel):
             "        a, b = ip[3 + s], ip[3 + ns + s]",
         ]
         L += [f"        _Fd{c} = w[oP + b * {D} + {c}] - w[oP + a * {D} + {c}]" for c in range(D)]
-        L.append("        _FL2 = _Fd0 * _Fd0")
-        if D == 2:
-            L.append("        _FL2 = _FL2 + _Fd1 * _Fd1")
-        L += [
-            "        _FL = math.sqrt(_FL2)",
-            "        _Fr = _FL - fp[ore + s]",
-            "        _Fk, _Fal, _Fbe = fp[ok + s], fp[oal + s], fp[obe + s]",
-        ]
-        L += ["        " + line for line in t_lines]
-        L += [f"        _FtL = {t_res} / _FL"]
+        L += _tension_over_length(D, t_lines, t_res)
         for c in range(D):
             L += [f"        _FF{c} = _FtL * _Fd{c}",
                   f"        w[s * {D} + {c}] = _FF{c}",
