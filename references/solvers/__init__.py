@@ -189,6 +189,11 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
     SolverRun
         ``y`` of shape (2 n_dof, m) at ``t_eval``.
     """
+    return _integrate(solver, model, y0, t_eval, setting, atol, max_steps, REFERENCE_RUNNERS)
+
+
+def _integrate(solver, model, y0, t_eval, setting, atol, max_steps, runners) -> SolverRun:
+    """:func:`integrate` with ``runners`` (adapter -> runner) for the references."""
     method = resolve(solver)
     setting = check_setting(method, setting)
     model = as_model(model, y0)
@@ -207,10 +212,10 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
                                   nfev_per_step=method.nfev_per_step)
     if atol is None:
         atol = absolute_tolerance(model, y0, setting)
-    runner = REFERENCE_RUNNERS.get(method.adapter)
+    runner = runners.get(method.adapter)
     if runner is None:
         raise ValueError(f"solver: no adapter runs the reference {method.name!r} (adapter {method.adapter!r}; "
-                         f"adapters: {', '.join(sorted(REFERENCE_RUNNERS))})")
+                         f"adapters: {', '.join(sorted(runners))})")
     return runner(model, y0, t, setting, atol, int(max_steps))
 
 
@@ -227,13 +232,4 @@ def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
     compiled right-hand side, runs as :func:`integrate` runs it.
     ``run.extra["implementation"]`` is ``"compiled"`` where the compiled
     loop ran. Same arguments, checks and result."""
-    method = resolve(solver)
-    model = as_model(model, y0)
-    runner = COMPILED_RUNNERS.get(method.adapter) if method.kind is Kind.REFERENCE else None
-    if runner is None:
-        return integrate(method, model, y0, t_eval, setting, atol=atol, max_steps=max_steps)
-    setting = check_setting(method, setting)
-    y0, t, atol = _check_inputs(model, y0, t_eval, atol, max_steps)
-    if atol is None:
-        atol = absolute_tolerance(model, y0, setting)
-    return runner(model, y0, t, setting, atol, int(max_steps))
+    return _integrate(solver, model, y0, t_eval, setting, atol, max_steps, {**REFERENCE_RUNNERS, **COMPILED_RUNNERS})
