@@ -31,9 +31,12 @@ from zero (a fixed grid lands on such zeros often: ``event = t - 5`` with
 from __future__ import annotations
 
 import math
+from functools import partial
 from numbers import Real
 
 import numpy as np
+
+from .validate import short
 
 __all__ = ["Events", "TERMINAL_MESSAGE"]
 
@@ -41,9 +44,7 @@ EPS = float(np.finfo(float).eps)
 TERMINAL_MESSAGE = "The `terminal` attribute of each event must be a boolean or positive integer"
 
 
-def _short(value, limit=60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+_short = partial(short, limit=60)
 
 
 class Events:

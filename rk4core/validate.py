@@ -106,9 +106,12 @@ def check_t_span(t_span, *, allow_backward: bool = False):
     return t0, t1
 
 
-def _short(value, limit=80) -> str:
+def short(value, limit=80) -> str:
+    """``repr(value)`` on one line, cut to ``limit`` characters (``...``):
+    how a refusal quotes the value it refuses."""
     text = repr(value).replace("\n", " ")
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
 
 
 def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
@@ -126,7 +129,7 @@ def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
             return y
     kind = "real or complex numbers" if allow_complex else "real numbers"
     if isinstance(y0, (str, bytes)):
-        raise ValueError(f"`y0` must be a 1-D array of {kind}, got the string {_short(y0)}")
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got the string {short(y0)}")
     if isinstance(y0, (list, tuple)):
         for i, v in enumerate(y0):
             if isinstance(v, (bool, np.bool_)):
@@ -134,32 +137,32 @@ def check_y0(y0, *, allow_complex: bool = False) -> np.ndarray:
     try:
         raw = np.asarray(y0)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {_short(y0)}") from None
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {short(y0)}") from None
     if raw.dtype.kind == "O":  # mixed or exotic entries: each must be a number
         flat = raw.ravel()
         for v in flat:
             if not isinstance(v, Number) or isinstance(v, (bool, np.bool_)):
-                raise ValueError(f"`y0` must be a 1-D array of {kind}, got an entry {_short(v)}")
+                raise ValueError(f"`y0` must be a 1-D array of {kind}, got an entry {short(v)}")
         cplx = any(isinstance(v, Complex) and not isinstance(v, Real) for v in flat)
     elif raw.dtype.kind in "iuf":
         cplx = False
     elif raw.dtype.kind == "c":
         cplx = True
     else:  # b (bool), U/S (text), V, M/m (dates)...
-        raise ValueError(f"`y0` must be a 1-D array of {kind}, got dtype {raw.dtype} ({_short(y0)})")
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got dtype {raw.dtype} ({short(y0)})")
     if cplx and not allow_complex:
-        raise ValueError(f"`y0` must be real here, got complex values ({_short(y0)}); only "
+        raise ValueError(f"`y0` must be real here, got complex values ({short(y0)}); only "
                          f"rk4h.solve integrates a complex state")
     try:
         y = np.array(raw, dtype=np.complex128 if cplx else np.float64)
     except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {_short(y0)}") from None
+        raise ValueError(f"`y0` must be a 1-D array of {kind}, got {short(y0)}") from None
     if y.ndim != 1:
         raise ValueError(f"`y0` must be 1-dimensional, got shape {y.shape}")
     if y.size == 0:
         raise ValueError("`y0` must not be empty")
     if not np.all(np.isfinite(y)):
-        raise ValueError(f"`y0` must be finite, got {_short(y0)}")
+        raise ValueError(f"`y0` must be finite, got {short(y0)}")
     return y
 
 
@@ -224,7 +227,7 @@ def check_output_size(name: str, value, rows: int, n_components: int, itemsize: 
     that sets the number of rows (a ``str`` value is shown as is)."""
     size = int(rows) * int(n_components) * int(itemsize)
     if size > MAX_OUTPUT_BYTES:
-        shown = value if isinstance(value, str) else _short(value, 40)
+        shown = value if isinstance(value, str) else short(value, 40)
         raise ValueError(f"`{name}` = {shown} implies an output of {rows} rows x {n_components} "
                          f"components x {itemsize} bytes = {size / 2**30:.3g} GiB, over the "
                          f"MAX_OUTPUT_BYTES = 2**33 bytes (8 GiB) cap; keep fewer output times "
@@ -246,7 +249,7 @@ def check_y_scale(value, n: int) -> np.ndarray | None:
     if value is None:
         return None
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
-        raise ValueError(f"`y_scale` must be a list of {n} positive numbers, got {_short(value)}")
+        raise ValueError(f"`y_scale` must be a list of {n} positive numbers, got {short(value)}")
     if len(value) != n:
         raise ValueError(f"`y_scale` must have {n} entries (one per state component), got {len(value)}")
     if isinstance(value, np.ndarray) and value.dtype == np.float64 and value.ndim == 1:

@@ -34,10 +34,12 @@ an optional ``exact(t)`` and ``invariant(y)``; it is what
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 
 from .. import expr as ex
+from ..validate import short
 from .base import Model
 from .params import Param
 from .potential import check_constants, check_names
@@ -50,9 +52,7 @@ MAX_VARIABLES = 100
 EXACT_Y0_RTOL = 1e-12
 
 
-def _short(value, limit=60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+_short = partial(short, limit=60)
 
 
 class _FirstOrder(Model):

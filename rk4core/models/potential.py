@@ -47,11 +47,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from functools import partial
 
 import numpy as np
 
 from .. import expr as ex
-from ..validate import float_list, positive
+from ..validate import float_list, positive, short
 from .base import Model, check_masses
 from .compiled import ExprKernel
 from .params import Param
@@ -63,9 +64,7 @@ __all__ = ["PotentialModel", "MAX_COORDINATES"]
 MAX_COORDINATES = 100
 
 
-def _short(value, limit=60) -> str:
-    text = repr(value).replace("\n", " ")
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+_short = partial(short, limit=60)
 
 
 def check_names(field: str, names, limit: int, *, reserved=None) -> list:
