@@ -56,16 +56,18 @@ UNSTABLE at about that time instead of shrinking its step forever.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rk4h.models.base import Model
 from rk4h.validate import check_model_y0, check_output_times, positive
 
-from ..registry import Kind, resolve
+from ..registry import BUILTIN, Kind, Method, resolve
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
 from .cvode import DEFAULT_MAX_STEPS, run_cvode
 from .dop853 import run_dop853, run_dop853_compiled
-from .fixed import run_fixed
+from .fixed import run_fixed, run_fixed_short
 from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
@@ -194,6 +196,10 @@ def integrate(solver, model, y0, t_eval, setting: float, *, atol=None,
 
 def _integrate(solver, model, y0, t_eval, setting, atol, max_steps, runners) -> SolverRun:
     """:func:`integrate` with ``runners`` (adapter -> runner) for the references."""
+    if atol is None:
+        run = _fixed_short(solver, model, y0, t_eval, setting, max_steps)
+        if run is not None:
+            return run
     method = resolve(solver)
     setting = check_setting(method, setting)
     model = as_model(model, y0)
@@ -217,6 +223,27 @@ def _integrate(solver, model, y0, t_eval, setting, atol, max_steps, runners) -> 
         raise ValueError(f"solver: no adapter runs the reference {method.name!r} (adapter {method.adapter!r}; "
                          f"adapters: {', '.join(sorted(runners))})")
     return runner(model, y0, t, setting, atol, int(max_steps))
+
+
+_SHORT_KINDS = (Kind.TABLEAU, Kind.PARTITIONED)
+
+
+def _fixed_short(solver, model, y0, t_eval, setting, max_steps):
+    """A repeated fixed-step call on the short path
+    (:func:`rk4h.references.solvers.fixed.run_fixed_short`), or None: the
+    general path then checks everything and says what is wrong. Here only
+    the arguments that need no message are tested, each with one cheap test."""
+    if type(solver) is str:
+        method = BUILTIN.get(solver)
+    else:
+        method = solver if type(solver) is Method else None
+    if method is None or method.kind not in _SHORT_KINDS:
+        return None
+    if type(setting) not in (float, np.float64) or not 0.0 < setting < math.inf:
+        return None
+    if type(max_steps) is not int or max_steps < 1:
+        return None
+    return run_fixed_short(method.tableau, model, y0, t_eval, float(setting))
 
 
 #: Reference adapters with a compiled loop for untimed work (:func:`integrate_compiled`).

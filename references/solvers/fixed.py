@@ -36,13 +36,16 @@ import numpy as np
 import rk4h
 import rk4h.fast as fast
 
+from rk4h.fast import solve as _fast_solve
 from rk4h.fast.solve import solve_checked
+from rk4h.validate import check_output_times
+from rk4h.models.base import Model
 from rk4h.solver import _DBL_MAX
 
 from .base import SolverRun, Status
-from .tolerances import group_scales, state_scale
+from .tolerances import group_scales, omega_bound, scales_from, state_scale
 
-__all__ = ["run_fixed", "MAX_GROWTH"]
+__all__ = ["run_fixed", "run_fixed_short", "MAX_GROWTH"]
 
 #: A fixed-step run stops as UNSTABLE when a component exceeds this many times
 #: its group scale (see the module docstring).
@@ -85,6 +88,8 @@ def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> So
         return SolverRun(name, h, t_eval, np.full((y0.shape[0], m), np.nan), 0, 0, time.perf_counter() - start, compile_s, status=Status.FAILED,
                          message=f"{name}: {type(exc).__name__}: {exc}", t_fail=float(t_eval[0]))
     wall = time.perf_counter() - start
+    if trusted:
+        _remember(model, tab, y0, growth)
     reached = res.y.shape[1]
     if reached == m:
         y = np.ascontiguousarray(res.y)
@@ -96,3 +101,211 @@ def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> So
                      message=res.message, t_fail=res.t_fail,
                      extra={"h_used": res.h, "dense": res.dense, "path": "numba" if use_fast else "python",
                             "reason": res.reason})
+
+
+# -- the short path of a repeated call (issue 29) -------------------------------------------------
+#
+# ``run_fixed`` checks and computes everything on every call. A model object that ran through it
+# keeps a _Short record (in its ``__dict__``): the loop of each method run (warmed), the frequency
+# bound, the growth bounds of the last initial states accepted (by their bytes) and the output plan
+# of the last ``(t_eval, h)`` pairs (by the bytes of ``t_eval``). A later call whose inputs match
+# runs the loop on those; anything else (a new state is checked here, and refused by the general
+# path) goes the general way, with its checks and messages.
+#
+# Models are not changed after construction (their compiled kernel and constants are kept per
+# object). A user who does change one anyway, in place or by rebinding an attribute, is noticed:
+# the record keeps each attribute of the model (and of a model it wraps) by identity and each
+# array's bytes; a difference drops every per-object cache and the call runs the general path on
+# the model as it now is.
+
+_RECORD = "_fixed_short"
+#: The per-object caches of a model dropped when it is found changed.
+_OBJECT_CACHES = ("_fast_force_kernel", "_fast_prepared", "_references_rhs", _RECORD)
+#: Most initial states and output plans one record keeps (then it starts again).
+_KEEP = 16
+
+
+def _snapshot(model):
+    """``[(attrs, name, value, data)]``: every attribute of ``model`` (and of
+    a model held in one of them) with its value and, for an array, its dtype,
+    shape and bytes; plain lists and dicts are kept as copies."""
+    out = []
+    owners = [model.__dict__] + [v.__dict__ for v in model.__dict__.values() if isinstance(v, Model)]
+    for attrs in owners:
+        for name, value in attrs.items():
+            if name in _OBJECT_CACHES:
+                continue
+            data = None
+            if isinstance(value, np.ndarray):
+                data = (value.dtype.str, value.shape, value.tobytes())
+            elif type(value) in (list, dict):
+                try:
+                    copy = type(value)(value)
+                    data = copy if bool(copy == value) else None
+                except Exception:  # noqa: BLE001 - items without a plain ==: kept by identity only
+                    data = None
+            out.append((attrs, name, value, data))
+    return out
+
+
+def _unchanged(snapshot) -> bool:
+    for attrs, name, value, data in snapshot:
+        if attrs.get(name, _snapshot) is not value:
+            return False
+        if data is None:
+            continue
+        if type(data) is tuple:
+            if value.dtype.str != data[0] or value.shape != data[1] or value.tobytes() != data[2]:
+                return False
+        elif value != data:
+            return False
+    return True
+
+
+def _forget(model) -> None:
+    """Drop every per-object cache of ``model`` (and of a model it wraps),
+    and its fingerprint: its kernel, constants and checks are worked out
+    again from its attributes as they now are."""
+    from rk4h.models import base as models_base
+
+    for obj in [model] + [v for v in model.__dict__.values() if isinstance(v, Model)]:
+        for key in _OBJECT_CACHES:
+            obj.__dict__.pop(key, None)
+        fingerprints = getattr(models_base, "_FINGERPRINTS", None)
+        if fingerprints is not None:
+            try:
+                fingerprints.pop(obj, None)
+            except TypeError:
+                pass
+
+
+class _Short:
+    """What a repeated ``run_fixed`` of one model object needs (see above)."""
+
+    __slots__ = ("snapshot", "n_state", "n_dof", "w", "preps", "states", "plans")
+
+    def __init__(self, model, w):
+        self.snapshot = _snapshot(model)
+        self.n_dof = model.n_dof
+        self.n_state = 2 * model.n_dof
+        self.w = w
+        self.preps = {}   # id(tab) -> (tab, prepared loop)
+        self.states = {}  # bytes of y0 -> growth bounds (read only)
+        self.plans = {}   # (bytes of t_eval, h) -> output_plan(...)
+
+    def growth(self, s_q, s_v):
+        g = np.empty(self.n_state)
+        g[:self.n_dof] = min(MAX_GROWTH * s_q, _DBL_MAX)
+        g[self.n_dof:] = min(MAX_GROWTH * s_v, _DBL_MAX)
+        g.flags.writeable = False
+        return g
+
+
+def _remember(model, tab, y0, growth) -> None:
+    """Record, after a trusted general run of ``tab`` on ``model`` from ``y0``
+    (checked) with the growth bounds ``growth``, what a repeated call needs."""
+    d = getattr(model, "__dict__", None)
+    if d is None or getattr(model, "first_order", False) or not _fast_solve.warmed(model, tab):
+        return
+    rec = d.get(_RECORD)
+    if rec is None:
+        try:
+            w = omega_bound(model)
+        except Exception:  # noqa: BLE001 - no bound: no record, the general path runs
+            return
+        rec = d[_RECORD] = _Short(model, w)
+    if id(tab) not in rec.preps:
+        if len(rec.preps) >= _KEEP:
+            rec.preps.clear()
+        rec.preps[id(tab)] = (tab, _fast_solve.prepared(model, tab))
+    if len(rec.states) >= _KEEP:
+        rec.states.clear()
+    g = growth.copy()
+    g.flags.writeable = False
+    rec.states[y0.tobytes()] = g
+
+
+def run_fixed_short(tab, model, y0, t_eval, h: float) -> SolverRun | None:
+    """:func:`run_fixed` for a repeated call, or None where the general path
+    must run (:func:`rk4h.references.solvers.integrate` then runs it).
+
+    ``tab`` is a :class:`~rk4h.methods.Tableau`, ``h`` a finite float > 0
+    (s); ``model``, ``y0`` and ``t_eval`` are the caller's, unchecked: the
+    short path runs only on a model object that has run ``tab`` through
+    :func:`run_fixed` and is unchanged since, a float64 ``y0`` of the
+    model's length (finite, and a state :meth:`Model.check_state` accepts)
+    and a float64 ``t_eval``; its result is :func:`run_fixed`'s, bit for
+    bit, with ``compile_s = 0`` (nothing was compiled or loaded)."""
+    d = getattr(model, "__dict__", None)
+    rec = d.get(_RECORD) if d is not None else None
+    if rec is None:
+        return None
+    if not _unchanged(rec.snapshot):
+        _forget(model)
+        return None
+    entry = rec.preps.get(id(tab))
+    if entry is None or entry[0] is not tab:
+        return None
+    if type(y0) is not np.ndarray or y0.dtype != np.float64 or y0.shape != (rec.n_state,):
+        return None
+    if type(t_eval) is not np.ndarray or t_eval.dtype != np.float64 or t_eval.ndim != 1:
+        return None
+    y = y0.copy()
+    growth = rec.states.get(y.tobytes())
+    if growth is None:
+        growth = _new_state(rec, model, y)
+        if growth is None:
+            return None
+    key = (t_eval.tobytes(), h)
+    plan = rec.plans.get(key)
+    t = t_eval.copy()
+    if plan is None:
+        try:
+            plan = _fast_solve.output_plan(check_output_times(t), h, rec.n_state)
+        except Exception:  # noqa: BLE001 - the general path refuses or reports it
+            return None
+        if len(rec.plans) >= _KEEP:
+            rec.plans.clear()
+        rec.plans[key] = plan
+    t0, t1, step, n, idx, theta, dense = plan
+    bound = growth.copy()
+    start = time.perf_counter()
+    ys, n_done, n_out, status, n_extra, y_fail = _fast_solve.run_loop(entry[1], y, t0, step, n, idx, theta,
+                                                                       bound, 0.0)
+    nfev, message, t_fail, reason = _fast_solve.outcome(tab, t0, t1, step, n, n_done, status, n_extra, y_fail,
+                                                        bound, "given")
+    m = t.shape[0]
+    if n_out == m:
+        y_out = np.ascontiguousarray(ys.T)
+    else:
+        y_out = np.full((rec.n_state, m), np.nan)
+        y_out[:, :n_out] = ys[:n_out].T
+    wall = time.perf_counter() - start
+    return SolverRun(tab.name, h, t, y_out, nfev, n_done, wall, 0.0,
+                     status=Status.OK if status == _fast_solve.K.STATUS_OK else Status.UNSTABLE,
+                     message=message, t_fail=t_fail,
+                     extra={"h_used": step, "dense": dense, "path": "numba", "reason": reason})
+
+
+def _new_state(rec, model, y):
+    """The growth bounds of a new initial state ``y`` (a copy) of ``rec``'s
+    model, as :func:`run_fixed` computes them, or None when ``y`` is not
+    finite or not a state of the model (the general path refuses it)."""
+    n = rec.n_dof
+    a = np.abs(y)
+    aq, av = float(a[:n].max()), float(a[n:].max())
+    if not (math.isfinite(aq) and math.isfinite(av)):
+        return None
+    try:
+        if model._state_problem_once(y) is not None:
+            return None
+    except Exception:  # noqa: BLE001 - the general path says what is wrong
+        return None
+    s_q, s_v = scales_from(aq, av, rec.w)
+    if not (math.isfinite(s_q) and math.isfinite(s_v)):
+        return None
+    g = rec.growth(s_q, s_v)
+    if len(rec.states) >= _KEEP:
+        rec.states.clear()
+    rec.states[y.tobytes()] = g
+    return g

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["omega_bound", "group_scales", "state_scale", "absolute_tolerance"]
+__all__ = ["omega_bound", "group_scales", "scales_from", "state_scale", "absolute_tolerance"]
 
 
 def omega_bound(model) -> float:
@@ -51,7 +51,14 @@ def group_scales(model, y0) -> tuple[float, float]:
     n = model.n_dof
     aq = float(np.abs(y0[:n]).max())
     av = float(np.abs(y0[n:]).max())
-    w = omega_bound(model)
+    return scales_from(aq, av, omega_bound(model))
+
+
+def scales_from(aq: float, av: float, w: float) -> tuple[float, float]:
+    """``(s_q, s_v)`` of :func:`group_scales` from ``aq = max_i |q0_i|`` (m),
+    ``av = max_i |v0_i|`` (m/s) and the frequency bound ``w`` (rad/s,
+    :func:`omega_bound`): for a caller that keeps ``w`` (the fixed-step short
+    path), the same operations, so the same numbers bit for bit."""
     if w > 0.0:
         s_q, s_v = max(aq, av / w), max(av, w * aq)
     else:

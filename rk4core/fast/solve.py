@@ -190,14 +190,39 @@ def solve_checked(model, t_eval, y0, h, method, bound) -> FixedStepResult | None
     kern = force_kernel(model)
     if kern is None:
         return None
-    t0, t1 = float(t_eval[0]), float(t_eval[-1])
     y = y0.copy()
-    n = check_step_args(t0, t1, h, None, step_count)
-    step = (t1 - t0) / n
-    check_output_size("t_eval", f"<{t_eval.shape[0]} times>", t_eval.shape[0], y.shape[0])
-    idx, theta, dense = _output_points(t0, step, n, t_eval, 1)
+    t0, t1, step, n, idx, theta, dense = output_plan(t_eval, h, y.shape[0])
     return _finish(_prepared(model, kern, method), method, y, t0, t1, step, n, idx, theta, dense, t_eval,
                    bound, 0.0, "given")
+
+
+def output_plan(t_eval, h, n_state):
+    """``(t0, t1, step, n, idx, theta, dense)`` of a run of :func:`solve_checked`
+    over checked ``t_eval`` (s) with the largest step ``h`` (s) and a state of
+    ``n_state`` components: the span, the step used, the step count and the
+    output points (:func:`_output_points`). Raises as :func:`solve_model`
+    for too many steps or too large an output."""
+    t0, t1 = float(t_eval[0]), float(t_eval[-1])
+    n = check_step_args(t0, t1, h, None, step_count)
+    step = (t1 - t0) / n
+    check_output_size("t_eval", f"<{t_eval.shape[0]} times>", t_eval.shape[0], n_state)
+    idx, theta, dense = _output_points(t0, step, n, t_eval, 1)
+    return t0, t1, step, n, idx, theta, dense
+
+
+def prepared(model, method):
+    """The compiled loop and constant arrays :func:`solve_model` uses for
+    ``model`` and the :class:`~rk4h.methods.Tableau` ``method`` (kept on the
+    model object), or None without a compiled force."""
+    kern = force_kernel(model)
+    return None if kern is None else _prepared(model, kern, method)
+
+
+def warmed(model, method) -> bool:
+    """Whether :func:`warm_up` has already run the loop ``solve_model`` runs
+    for ``model`` and ``method`` in this process."""
+    loop = _loop_of(model, method)
+    return loop is not None and id(loop) in _WARMED
 
 
 def _output_points(t0, step, n, t_eval, record_every):
@@ -325,23 +350,9 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
 
 def _finish(prep, tab, y, t0, t1, step, n, idx, theta, dense, t_eval, bound, pending, scale_from):
     """Run ``prep``'s loop on checked arguments; the result of :func:`solve_model`."""
-    ys = np.empty((idx.shape[0], y.shape[0]))
-    y_fail = np.empty(y.shape[0])
-    if prep.unrolled:
-        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, y, t0, step, n, idx, theta, ys,
-                                                   bound, pending, y_fail)
-    else:
-        w = np.zeros(prep.work_size)
-        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, w, y, t0, step, n, idx, theta, ys,
-                                                   bound, pending, y_fail)
-    n_done, n_out, status = int(n_done), int(n_out), int(status)
-    message = "The solver successfully reached the end of the integration interval."
-    t_fail, reason = None, "ok"
-    if status != K.STATUS_OK:
-        t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4h.solve
-        reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step, scale_from)
-    # As rk4h.solve, the stages of the step that failed are counted.
-    nfev = nfev_count(tab, n_done + (status != K.STATUS_OK)) + int(n_extra)
+    ys, n_done, n_out, status, n_extra, y_fail = run_loop(prep, y, t0, step, n, idx, theta, bound, pending)
+    nfev, message, t_fail, reason = outcome(tab, t0, t1, step, n, n_done, status, n_extra, y_fail, bound,
+                                            scale_from)
     if t_eval is None:
         t_out = grid_times(t0, t1, step, idx[:n_out], n)
     else:
@@ -351,6 +362,44 @@ def _finish(prep, tab, y, t0, t1, step, n, idx, theta, dense, t_eval, bound, pen
         success=status == K.STATUS_OK, status=status, message=message, t_fail=t_fail,
         dense=dense, method=tab.name, reason=reason,
     )
+
+
+#: The message of a run that reached the end (``rk4h.solve``'s).
+OK_MESSAGE = "The solver successfully reached the end of the integration interval."
+
+
+def run_loop(prep, y, t0, step, n, idx, theta, bound, pending):
+    """Run ``prep``'s compiled loop (:class:`_Prepared`) from the state ``y``
+    (overwritten) over ``n`` steps of ``step`` (s) from ``t0`` (s), keeping
+    the output points ``idx``/``theta`` (:func:`_output_points`; read only).
+
+    Returns ``(ys, n_done, n_out, status, n_extra, y_fail)``: ``ys`` of shape
+    (len(idx), len(y)) (rows past ``n_out`` unset), the steps completed, the
+    rows filled, the loop's status (``_kernels.STATUS_OK`` or not), the
+    dense-output slope evaluations and the rejected state."""
+    ys = np.empty((idx.shape[0], y.shape[0]))
+    y_fail = np.empty(y.shape[0])
+    if prep.unrolled:
+        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, y, t0, step, n, idx, theta, ys,
+                                                   bound, pending, y_fail)
+    else:
+        w = np.zeros(prep.work_size)
+        n_done, n_out, status, n_extra = prep.loop(prep.fp, prep.ip, prep.mass, w, y, t0, step, n, idx, theta, ys,
+                                                   bound, pending, y_fail)
+    return ys, int(n_done), int(n_out), int(status), n_extra, y_fail
+
+
+def outcome(tab, t0, t1, step, n, n_done, status, n_extra, y_fail, bound, scale_from):
+    """``(nfev, message, t_fail, reason)`` of a :func:`run_loop` run, as
+    :func:`rk4h.solve` reports them."""
+    message = OK_MESSAGE
+    t_fail, reason = None, "ok"
+    if status != K.STATUS_OK:
+        t_fail = grid_time(t0, t1, step, n_done + 1, n)  # as rk4h.solve
+        reason, message = unstable_message(y_fail, bound, t_fail, n_done, n, step, scale_from)
+    # As rk4h.solve, the stages of the step that failed are counted.
+    nfev = nfev_count(tab, n_done + (status != K.STATUS_OK)) + int(n_extra)
+    return nfev, message, t_fail, reason
 
 
 def warm_up(model=None, method="rk4") -> float:

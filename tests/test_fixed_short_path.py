@@ -1,0 +1,178 @@
+"""The short path of a repeated ``integrate`` with a fixed-step method
+(issue 29: ``rk4h.references.solvers.fixed.run_fixed_short``): the numbers,
+counters and messages of the general path bit for bit, the general path's
+refusals, and nothing stale after a user changes ``y0``, ``t_eval`` or the
+model in place."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rk4h
+import rk4h.references.solvers as solvers
+from rk4h.models import example_parameters
+from rk4h.references.solvers import integrate
+from rk4h.references.solvers.fixed import run_fixed
+
+
+def _chain(n, **extra):
+    return rk4h.make_model("chain", {"masses": [1.0 + 0.1 * i for i in range(n)],
+                                        "springs": [1.0 + 0.05 * i for i in range(n + 1)], **extra})
+
+
+def _state(model, seed=1, size=0.01):
+    return size * np.random.default_rng(seed).standard_normal(2 * model.n_dof)
+
+
+@pytest.fixture
+def general_only(monkeypatch):
+    """Make the general path raise: a call that still returns ran the short path."""
+    def boom(*args, **kwargs):
+        raise AssertionError("the general path ran")
+
+    def arm():
+        monkeypatch.setattr(solvers, "run_fixed", boom)
+
+    return arm
+
+
+def _same(a, b):
+    np.testing.assert_array_equal(a.y, b.y)
+    np.testing.assert_array_equal(a.t, b.t)
+    assert (a.solver, a.setting, a.nfev, a.n_steps, a.status, a.message, a.t_fail, a.extra) == \
+           (b.solver, b.setting, b.nfev, b.n_steps, b.status, b.message, b.t_fail, b.extra)
+    assert a.y.flags.c_contiguous and a.y.dtype == b.y.dtype
+
+
+MODELS = [("chain2", lambda: _chain(2)), ("fput32", lambda: _chain(32, alpha=0.25)),
+          ("beta7", lambda: _chain(7, beta=2.0))] + \
+         [(name, lambda name=name: rk4h.make_model(name, example_parameters(name)))
+          for name in ("planar4", "oscillator2d", "pendulums", "triangle", "network")]
+
+
+@pytest.mark.parametrize("name, build", MODELS, ids=[m[0] for m in MODELS])
+@pytest.mark.parametrize("method", ["rk4", "euler", "symplectic-euler", "stormer-verlet"])
+@pytest.mark.parametrize("t", [np.array([0.0, 0.05]), np.array([0.0, 0.013, 0.05, 0.0712, 0.3]),
+                               np.linspace(0.0, 1.0, 101)], ids=["2", "5", "101"])
+def test_repeated_call_equals_the_general_path(name, build, method, t, general_only):
+    model = build()
+    y0, y1 = _state(model, 1), _state(model, 2)
+    first = integrate(method, model, y0, t, 0.01)  # the general path, which records the model
+    ref1 = run_fixed(method, model, y0.copy(), t.copy(), 0.01)
+    ref2 = run_fixed(method, model, y1.copy(), t.copy(), 0.01)
+    general_only()
+    again = integrate(method, model, y0, t, 0.01)
+    other = integrate(method, model, y1, t, 0.01)  # a new initial state: checked on the short path
+    _same(again, first)
+    _same(again, ref1)
+    _same(other, ref2)
+    assert again.compile_s == 0.0 and again.extra["path"] == "numba"
+
+
+def test_unstable_run_same_status_time_and_message(general_only):
+    model = _chain(4)
+    y0 = model.state([0.01, 0.0, -0.01, 0.02])
+    t = np.array([0.0, 0.7, 50.0])
+    integrate("euler", model, y0, t, 0.05)
+    ref = run_fixed("euler", model, y0, t, 0.9)  # far outside Euler's stability region
+    general_only()
+    run = integrate("euler", model, y0, t, 0.9)
+    assert run.status.name == "UNSTABLE"
+    _same(run, ref)
+
+
+def test_other_setting_types_take_the_same_numbers():
+    model = _chain(3)
+    y0, t = _state(model), np.linspace(0.0, 1.0, 5)
+    first = integrate("rk4", model, y0, t, 0.25)
+    _same(integrate("rk4", model, y0, t, np.float64(0.25)), first)
+    _same(integrate("rk4", model, y0, t, 0.25), first)
+    _same(integrate("rk4", model, list(y0), list(t), 0.25), first)  # lists: the general path
+
+
+@pytest.mark.parametrize("bad_y0, match", [
+    (lambda y: np.where(np.arange(y.size) == 1, np.nan, y), r"`y0` must be finite"),
+    (lambda y: np.where(np.arange(y.size) == 0, np.inf, y), r"`y0` must be finite"),
+    (lambda y: y[:-1], r"`y0` must have length"),
+    (lambda y: y.astype(complex) + 1j, r"`y0` must be real"),
+    (lambda y: np.full_like(y, 1e300), r"`y0` must be a state of chain"),
+])
+def test_known_model_still_refuses_a_bad_y0_with_the_general_message(bad_y0, match):
+    model = _chain(3, alpha=0.5)
+    y0, t = _state(model), np.array([0.0, 0.1])
+    integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)
+    bad = bad_y0(y0)
+    with pytest.raises(ValueError, match=match) as fresh:
+        integrate("rk4", _chain(3, alpha=0.5), bad, t, 0.01)
+    with pytest.raises(ValueError, match=match) as known:
+        integrate("rk4", model, bad, t, 0.01)
+    assert str(known.value) == str(fresh.value)
+
+
+def test_known_planar4_refuses_a_state_on_an_anchor():
+    model = rk4h.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
+    y0, t = _state(model), np.array([0.0, 0.1])
+    integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)
+    anchor = model.state(list(model.anchors[1]))  # spring 1 has length 0
+    with pytest.raises(ValueError, match=r"`y0` must be a state of planar4 with finite force"):
+        integrate("rk4", model, anchor, t, 0.01)
+
+
+@pytest.mark.parametrize("bad_t", [np.array([0.0, 0.0]), np.array([0.0, 1.0, 0.5]), np.array([0.0, np.nan]),
+                                   np.array([0.0]), np.array([[0.0, 1.0]])])
+def test_known_model_still_refuses_bad_t_eval(bad_t):
+    model = _chain(3)
+    y0 = _state(model)
+    integrate("rk4", model, y0, np.array([0.0, 0.1]), 0.01)
+    integrate("rk4", model, y0, np.array([0.0, 0.1]), 0.01)
+    with pytest.raises(ValueError, match=r"`t_eval` must be"):
+        integrate("rk4", model, y0, bad_t, 0.01)
+
+
+def test_known_model_still_fails_too_many_steps():
+    model = _chain(2)
+    y0 = model.state([0.01, 0.0])
+    integrate("rk4", model, y0, np.array([0.0, 1.0]), 0.1)
+    run = integrate("rk4", model, y0, np.array([0.0, 1.0]), 1e-12)
+    assert run.status.name == "FAILED" and "MAX_STEPS" in run.message and np.isnan(run.y).all()
+
+
+def test_y0_and_t_eval_changed_in_place_are_noticed():
+    model = _chain(3, alpha=0.25)
+    y0, t = _state(model), np.array([0.0, 0.05, 0.3])
+    first = integrate("rk4", model, y0, t, 0.01)
+    y0[1] += 0.004
+    t[1] = 0.07
+    second = integrate("rk4", model, y0, t, 0.01)
+    ref = run_fixed("rk4", _chain(3, alpha=0.25), y0.copy(), t.copy(), 0.01)
+    _same(second, ref)
+    assert not np.array_equal(second.y, first.y)
+    assert second.t[1] == 0.07 and first.t[1] == 0.05  # each run keeps its own copy of t_eval
+
+
+@pytest.mark.parametrize("change", ["k", "mass", "alpha"])
+def test_model_changed_in_place_is_noticed(change):
+    """Models are not meant to change after construction; one that does is
+    integrated as it now is (its per-object caches dropped), never with the
+    kernel or constants of its old parameters."""
+    masses, springs = [1.0, 1.1, 1.2], [1.0, 1.05, 1.1, 1.15]
+    model = rk4h.make_model("chain", {"masses": masses, "springs": springs, "alpha": 0.25})
+    y0, t = _state(model), np.array([0.0, 0.05, 0.3])
+    first = integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)  # the short path, on the record
+    if change == "k":
+        model.k[1] *= 3.0
+        springs = list(model.k)
+    elif change == "mass":
+        model.mass[0] *= 2.0
+        masses = list(model.mass)
+    else:
+        model.alpha = 0.5
+    new = rk4h.make_model("chain", {"masses": masses, "springs": springs,
+                                    "alpha": 0.5 if change == "alpha" else 0.25})
+    changed = integrate("rk4", model, y0, t, 0.01)
+    _same(changed, integrate("rk4", new, y0, t, 0.01))
+    assert not np.array_equal(changed.y, first.y)
+    _same(integrate("rk4", model, y0, t, 0.01), changed)  # recorded again, as it now is
