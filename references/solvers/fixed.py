@@ -25,6 +25,11 @@ models that is at most a few thousand. Exceeding 1e6 therefore means the
 amplification ``|R|^n`` of some mode passed 1e6: the method left its
 stability region (explicit Euler, whose ``|R| = sqrt(1 + theta^2) > 1`` at
 every step, included). A run at 1e145 is never labelled ``ok``.
+
+A repeated call on the same model object takes :func:`run_fixed_short`
+(what a model keeps, and when it is dropped: the comment above it): the
+same result bit for bit, without checking again what was checked before;
+``compile_s`` is then 0 (nothing compiled or loaded).
 """
 from __future__ import annotations
 
