@@ -176,3 +176,21 @@ def test_model_changed_in_place_is_noticed(change):
     _same(changed, integrate("rk4", new, y0, t, 0.01))
     assert not np.array_equal(changed.y, first.y)
     _same(integrate("rk4", model, y0, t, 0.01), changed)  # recorded again, as it now is
+
+
+def test_a_scenes_own_tableau_takes_the_short_path(general_only):
+    from rk4h.methods import METHODS
+    from rk4h.references.registry import methods_from_tables
+
+    tab = METHODS["heun3"]
+    own = methods_from_tables({"my-heun3": {"A": [[str(x) for x in row] for row in tab.A_exact],
+                                            "b": [str(x) for x in tab.b_exact]}})["my-heun3"]
+    model = _chain(5, alpha=0.25)
+    y0, t = _state(model), np.array([0.0, 0.013, 0.2])
+    first = integrate(own, model, y0, t, 0.01)
+    ref = run_fixed(own.tableau, model, y0.copy(), t.copy(), 0.01)
+    general_only()
+    again = integrate(own, model, y0, t, 0.01)
+    assert again.solver == "my-heun3"
+    _same(again, first)
+    _same(again, ref)
