@@ -194,3 +194,29 @@ def test_a_scenes_own_tableau_takes_the_short_path(general_only):
     assert again.solver == "my-heun3"
     _same(again, first)
     _same(again, ref)
+
+
+def test_large_plans_and_states_are_not_kept_and_still_equal():
+    from rk4h.references.solvers import fixed
+
+    model = _chain(3)
+    y0, t = _state(model), np.linspace(0.0, 1.0, fixed._KEEP_SIZE + 1)
+    first = integrate("rk4", model, y0, t, 0.01)
+    again = integrate("rk4", model, y0, t, 0.01)
+    _same(again, first)
+    assert not any(len(k[0]) > 8 * fixed._KEEP_SIZE for k in model.__dict__[fixed._RECORD].plans)
+
+
+def test_an_exception_in_the_loop_is_a_failed_status_not_a_raise(monkeypatch):
+    from rk4h.fast import solve as fast_solve
+
+    model = _chain(3)
+    y0, t = _state(model), np.array([0.0, 0.1])
+    integrate("rk4", model, y0, t, 0.01)
+
+    def broken(*a, **k):
+        raise RuntimeError("loop broke")
+
+    monkeypatch.setattr(fast_solve, "run_loop", broken)
+    run = integrate("rk4", model, y0, t, 0.01)
+    assert run.status.name == "FAILED" and "loop broke" in run.message and np.isnan(run.y).all()

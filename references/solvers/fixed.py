@@ -128,6 +128,9 @@ _RECORD = "_fixed_short"
 _OBJECT_CACHES = ("_fast_force_kernel", "_fast_prepared", "_references_rhs", _RECORD)
 #: Most initial states and output plans one record keeps (then it starts again).
 _KEEP = 16
+#: Largest initial state (components) and output plan (times) a record keeps: larger ones are worked
+#: out on each call (their run costs far more than that), so a record holds at most about 1 MiB.
+_KEEP_SIZE = 4096
 
 
 def _snapshot(model):
@@ -223,6 +226,8 @@ def _remember(model, tab, y0, growth) -> None:
         if len(rec.preps) >= _KEEP:
             rec.preps.clear()
         rec.preps[id(tab)] = (tab, _fast_solve.prepared(model, tab))
+    if y0.shape[0] > _KEEP_SIZE:
+        return
     if len(rec.states) >= _KEEP:
         rec.states.clear()
     g = growth.copy()
@@ -269,16 +274,20 @@ def run_fixed_short(tab, model, y0, t_eval, h: float) -> SolverRun | None:
             plan = _fast_solve.output_plan(check_output_times(t), h, rec.n_state)
         except Exception:  # noqa: BLE001 - the general path refuses or reports it
             return None
-        if len(rec.plans) >= _KEEP:
-            rec.plans.clear()
-        rec.plans[key] = plan
+        if t.shape[0] <= _KEEP_SIZE:
+            if len(rec.plans) >= _KEEP:
+                rec.plans.clear()
+            rec.plans[key] = plan
     t0, t1, step, n, idx, theta, dense = plan
     bound = growth.copy()
     start = time.perf_counter()
-    ys, n_done, n_out, status, n_extra, y_fail = _fast_solve.run_loop(entry[1], y, t0, step, n, idx, theta,
-                                                                       bound, 0.0)
-    nfev, message, t_fail, reason = _fast_solve.outcome(tab, t0, t1, step, n, n_done, status, n_extra, y_fail,
-                                                        bound, "given")
+    try:
+        ys, n_done, n_out, status, n_extra, y_fail = _fast_solve.run_loop(entry[1], y, t0, step, n, idx, theta,
+                                                                           bound, 0.0)
+        nfev, message, t_fail, reason = _fast_solve.outcome(tab, t0, t1, step, n, n_done, status, n_extra,
+                                                            y_fail, bound, "given")
+    except Exception:  # noqa: BLE001 - the general path runs it again and reports the failure as a status
+        return None
     m = t.shape[0]
     if n_out == m:
         y_out = np.ascontiguousarray(ys.T)
@@ -310,7 +319,8 @@ def _new_state(rec, model, y):
     if not (math.isfinite(s_q) and math.isfinite(s_v)):
         return None
     g = rec.growth(s_q, s_v)
-    if len(rec.states) >= _KEEP:
-        rec.states.clear()
-    rec.states[y.tobytes()] = g
+    if y.shape[0] <= _KEEP_SIZE:
+        if len(rec.states) >= _KEEP:
+            rec.states.clear()
+        rec.states[y.tobytes()] = g
     return g
