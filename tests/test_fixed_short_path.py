@@ -220,3 +220,17 @@ def test_an_exception_in_the_loop_is_a_failed_status_not_a_raise(monkeypatch):
     monkeypatch.setattr(fast_solve, "run_loop", broken)
     run = integrate("rk4", model, y0, t, 0.01)
     assert run.status.name == "FAILED" and "loop broke" in run.message and np.isnan(run.y).all()
+
+
+def test_a_change_inside_a_wrapped_model_drops_the_record():
+    from rk4h.references.solvers import fixed
+
+    model = rk4h.make_model("planar4", {"m": 1.0, "k": 1.0, "l": 1.0})
+    y0, t = _state(model), np.array([0.0, 0.1])
+    integrate("rk4", model, y0, t, 0.01)
+    record = model.__dict__[fixed._RECORD]
+    integrate("rk4", model, y0, t, 0.01)
+    assert model.__dict__[fixed._RECORD] is record  # unchanged: kept
+    model.definition.mass[0] *= 2.0
+    integrate("rk4", model, y0, t, 0.01)
+    assert model.__dict__[fixed._RECORD] is not record

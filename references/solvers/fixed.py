@@ -34,6 +34,7 @@ same result bit for bit, without checking again what was checked before;
 from __future__ import annotations
 
 import math
+import operator
 import time
 
 import numpy as np
@@ -134,38 +135,39 @@ _KEEP_SIZE = 4096
 
 
 def _snapshot(model):
-    """``[(attrs, name, value, data)]``: every attribute of ``model`` (and of
-    a model held in one of them) with its value and, for an array, its dtype,
-    shape and bytes; plain lists and dicts are kept as copies."""
-    out = []
-    owners = [model.__dict__] + [v.__dict__ for v in model.__dict__.values() if isinstance(v, Model)]
-    for attrs in owners:
-        for name, value in attrs.items():
-            if name in _OBJECT_CACHES:
-                continue
-            data = None
+    """``(owners, arrays, containers)``: for ``model`` and each model held in
+    one of its attributes, its attribute dictionary with the names and
+    values of its attributes; every array attribute with its dtype, shape
+    and bytes; every plain list or dict with a copy."""
+    owners, arrays, containers = [], [], []
+    attrs_of = [model.__dict__] + [v.__dict__ for v in model.__dict__.values() if isinstance(v, Model)]
+    for attrs in attrs_of:
+        names = tuple(name for name in attrs if name not in _OBJECT_CACHES)
+        values = tuple(attrs[name] for name in names)
+        owners.append((attrs, names, values))
+        for value in values:
             if isinstance(value, np.ndarray):
-                data = (value.dtype.str, value.shape, value.tobytes())
+                arrays.append((value, value.dtype.str, value.shape, value.tobytes()))
             elif type(value) in (list, dict):
                 try:
                     copy = type(value)(value)
-                    data = copy if bool(copy == value) else None
+                    if bool(copy == value):
+                        containers.append((value, copy))
                 except Exception:  # noqa: BLE001 - items without a plain ==: kept by identity only
-                    data = None
-            out.append((attrs, name, value, data))
-    return out
+                    pass
+    return owners, arrays, containers
 
 
 def _unchanged(snapshot) -> bool:
-    for attrs, name, value, data in snapshot:
-        if attrs.get(name, _snapshot) is not value:
+    owners, arrays, containers = snapshot
+    for attrs, names, values in owners:
+        if not all(map(operator.is_, map(attrs.get, names), values)):
             return False
-        if data is None:
-            continue
-        if type(data) is tuple:
-            if value.dtype.str != data[0] or value.shape != data[1] or value.tobytes() != data[2]:
-                return False
-        elif value != data:
+    for value, dtype, shape, data in arrays:
+        if value.dtype.str != dtype or value.shape != shape or value.tobytes() != data:
+            return False
+    for value, copy in containers:
+        if value != copy:
             return False
     return True
 
