@@ -186,3 +186,19 @@ def test_energy_study_cli_writes_table_and_figures_and_refuses_a_used_folder(tmp
     assert "--out" in capsys.readouterr().err and (out / "energy_work_precision.csv").read_bytes() == before
     assert energy_study.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
     assert energy_study.main(["thesis-2dof-case1", "--references", "nope", "--out", str(tmp_path / "g")]) == 2
+
+
+def test_energy_study_cli_reports_a_reference_over_its_step_cap(tmp_path, capsys, monkeypatch):
+    """A reference whose run would need more steps than the ceiling is a
+    step_cap row, a line on stderr and exit 1 (the rest is written)."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.setattr(et, "STEP_CAP_CEILING", 1000)
+    out = tmp_path / "e"
+    assert energy_study.main(["thesis-2dof-case1", "--periods", "200", "--steps", "16", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 4 and all("heyoka at rtol" in e and "above the ceiling 1e+03: not run" in e for e in err)
+    import csv
+
+    rows = list(csv.DictReader(open(out / "energy_work_precision.csv")))
+    assert {r["status"] for r in rows if r["solver"] == "heyoka"} == {et.STEP_CAP_STATUS}
+    assert {r["status"] for r in rows if r["solver"] == "rk4"} == {"ok"}
