@@ -46,7 +46,8 @@ from dataclasses import dataclass, field
 from enum import Enum
 from typing import Mapping
 
-__all__ = ["Kind", "CostUnit", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "REFERENCES", "UNDER_TEST",
+__all__ = ["Kind", "CostUnit", "Style", "Method", "BUILTIN", "BUILTIN_TABLEAUX", "GEOMETRIC_TABLEAUX", "REFERENCES",
+           "UNDER_TEST",
            "CONVERGENCE_ALWAYS", "BOUNDARY_ALWAYS", "GROWTH_ALWAYS", "resolve", "names", "with_role", "long_references",
            "method_from_table", "methods_from_tables", "MethodError"]
 
@@ -240,6 +241,12 @@ _STYLES = {
     "rk38": Style("#bcbd22", ">"),
     "heun3": Style("#7f7f7f", "h"),
     "ralston": Style("#aec7e8", "p"),
+    "yoshida4": Style("#637939", "d"),
+    "yoshida6": Style("#8c6d31", "H"),
+    "suzuki4": Style("#843c39", "8"),
+    "forest-ruth": Style("#7b4173", "X"),
+    "blanes-moan4": Style("#3182bd", "1"),
+    "blanes-moan6": Style("#31a354", "2"),
     "dop853": Style("#1f77b4", "s"),
     "cvode-adams": Style("#2ca02c", "D"),
     "cvode-bdf": Style("#17becf", "P"),
@@ -291,24 +298,32 @@ def _tableau_method(tab) -> Method:
 
 
 #: The tableaux of ``rk4h.methods.METHODS`` a scene may list without
-#: defining them: the thesis' three methods and Stormer-Verlet. The other
-#: tableaux of rk4core's library (``rk38``, ``heun3``, ``ralston``) serve
-#: ``rk4h.solve`` callers; a scene defines its own (the README's
-#: ``[methods.rk38]`` example), so their names stay free for scenes.
+#: defining them: the thesis' three methods, Stormer-Verlet and the shipped
+#: geometric methods (:data:`GEOMETRIC_TABLEAUX`). The other tableaux of
+#: rk4core's library (``rk38``, ``heun3``, ``ralston``) serve ``rk4h.solve``
+#: callers; a scene defines its own (the README's ``[methods.rk38]``
+#: example), so their names stay free for scenes.
 BUILTIN_TABLEAUX = ("rk4", "euler", "symplectic-euler", "stormer-verlet")
+#: The shipped splitting and composition methods (``rk4h.geometric.GEOMETRIC``),
+#: built-ins of every scene: what a user runs instead of RK4 over long
+#: horizons, so a scene names them in ``run.solvers`` without copying their
+#: coefficients. Listed by name so that importing the registry does not
+#: build their tableaux; a test holds the list equal to ``GEOMETRIC``.
+GEOMETRIC_TABLEAUX = ("yoshida4", "yoshida6", "suzuki4", "forest-ruth", "blanes-moan4", "blanes-moan6")
 
 
 def _builtins() -> dict[str, Method]:
     from rk4h.methods import METHODS
 
-    out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX}
+    out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX + GEOMETRIC_TABLEAUX}
     for name, text in _REFERENCE_TEXT.items():
         out[name] = Method(name, Kind.REFERENCE, None, None, _STYLES[name], text, **_REFERENCE_DATA[name])
     return out
 
 
 #: Every built-in method by name: the tableaux of ``rk4h.methods.METHODS``
-#: and the four adaptive references.
+#: named in :data:`BUILTIN_TABLEAUX` and :data:`GEOMETRIC_TABLEAUX`, and the
+#: four adaptive references.
 BUILTIN: dict[str, Method] = _builtins()
 #: Names of the adaptive references.
 REFERENCES: tuple[str, ...] = tuple(n for n, m in BUILTIN.items() if m.kind is Kind.REFERENCE)
@@ -383,6 +398,15 @@ def _declared_cost(name, table) -> int | None:
     return cost
 
 
+def _builtin_clash(name: str) -> str:
+    """Why a scene's ``[methods.NAME]`` may not take a built-in's name: the
+    built-in it names, and the two ways out."""
+    m = BUILTIN[name]
+    what = m.description.split(" (")[0] if m.description else m.kind.value
+    return (f"is the built-in method {name!r} ({what}); list {name!r} in `run.solvers` without a [methods] "
+            f"table to run it, or give your own method another name (e.g. {name + '-as-data'!r})")
+
+
 def method_from_table(name: str, table: Mapping, index: int = 0) -> Method:
     """A :class:`Method` from a scene's ``[methods.NAME]`` table.
 
@@ -395,7 +419,7 @@ def method_from_table(name: str, table: Mapping, index: int = 0) -> Method:
     if not isinstance(name, str) or not _METHOD_NAME.fullmatch(name):
         raise MethodError(str(name), "name", "must be 1 to 40 lowercase letters, digits, '.', '-' or '_'")
     if name in BUILTIN:
-        raise MethodError(name, "name", "is a built-in method; choose another name")
+        raise MethodError(name, "name", _builtin_clash(name))
     if not isinstance(table, Mapping):
         raise MethodError(name, "table", f"must be a table, got {table!r:.60}")
     unknown = sorted(set(table) - _KEYS)

@@ -65,7 +65,7 @@ from . import order_conditions
 from .methods import EXACT_DECIMALS, FLOAT_ULPS, STORMER_VERLET, Tableau, decimal_digits
 
 __all__ = ["DIGITS", "BITS", "coefficient", "splitting_tableau", "composition_tableau", "YOSHIDA4",
-           "YOSHIDA6", "SUZUKI4", "FOREST_RUTH", "BLANES_MOAN4", "BLANES_MOAN6", "GEOMETRIC"]
+           "YOSHIDA6", "SUZUKI4", "FOREST_RUTH", "BLANES_MOAN4", "BLANES_MOAN6", "GEOMETRIC", "agreement"]
 
 #: Significant decimal digits of mpmath's evaluation of an irrational coefficient.
 DIGITS = 60
@@ -558,3 +558,46 @@ BLANES_MOAN6 = _bm(["0.0502627644003922", "0.413514300428344", "0.04507988979439
 #: The shipped geometric methods by name (added to :data:`rk4h.methods.METHODS`).
 GEOMETRIC: dict[str, Tableau] = {t.name: t for t in (YOSHIDA4, YOSHIDA6, SUZUKI4, FOREST_RUTH, BLANES_MOAN4,
                                                      BLANES_MOAN6)}
+
+
+def agreement(written: Tableau, shipped: Tableau) -> dict:
+    """How closely a tableau written elsewhere (a scene's ``[methods.NAME]``)
+    reproduces a shipped one, entry by entry over ``A, b, c`` and, for a
+    partitioned pair, ``A_v, b_v``.
+
+    Returns
+    -------
+    dict
+        ``shape`` (bool: same stages and partitioning), ``bit_identical``
+        (bool: the float64 coefficients the integrators use are equal, so
+        the runs are bit-identical), ``max_ulps`` (int: the largest float64
+        difference in units in the last place of the shipped entry; 0 when
+        bit-identical) and ``within_bound`` (bool: every exact difference is
+        within the sum of the two tableaux' stated coefficient uncertainties,
+        :attr:`rk4h.methods.Tableau.uncertainty`: the same method at the
+        precision each was given with).
+    """
+    import numpy as np
+
+    keys = ("A", "b", "c") + (("A_v", "b_v") if shipped.partitioned else ())
+    if written.partitioned != shipped.partitioned or written.A.shape != shipped.A.shape:
+        return {"shape": False, "bit_identical": False, "max_ulps": None, "within_bound": False}
+    ulps, same = 0, True
+    for k in keys:
+        x, y = np.asarray(getattr(written, k)), np.asarray(getattr(shipped, k))
+        same = same and bool(np.array_equal(x, y))
+        spacing = np.spacing(np.maximum(np.abs(y), np.finfo(float).tiny))
+        ulps = max(ulps, int(np.max(np.rint(np.abs(x - y) / spacing))))
+
+    def flat(m):
+        return [] if m is None else [v for row in m for v in (row if isinstance(row, (tuple, list)) else (row,))]
+
+    zero = (None,) * 4
+    du, ds = written.uncertainty or zero, shipped.uncertainty or zero
+    ok = True
+    for i, k in enumerate(("A_exact", "b_exact", "A_v_exact", "b_v_exact")):
+        xs, ys = flat(getattr(written, k)), flat(getattr(shipped, k))
+        bx = flat(du[i]) or [Fraction(0)] * len(xs)
+        by = flat(ds[i]) or [Fraction(0)] * len(ys)
+        ok = ok and all(abs(x - y) <= ex + ey for x, y, ex, ey in zip(xs, ys, bx, by))
+    return {"shape": True, "bit_identical": same, "max_ulps": ulps, "within_bound": ok}

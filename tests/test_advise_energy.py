@@ -90,3 +90,31 @@ def test_horizon_in_seconds_or_periods_of_the_slowest_mode():
     P = 2 * math.pi / float(np.min(model.modes()[0]))
     assert advise_energy.horizon_seconds(model, periods=10) == pytest.approx((10 * P, 10))
     assert advise_energy.horizon_seconds(model, horizon=5.0) == pytest.approx((5.0, 5.0 / P))
+
+
+def test_a_reference_climbs_its_rtol_ladder_cheapest_first():
+    """dop853 on the 2-DOF chain over 100 periods, energy within 1e-9: rtol
+    1e-8 and 1e-10 lose (their calibration over 20 periods extrapolates above
+    the target; rerun over the whole horizon they do miss it), 1e-12 is
+    confirmed; the advice's text says which rtols were tried and why they lost."""
+    from rk4h.references.solvers import integrate
+    from rk4h.energy import relative_energy_error
+
+    scene = load_scenes([SCENE])[0]
+    model, y0 = problem(scene)
+    P = energy_time.slowest_period(model)
+    T, target = 100 * P, 1e-9
+    assert advise_energy.REFERENCE_RTOLS == (1e-8, 1e-10, 1e-12)
+    c, miss = advise_energy._reference(model, y0, "dop853", T, 20 * P, target)
+    assert miss is None and c["setting"] == 1e-12 and c["energy_error"] <= target
+    assert [t["setting"] for t in c["tried"]] == [1e-8, 1e-10]
+    assert all("above the target" in t["reason"] for t in c["tried"])
+    t = np.linspace(0.0, T, energy_time.dense_samples(model, T))
+    for rtol in (1e-10, 1e-12):  # the ladder's verdicts, rerun independently
+        e = float(np.max(np.abs(relative_energy_error(model, integrate("dop853", model, y0, t, rtol).y))))
+        assert (e <= target) == (rtol == 1e-12), (rtol, e)
+    adv = advise_energy.EnergyAdvice(scene.name, target, T, 100.0, candidates=[c])
+    assert "tried first rtol = 1e-08: energy error" in adv.text()
+    c, miss = advise_energy._reference(model, y0, "dop853", T, 20 * P, 1e-11)  # none of the three suffices
+    assert c is None and [t["setting"] for t in miss["tried"]] == [1e-8, 1e-10, 1e-12]
+    assert miss["reason"].startswith("rtol 1e-08: ") and "rtol 1e-12: " in miss["reason"]

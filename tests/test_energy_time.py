@@ -186,3 +186,74 @@ def test_energy_study_cli_writes_table_and_figures_and_refuses_a_used_folder(tmp
     assert "--out" in capsys.readouterr().err and (out / "energy_work_precision.csv").read_bytes() == before
     assert energy_study.main(["thesis-2dof-case1", "--periods", "-1", "--out", str(tmp_path / "f")]) == 2
     assert energy_study.main(["thesis-2dof-case1", "--references", "nope", "--out", str(tmp_path / "g")]) == 2
+
+
+def test_energy_study_cli_reports_a_reference_over_its_step_cap(tmp_path, capsys, monkeypatch):
+    """A reference whose run would need more steps than the ceiling is a
+    step_cap row, a line on stderr and exit 1 (the rest is written)."""
+    pytest.importorskip("matplotlib")
+    monkeypatch.setattr(et, "STEP_CAP_CEILING", 1000)
+    out = tmp_path / "e"
+    assert energy_study.main(["thesis-2dof-case1", "--periods", "200", "--steps", "16", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 4 and all("heyoka at rtol" in e and "above the ceiling 1e+03: not run" in e for e in err)
+    import csv
+
+    rows = list(csv.DictReader(open(out / "energy_work_precision.csv")))
+    assert {r["status"] for r in rows if r["solver"] == "heyoka"} == {et.STEP_CAP_STATUS}
+    assert {r["status"] for r in rows if r["solver"] == "rk4"} == {"ok"}
+
+
+def _fput4():
+    from rk4h.validation.execute import problem
+    from rk4h.validation.scenes import load_scenes
+
+    return problem(load_scenes(["energy-fput"])[0])
+
+
+def test_exchange_period_of_fput_alpha_is_its_2_to_1_beat_and_the_measured_one():
+    """The 4-mass FPUT-alpha chain with its energy in mode 1: 2 pi / (2 omega_1 -
+    omega_2) = 103.9 s, from the model's linear frequencies; the energy share
+    of mode 1 along a Stormer-Verlet run over 300 slowest periods oscillates
+    with that period within 10 % (measured 95.3 s: the amplitude shifts the
+    frequencies). Linear models and models without alpha: NaN."""
+    from rk4h.validation.execute import problem
+    from rk4h.validation.scenes import load_scenes
+
+    model, y0 = _fput4()
+    omega, V = model.modes()[:2]
+    T_ex = et.exchange_period(model, y0)
+    assert T_ex == pytest.approx(2 * math.pi / (2 * omega[0] - omega[1]), rel=1e-12)
+    assert T_ex == pytest.approx(103.86, abs=0.01)
+    res, _ = et.long_run(model, y0, METHODS["stormer-verlet"], 3.3 / 16, 300 * et.slowest_period(model), 30000)
+    n = model.n_dof
+    eta, etad = V.T @ res.y[:n], V.T @ res.y[n:]  # unit masses
+    e = 0.5 * (etad ** 2 + (np.asarray(omega)[:, None] * eta) ** 2)
+    share = e[0] / e.sum(axis=0)
+    f = np.fft.rfftfreq(share.size, res.t[1] - res.t[0])
+    spectrum = np.abs(np.fft.rfft(share - share.mean()))
+    measured = 1 / f[1 + np.argmax(spectrum[1:])]
+    assert measured == pytest.approx(T_ex, rel=0.10)
+    for name in ("thesis-2dof-case1", "energy-henon-heiles"):
+        assert math.isnan(et.exchange_period(*problem(load_scenes([name])[0])))
+
+
+def test_fput_growth_law_is_not_fitted_over_a_horizon_shorter_than_the_exchange():
+    from types import SimpleNamespace
+
+    from rk4h.validation import outputs
+    from rk4h.validation.measure import SceneTables
+    from rk4h.validation.outputs import energy_work_precision as ewp
+
+    model, y0 = _fput4()
+    rows = et.work_precision_rows("energy-fput", model, y0, [METHODS["stormer-verlet"]], (16,), (100.0, 1000.0))
+    short, long_ = rows
+    assert short["status"] == "ok" and math.isnan(short["energy_growth_exponent"])
+    assert short["message"].startswith("not fitted: the fit window starts at 10.17 s, before half the 2:1 "
+                                       "exchange period 103.9 s")
+    assert long_["energy_growth_exponent"] < ewp.BOUNDED_EXPONENT and long_["message"] == ""
+    m = outputs.Measuring(scene=SimpleNamespace(name="energy-fput"), by={}, records={}, res=SceneTables("s"),
+                          quick=False, draw=False)
+    ewp._bounded_checks(m, [dict(r, symplectic=True) for r in rows])
+    assert [c.passed for c in m.res.checks] == [True]  # 1e3 checked and bounded; 1e2 not checked, said so
+    assert any("over 100 periods: bounded-energy check not made, not fitted" in f for f in m.res.findings)

@@ -101,3 +101,55 @@ def test_defaults_and_never_a_default_output():
     del doc["run"]["outputs"]
     assert "energy_work_precision" not in scene_from_dict(doc).outputs
     assert "energy_work_precision" not in default_outputs(scene.build_model())
+
+
+# -- a reference's step cap, sized from the horizon -----------------------------------------------------
+def _hh_problem():
+    from rk4h.validation.execute import problem
+
+    return problem(scene_from_dict(copy.deepcopy(HH)))
+
+
+def test_a_reference_step_cap_is_sized_from_the_horizon():
+    """heyoka on Henon-Heiles at rtol 1e-8: the cap over 1000 periods is 2x
+    the steps estimated from 100 (at least the 5e6 default); the estimate is
+    within 5 % of the steps the full run takes; within 100 periods the default
+    cap stays, without a calibration run."""
+    import numpy as np
+
+    from rk4h.references.solvers import DEFAULT_MAX_STEPS, integrate
+    from rk4h.validation import energy_time as et
+
+    model, y0 = _hh_problem()
+    T = 1000 * et.slowest_period(model)
+    sized = et.reference_step_cap(model, y0, "heyoka", 1e-8, T)
+    full = integrate("heyoka", model, y0, np.array([0.0, T]), 1e-8)
+    assert sized["estimate"] == pytest.approx(full.n_steps, rel=0.05)
+    assert sized["cap"] == max(DEFAULT_MAX_STEPS, math.ceil(et.STEP_CAP_MARGIN * sized["estimate"]))
+    short = et.reference_step_cap(model, y0, "heyoka", 1e-8, 50 * et.slowest_period(model))
+    assert short["cap"] == DEFAULT_MAX_STEPS and math.isnan(short["estimate"])
+
+
+def test_a_too_small_step_cap_is_a_failure_not_a_truncated_run(monkeypatch):
+    from rk4h.validation import energy_time as et
+
+    model, y0 = _hh_problem()
+    (row,) = et.work_precision_rows("ewp-hh", model, y0, [], (16,), (200.0,), references=["heyoka"],
+                                    rtols=(1e-8,), max_steps=50)
+    assert row["status"] == et.STEP_CAP_STATUS and math.isnan(row["energy_drift_max"]) and row["max_steps"] == 50
+    assert "step cap max_steps = 50 reached at t = " in row["message"]
+    # over the ceiling: not run at all, and said why
+    monkeypatch.setattr(et, "STEP_CAP_CEILING", 1000)
+    (row,) = et.work_precision_rows("ewp-hh", model, y0, [], (16,), (1000.0,), references=["heyoka"],
+                                    rtols=(1e-8,))
+    assert row["status"] == et.STEP_CAP_STATUS and row["max_steps"] == 0 and row["nfev"] == 0
+    assert "above the ceiling 1e+03: not run" in row["message"]
+    # the output turns such a row into a failed check, an ok one into a passed one
+    m = outputs.Measuring(scene=type("S", (), {"name": "s"})(), by={}, records={}, res=SceneTables("s"),
+                          quick=False, draw=False)
+    ok = dict(row, status="ok", rtol=1e-6)
+    fixed = dict(row, status="ok", rtol=math.nan, solver="rk4")
+    ewp._step_cap_checks(m, [row, ok, fixed])
+    assert [c.passed for c in m.res.checks] == [False, True]
+    assert "heyoka at rtol 1e-08 over 1000 periods" in m.res.checks[0].message
+    assert "not run" in m.res.checks[0].message

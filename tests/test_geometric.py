@@ -113,12 +113,12 @@ def test_measured_order(case, method, expected, tol):
 
 # -- scene tables ---------------------------------------------------------------------------------------
 CONTRACT = {
-    "forest-ruth": {"kind": "splitting",
+    "forest-ruth-as-data": {"kind": "splitting",
                     "a": ["1/(2*(2 - 2^(1/3)))", "(1 - 2^(1/3))/(2*(2 - 2^(1/3)))",
                           "(1 - 2^(1/3))/(2*(2 - 2^(1/3)))", "1/(2*(2 - 2^(1/3)))"],
                     "b": ["1/(2 - 2^(1/3))", "-2^(1/3)/(2 - 2^(1/3))", "1/(2 - 2^(1/3))", "0"]},
-    "yoshida4": {"kind": "composition", "base": "stormer-verlet",
-                 "gamma": [1.3512071919596578, -1.7024143839193153, 1.3512071919596578]},
+    "yoshida4-as-data": {"kind": "composition", "base": "stormer-verlet",
+                         "gamma": [1.3512071919596578, -1.7024143839193153, 1.3512071919596578]},
 }
 
 
@@ -126,7 +126,7 @@ def test_scene_tables_of_the_contract():
     from rk4h.references.registry import Kind, methods_from_tables
 
     got = methods_from_tables(CONTRACT)
-    fr, y4 = got["forest-ruth"], got["yoshida4"]
+    fr, y4 = got["forest-ruth-as-data"], got["yoshida4-as-data"]
     assert (fr.kind, fr.order, fr.nfev_per_step) == (Kind.PARTITIONED, 4, 3)
     assert (y4.kind, y4.order, y4.nfev_per_step) == (Kind.PARTITIONED, 4, 3)
     assert fr.tableau.A_exact == METHODS["forest-ruth"].A_exact  # the same expressions, the same values
@@ -168,7 +168,7 @@ def test_scene_file_error_names_the_key(tmp_path):
     path.write_text(bad, encoding="utf-8")
     from rk4h.validation.scenes import SceneError, load_scene
 
-    with pytest.raises(SceneError, match=r"methods\.yoshida4\.gamma.*must sum to 1"):
+    with pytest.raises(SceneError, match=r"methods\.yoshida4-as-data\.gamma.*must sum to 1"):
         load_scene(path)
 
 
@@ -274,15 +274,17 @@ def test_methods_table_has_the_error_coefficient():
     own = methods_from_tables(CONTRACT)
     rows = []
     res = SimpleNamespace(add=lambda table, r: rows.append((table, r)))
-    scene = SimpleNamespace(name="s", registry=own, solvers=["rk4", "forest-ruth", "yoshida4"])
+    scene = SimpleNamespace(name="s", registry=own, solvers=["rk4", "forest-ruth-as-data", "yoshida4-as-data",
+                                                             "blanes-moan6"])
     measure._methods_table(scene, res)
     assert {t for t, _ in rows} == {"methods"}
-    assert {r["method"] for _, r in rows} == {"rk4", "forest-ruth", "yoshida4"}  # the built-in RK4 too
+    # the built-in RK4 and Blanes-Moan S10 too
+    assert {r["method"] for _, r in rows} == {"rk4", "forest-ruth-as-data", "yoshida4-as-data", "blanes-moan6"}
     for _, r in rows:
         tab = own[r["method"]].tableau if r["method"] in own else METHODS[r["method"]]
         assert r["error_coefficient"] == tab.error_coefficient and r["builtin"] == (r["method"] not in own)
         assert set(r) == set(COLUMNS["methods"])
-    assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.01450, 0.12654, 0.16675}
+    assert {round(r["error_coefficient"], 5) for _, r in rows} == {0.01450, 0.12654, 0.16675, 0.00004}
 
 
 def test_cli_refuses_a_bad_composition_in_one_line(tmp_path):
@@ -299,5 +301,99 @@ def test_cli_refuses_a_bad_composition_in_one_line(tmp_path):
                        cwd=repo, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2, r.stderr
     assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
-    assert "methods.yoshida4.base" in r.stderr and "'verlet'" in r.stderr
+    assert "methods.yoshida4-as-data.base" in r.stderr and "'verlet'" in r.stderr
     assert not out.exists()
+
+
+# -- the shipped methods are scene built-ins --------------------------------------------------------------
+def _scene_written():
+    """Every splitting or composition a shipped scene writes out: (scene file, name, table)."""
+    import tomllib
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    for path in sorted((repo / "validation" / "scenes").glob("*.toml")):
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        for name, table in doc.get("methods", {}).items():
+            if table.get("kind") in ("splitting", "composition"):
+                yield path.name, name, table
+
+
+def test_geometric_methods_are_builtins():
+    from rk4h.references.registry import BUILTIN, GEOMETRIC_TABLEAUX, Kind
+
+    assert GEOMETRIC_TABLEAUX == tuple(G.GEOMETRIC)
+    for name in G.GEOMETRIC:
+        m = BUILTIN[name]
+        assert m.kind is Kind.PARTITIONED and m.tableau is METHODS[name]
+        assert (m.order, m.nfev_per_step) == SHIPPED[name][:2]
+    styles = [(BUILTIN[n].style.color, BUILTIN[n].style.marker) for n in BUILTIN]
+    assert len(set(styles)) == len(styles)  # each built-in its own colour and marker
+
+
+def test_a_scene_names_a_geometric_builtin_without_a_methods_table():
+    from rk4h.validation.scenes import scene_from_dict
+
+    doc = {"name": "s", "model": "chain",
+           "params": {"masses": [1.0], "springs": [1.0, 1.0], "walls": "both"}, "initial": {"x": [0.01]},
+           "run": {"t_end": 1.0, "h": [0.1], "solvers": ["rk4", "yoshida6", "blanes-moan4"], "outputs": ["state"]}}
+    scene = scene_from_dict(doc)
+    assert scene.method("yoshida6").tableau is METHODS["yoshida6"]
+    assert scene.fixed_solvers == ["rk4", "yoshida6", "blanes-moan4"]
+
+
+def test_a_scene_method_with_a_builtin_name_is_refused_naming_the_builtin():
+    from rk4h.validation.scenes import SceneError, scene_from_dict
+
+    doc = {"name": "s", "model": "chain",
+           "params": {"masses": [1.0], "springs": [1.0, 1.0], "walls": "both"}, "initial": {"x": [0.01]},
+           "methods": {"yoshida4": CONTRACT["yoshida4-as-data"]},
+           "run": {"t_end": 1.0, "h": [0.1], "solvers": ["yoshida4"], "outputs": ["state"]}}
+    with pytest.raises(SceneError) as e:
+        scene_from_dict(doc)
+    text = str(e.value)
+    assert e.value.field == "methods.yoshida4" and "\n" not in text
+    assert "built-in method 'yoshida4' (Yoshida's 4th-order composition" in text and "'yoshida4-as-data'" in text
+
+
+def test_scene_written_tableaux_equal_the_shipped_ones():
+    """Each splitting or composition a shipped scene writes out (geometric_2dof's
+    "-as-data" methods) is the shipped method: written as the same expressions
+    it is the same float64 tableau (bit-identical runs); written as 17-digit
+    floats (each within half an ulp of its value) every float64 entry, a sum
+    of products gamma_k b_j scaled so that gamma sums to 1, is within
+    FLOAT_ULPS = 4 ulps of the shipped one (3 measured for yoshida4)."""
+    from rk4h.methods import FLOAT_ULPS
+    from rk4h.references.registry import method_from_table
+
+    seen = []
+    for scene, name, table in _scene_written():
+        stem = name.removesuffix("-as-data")
+        assert stem in G.GEOMETRIC, f"{scene}: {name} is not a shipped method written out"
+        r = G.agreement(method_from_table(name, table).tableau, G.GEOMETRIC[stem])
+        assert r["shape"] and r["within_bound"], (scene, name, r)
+        coefficients = [x for k in ("a", "b", "gamma") for x in table.get(k, [])]
+        if all(isinstance(x, str) for x in coefficients):
+            assert r["bit_identical"], (scene, name, r)
+        assert r["max_ulps"] <= FLOAT_ULPS, (scene, name, r)
+        seen.append((name, r["bit_identical"], r["max_ulps"]))
+    assert ("forest-ruth-as-data", True, 0) in seen
+    assert ("yoshida4-as-data", False, 3) in seen
+
+
+def test_agreement_finds_a_wrong_digit_and_another_method():
+    from rk4h.references.registry import method_from_table
+
+    table = dict(CONTRACT["yoshida4-as-data"])
+    table["gamma"] = [1.3512071919596578, -1.7024143839193143, 1.3512071919596578]  # 5 -> 4 in the 15th digit
+    wrong = G.agreement(method_from_table("w", table).tableau, G.YOSHIDA4)
+    # within the generous bound of floats scaled to sum to 1 (2.7e-14), but 30 ulps off
+    assert wrong["shape"] and not wrong["bit_identical"] and wrong["max_ulps"] > 4
+    # 10 decimals summing to 1, the 9th decimal wrong: 1e-9 off, further than the 1e-10 they claim
+    table["gamma"] = ["1.3512071910", "-1.7024143820", "1.3512071910"]
+    assert not G.agreement(method_from_table("w", table).tableau, G.YOSHIDA4)["within_bound"]
+    table["gamma"] = ["1.3512071920", "-1.7024143840", "1.3512071920"]  # correctly rounded: within
+    assert G.agreement(method_from_table("w", table).tableau, G.YOSHIDA4)["within_bound"]
+    assert not G.agreement(G.SUZUKI4, G.YOSHIDA4)["shape"]
+    assert G.agreement(G.YOSHIDA4, G.YOSHIDA4) == {"shape": True, "bit_identical": True, "max_ulps": 0,
+                                                   "within_bound": True}

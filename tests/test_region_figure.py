@@ -38,7 +38,8 @@ def test_the_caption_quotes_the_crossings(tmp_path):
 
 @pytest.mark.parametrize("scene, expected", [
     ("stability_2dof", ["rk4", "symplectic-euler", "stormer-verlet", "euler"]),
-    ("geometric-2dof", ["rk4", "stormer-verlet", "forest-ruth", "yoshida4", "symplectic-euler", "euler"]),
+    ("geometric-2dof", ["rk4", "stormer-verlet", "forest-ruth-as-data", "yoshida4-as-data", "symplectic-euler",
+                        "euler"]),
 ])
 def test_region_methods_of_shipped_scenes(scene, expected):
     from rk4h.validation.outputs.stability import region_methods
@@ -48,14 +49,15 @@ def test_region_methods_of_shipped_scenes(scene, expected):
 
 def test_the_stability_output_draws_the_region_of_the_scenes_own_methods(tmp_path):
     """The output's drawer resolves the scene's own tableaux (geometric-2dof's
-    float-coefficient yoshida4) and the built-ins."""
+    float-coefficient yoshida4-as-data) and the built-ins (forest-ruth among them)."""
     scene = load_scene(resolve_scene("geometric-2dof"))
     fn = outputs.drawer("stability_region")
     assert fn is not None and outputs.get("stability").draw["stability_region"] is fn
-    job = FigureJob(scene.name, "stability_region", {"methods": ["rk4", "yoshida4", "forest-ruth"]})
+    job = FigureJob(scene.name, "stability_region", {"methods": ["rk4", "yoshida4-as-data", "forest-ruth"]})
     ((path, caption),) = fn(tmp_path, job, scene)
     assert path.name == "geometric_2dof_stability_region.png"
-    assert "yoshida4 stable for |Im z| <= 1.573401" in caption and "rk4 stable for |Im z| <= 2.8284271" in caption
+    assert "yoshida4-as-data stable for |Im z| <= 1.573401" in caption
+    assert "rk4 stable for |Im z| <= 2.8284271" in caption
     with pytest.raises(ValueError, match="solver"):
         fn(tmp_path, FigureJob(scene.name, "stability_region", {"methods": ["nope"]}), scene)
 

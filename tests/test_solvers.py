@@ -171,7 +171,10 @@ def test_tighter_tolerance_never_much_worse(solver):
 # -- counters ------------------------------------------------------------------------------
 #: RHS calls (first step, each later step): stages, less the accelerations a
 #: partitioned method never uses and the first-same-as-last reuse of Verlet.
-CALLS = {"rk4": (4, 4), "euler": (1, 1), "symplectic-euler": (1, 1), "stormer-verlet": (2, 1)}
+CALLS = {"rk4": (4, 4), "euler": (1, 1), "symplectic-euler": (1, 1), "stormer-verlet": (2, 1),
+         # the geometric built-ins (docs/geometric.md): first same as last saves one call per step
+         "yoshida4": (4, 3), "yoshida6": (8, 7), "suzuki4": (6, 5), "forest-ruth": (3, 3), "blanes-moan4": (6, 6),
+         "blanes-moan6": (10, 10)}
 
 
 @pytest.mark.parametrize("solver", SOLVER_NAMES)

@@ -16,8 +16,12 @@ mode. How (all plain data, every number measured on this machine):
    ``k`` (:func:`rk4h.validation.energy_time.growth_exponent`, clipped to
    ``[0, 1]``) extrapolates each to the horizon, ``e_T = e_c (T / T_c)^k``,
    and their ratio gives the energy error's order in ``h``, hence the step for
-   ``SAFETY * E``. A reference runs at rtol 1e-10 over ``T_c``: its error and
-   wall time extrapolate the same way (time linearly).
+   ``SAFETY * E``. A reference climbs the ladder :data:`REFERENCE_RTOLS`
+   (1e-8, 1e-10, 1e-12: cheapest first): at each rtol it runs over ``T_c``,
+   its error and wall time extrapolate the same way (time linearly), and the
+   first rtol whose extrapolation meets the target is confirmed over the full
+   horizon; a rung that misses (extrapolated or confirmed) is listed with its
+   numbers and the next, tighter one is tried.
 3. *Confirmation* over the full horizon (no verdict without a run): a
    fixed-step candidate runs at its predicted step (states sampled 16 times
    per fastest period; it confirms at :data:`CONFIRM_MARGIN` of the target, the
@@ -42,7 +46,7 @@ import numpy as np
 from . import energy_time
 
 __all__ = ["EnergyAdvice", "advise_energy", "horizon_seconds", "CALIBRATION_PERIODS", "SAFETY", "CONFIRM_ROUNDS",
-           "SKIP_FACTOR", "MAX_CALLS", "MAX_REFERENCE_S", "CONFIRM_MARGIN"]
+           "SKIP_FACTOR", "MAX_CALLS", "MAX_REFERENCE_S", "CONFIRM_MARGIN", "REFERENCE_RTOLS"]
 
 #: Periods of the slowest mode in the calibration runs.
 CALIBRATION_PERIODS = 100.0
@@ -60,7 +64,8 @@ SKIP_FACTOR = 10.0
 MAX_CALLS = 2e9
 #: A reference predicted to take longer than this (s) over the horizon is not run.
 MAX_REFERENCE_S = 60.0
-_REFERENCE_RTOL = 1e-10
+#: A reference's rtols, cheapest first; the first that meets the target over the full horizon is taken.
+REFERENCE_RTOLS = (1e-8, 1e-10, 1e-12)
 
 
 @dataclass
@@ -102,6 +107,8 @@ class EnergyAdvice:
             lines.append(f"  - {c['method']:<18} {c['setting_name']} = {c['setting']:<11.4g} energy error "
                          f"{c['energy_error']:.3g} (growth exponent {c['growth_exponent']:.2f}), "
                          f"{c['rhs']:.4g} calls, {c['wall_s']:.3g} s")
+            for t in c.get("tried", ()):
+                lines.append(f"      tried first {c['setting_name']} = {t['setting']:.3g}: {t['reason']}")
         for c in self.not_listed:
             lines.append(f"  - {c['method']:<18} not listed: {c['reason']}")
         return "\n".join(lines)
@@ -177,12 +184,17 @@ def _confirm_fixed(model, y0, tab, cand, T, target):
                                                 + ", ".join(f"h = {a:.3g} s -> {b:.3g}" for a, b in runs)}
 
 
-def _reference(model, y0, name, T, Tc, target):
+def _reference(model, y0, name, T, Tc, target, rtols=REFERENCE_RTOLS):
+    """Climb ``rtols`` (cheapest first) for reference ``name``: the first rtol
+    whose full-horizon run meets the target is a listed row (``tried``: the
+    looser rtols and why each lost); if none does, a not-listed row whose
+    reason names every rtol tried and why it lost."""
+    from rk4h.references.registry import BUILTIN
     from rk4h.references.solvers import integrate
 
-    def run(t_end):
+    def run(t_end, rtol):
         t = np.linspace(0.0, t_end, energy_time.dense_samples(model, t_end))
-        r = integrate(name, model, y0, t, _REFERENCE_RTOL)
+        r = integrate(name, model, y0, t, rtol)
         ok = getattr(r.status, "value", str(r.status)) == "ok"
         e = _energy_error(model, r.y) if ok else math.nan
         from rk4h.energy import relative_energy_error
@@ -192,26 +204,43 @@ def _reference(model, y0, name, T, Tc, target):
         from rk4h.validation import trust
 
         rhs = trust.rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})
-        return e, k, rhs, r.wall_s
+        why = "" if ok else (getattr(r, "message", "") or getattr(r.status, "value", str(r.status)))
+        return e, k, rhs, r.wall_s, why
 
-    e, k, rhs, wall = run(Tc)
-    if not math.isfinite(e):
-        return None, {"method": name, "reason": f"its calibration run over {Tc:.4g} s at rtol "
-                                                f"{_REFERENCE_RTOL:g} failed"}
-    eT, wT = _extrapolate(e, k, T, Tc), wall * T / Tc
-    if eT > target:
-        return None, {"method": name, "reason": f"at rtol {_REFERENCE_RTOL:g} its energy error {e:.3g} over "
-                                                f"{Tc:.4g} s (growth exponent {k:.2f}) extrapolates to {eT:.3g} "
-                                                f"over the horizon, above the target"}
-    if wT > MAX_REFERENCE_S:
-        return None, {"method": name, "reason": f"predicted {wT:.3g} s over the horizon (measured {wall:.3g} s "
-                                                f"over {Tc:.4g} s), over {MAX_REFERENCE_S:g} s: not run"}
-    e, k, rhs, wall = run(T)
-    if not (math.isfinite(e) and e <= CONFIRM_MARGIN * target):
-        return None, {"method": name, "reason": f"its full-horizon run at rtol {_REFERENCE_RTOL:g} gave "
-                                                f"{e:.3g}, above the target"}
-    return {"method": name, "setting": _REFERENCE_RTOL, "setting_name": "rtol", "energy_error": e,
-            "growth_exponent": k, "rhs": float(rhs), "wall_s": wall, "runs": [[_REFERENCE_RTOL, e]]}, None
+    floor = getattr(BUILTIN.get(name), "rtol_floor", None) or 0.0
+    tried = []
+    for rtol in rtols:
+        if rtol < floor:
+            tried.append({"setting": rtol, "reason": f"below its rtol floor {floor:.3g}: not run"})
+            continue
+        e, k, rhs, wall, why = run(Tc, rtol)
+        if not math.isfinite(e):
+            tried.append({"setting": rtol, "reason": f"its calibration run over {Tc:.4g} s failed"
+                                                     + (f" ({str(why).splitlines()[0][:120]})" if why else "")})
+            continue
+        eT, wT = _extrapolate(e, k, T, Tc), wall * T / Tc
+        if eT > target:
+            tried.append({"setting": rtol, "reason": f"energy error {e:.3g} over {Tc:.4g} s (growth exponent "
+                                                     f"{k:.2f}) extrapolates to {eT:.3g} over the horizon, "
+                                                     f"above the target"})
+            continue
+        if wT > MAX_REFERENCE_S:
+            # a tighter rtol costs more: the ladder stops here
+            tried.append({"setting": rtol, "reason": f"predicted {wT:.3g} s over the horizon (measured "
+                                                     f"{wall:.3g} s over {Tc:.4g} s), over {MAX_REFERENCE_S:g} s: "
+                                                     f"not run"})
+            break
+        e, k, rhs, wall, why = run(T, rtol)
+        if not (math.isfinite(e) and e <= CONFIRM_MARGIN * target):
+            tried.append({"setting": rtol, "reason": f"its full-horizon run gave {e:.3g}, above "
+                                                     f"{CONFIRM_MARGIN:g} x the target"
+                                                     + (f" ({str(why).splitlines()[0][:120]})" if why else "")})
+            continue
+        return {"method": name, "setting": rtol, "setting_name": "rtol", "energy_error": e,
+                "growth_exponent": k, "rhs": float(rhs), "wall_s": wall,
+                "runs": [[rtol, e]], "tried": tried}, None
+    return None, {"method": name, "reason": "; ".join(f"rtol {t['setting']:g}: {t['reason']}" for t in tried),
+                  "tried": tried}
 
 
 def _tableaux(scene):

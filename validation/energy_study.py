@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from .energy_time import (WP_HORIZONS, WP_SCENES, dense_samples, equal_cost_step, growth_exponent, long_run,
-                          slowest_period, work_precision_rows)
+from .energy_time import (STEP_CAP_STATUS, WP_HORIZONS, WP_SCENES, dense_samples, equal_cost_step,
+                          growth_exponent, long_run, slowest_period, work_precision_rows)
 
 __all__ = ["main"]
 
@@ -39,7 +39,11 @@ def main(argv=None) -> int:
     ``<scene>_energy_work_precision.png`` and one ``<scene>_energy_growth.png``
     (every method at RK4's cost at 16 steps per fastest period, over the
     longest horizon) per scene into ``DIR``, which must be absent or empty.
-    Exit 0, or 2 on bad input (one line).
+    Each reference runs under a step cap sized from its horizon
+    (:func:`rk4h.validation.energy_time.reference_step_cap`); a run that
+    reaches it (or would need more than ``STEP_CAP_CEILING``) is a row with
+    status ``step_cap`` and a line on stderr. Exit 0; 1 when a reference hit
+    its step cap (the rest is written); 2 on bad input (one line).
     """
     import argparse
     import csv
@@ -112,11 +116,15 @@ def main(argv=None) -> int:
             series[lab], ks[lab] = (res.t, np.abs(e)), growth_exponent(res.t, e)[0]
         energy_figures.energy_growth(out, scene.name, series, ks)
     with open(out / "energy_work_precision.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]) if rows else ["scene"])
+        w = csv.DictWriter(f, fieldnames=list(dict.fromkeys(k for r in rows for k in r)) or ["scene"])
         w.writeheader()
         w.writerows(rows)
     print(f"energy_study: {len(rows)} rows and {2 * len(scenes)} figures in {out}")
-    return 0
+    capped = [r for r in rows if r["status"] == STEP_CAP_STATUS]
+    for r in capped:
+        print(f"energy_study: {r['scene']}: {r['solver']} at rtol {r['rtol']:g} over {r['periods']:g} periods: "
+              f"{r['message']}", file=sys.stderr)
+    return 1 if capped else 0
 
 
 if __name__ == "__main__":

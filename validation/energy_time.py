@@ -39,7 +39,9 @@ import numpy as np
 
 __all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "LONG_SAMPLES", "COLUMNS", "running_max",
            "growth_exponent", "phase_errors", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
-           "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES"]
+           "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES",
+           "reference_step_cap", "STEP_CAP_MARGIN", "STEP_CAP_CALIBRATION_PERIODS", "STEP_CAP_CEILING",
+           "STEP_CAP_STATUS", "exchange_period", "EXCHANGE_MIN_SHARE"]
 
 #: Decades of time, ending at the run's end, over which a growth exponent is fitted.
 FIT_DECADES = 2.0
@@ -267,7 +269,8 @@ WP_SCENES = ("fput-alpha", "henon-heiles", "lattice100", "planar4-case1")
 
 
 def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16, 32, 64), horizons=WP_HORIZONS,
-                        full: bool = False, references=(), rtols=(1e-6, 1e-8, 1e-10, 1e-12)) -> list:
+                        full: bool = False, references=(), rtols=(1e-6, 1e-8, 1e-10, 1e-12),
+                        max_steps=None) -> list:
     """Energy work-precision: max |E(t) - E0| / E_motion against RHS calls and wall time.
 
     Parameters
@@ -286,14 +289,20 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
         are kept as :func:`dense_samples` says (16 per fastest period).
     references : sequence of str
         Adaptive references (``"heyoka"``, ...) run at each of ``rtols`` too,
-        on the same sampled grid (their ``h`` is NaN, ``rtol`` set).
+        on the same sampled grid (their ``h`` is NaN, ``rtol`` set), each under
+        the step cap :func:`reference_step_cap` sizes from the horizon.
+    max_steps : int, optional
+        A fixed step cap for the references instead (tests).
 
     Returns
     -------
     list of dict
         One row per (horizon, method, step or rtol): ``scene, solver, periods,
         t_end`` (s), ``h`` (s), ``rtol``, ``energy_drift_max`` (1), ``energy_growth_exponent``,
-        ``nfev``, ``wall_s`` (s, one run, compile time apart), ``status``.
+        ``nfev``, ``wall_s`` (s, one run, compile time apart), ``status``
+        (``ok``, ``unstable``, ``failed`` or :data:`STEP_CAP_STATUS`),
+        ``max_steps`` (a reference's step cap; NaN for a fixed-step run) and
+        ``message`` (one line: the cap's sizing, or why the run failed).
     """
     from rk4h.energy import relative_energy_error
 
@@ -301,6 +310,7 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
     omega = np.asarray(model.modes()[0], float)
     T_fast = 2.0 * math.pi / float(omega.max())
     hs = list(horizons) + ([1e6] if full and 1e6 not in horizons else [])
+    t_ex = exchange_period(model, y0)
     rows = []
     for periods in hs:
         t_end = periods * T_slow
@@ -311,34 +321,160 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
                 ok = bool(res.success)
                 with np.errstate(all="ignore"):
                     e = relative_energy_error(model, res.y)
+                k, note = _fit(res.t, e, t_ex) if ok else (math.nan, "")
                 rows.append({"scene": scene_name, "solver": tab.name, "periods": float(periods), "t_end": t_end,
                              "h": float(res.h), "rtol": math.nan,
                              "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
-                             "energy_growth_exponent": growth_exponent(res.t, e)[0] if ok else math.nan,
-                             "nfev": int(res.nfev), "wall_s": wall, "status": "ok" if ok else res.reason})
+                             "energy_growth_exponent": k,
+                             "nfev": int(res.nfev), "wall_s": wall, "status": "ok" if ok else res.reason,
+                             "max_steps": math.nan, "message": note})
         for name in references:
             for rtol in rtols:
-                rows.append(_reference_row(scene_name, model, y0, name, rtol, periods, t_end))
+                rows.append(_reference_row(scene_name, model, y0, name, rtol, periods, t_end, max_steps, t_ex))
     return rows
 
 
-def _reference_row(scene_name, model, y0, name, rtol, periods, t_end) -> dict:
+#: A mode drives a 2:1 exchange (:func:`exchange_period`) when it holds at
+#: least this share of the energy of the motion at t = 0.
+EXCHANGE_MIN_SHARE = 0.01
+
+
+def exchange_period(model, y0) -> float:
+    """Period (s) of the slowest 2:1 energy exchange of an FPUT-alpha chain.
+
+    The cubic spring energy ``alpha r^3 / 3`` gives a force quadratic in the
+    displacements, which drives every mode ``j`` at twice the frequency of
+    each energetic mode ``i``: near the resonance ``2 omega_i ~ omega_j``
+    energy flows from ``i`` to ``j`` and back with the beat period
+    ``2 pi / |2 omega_i - omega_j|`` (linear frequencies, rad/s). Returned:
+    the longest such period over the modes ``i`` holding at least
+    :data:`EXCHANGE_MIN_SHARE` of the initial energy and every ``j != i``.
+    The running maximum of a bounded energy error rises until the first
+    exchange has gone half way; a growth exponent fitted from before then
+    reads that rise as growth (:func:`work_precision_rows` does not fit it).
+
+    NaN for a model without a nonzero ``alpha`` (a linear chain's modes do not
+    exchange energy; other nonlinearities get no estimate here).
+    """
+    alpha = float(getattr(model, "alpha", 0.0) or 0.0)
+    if alpha == 0.0:
+        return math.nan
+    omega, V = model.modes()[:2]
+    omega = np.asarray(omega, float)
+    n = omega.size
+    y0 = np.asarray(y0, float)
+    m = np.broadcast_to(np.asarray(model.mass, float), (n,))
+    eta, etad = V.T @ (m * y0[:n]), V.T @ (m * y0[n:])
+    e = 0.5 * (etad ** 2 + omega ** 2 * eta ** 2)
+    if not np.sum(e) > 0:
+        return math.nan
+    energetic = np.flatnonzero(e >= EXCHANGE_MIN_SHARE * np.sum(e))
+    detuning = [abs(2 * omega[i] - omega[j]) for i in energetic for j in range(n) if j != i]
+    slow = min((d for d in detuning if d > 0), default=math.nan)
+    return 2 * math.pi / slow if math.isfinite(slow) else math.nan
+
+
+def _fit(t, e, t_exchange) -> tuple[float, str]:
+    """``(k, note)``: the growth exponent, or NaN and why it was not fitted
+    (the fit window starts before half the exchange period)."""
+    k, t0, _ = growth_exponent(t, e)
+    if math.isfinite(t_exchange) and t0 < t_exchange / 2:
+        return math.nan, (f"not fitted: the fit window starts at {t0:.4g} s, before half the 2:1 exchange period "
+                          f"{t_exchange:.4g} s (exchange_period): the running maximum still rises with the exchange")
+    return k, ""
+
+
+#: A reference's step cap over a long horizon is this many times its
+#: estimated steps (:func:`reference_step_cap`).
+STEP_CAP_MARGIN = 2.0
+#: The calibration run that estimates a reference's steps covers at most this
+#: many periods of the slowest mode.
+STEP_CAP_CALIBRATION_PERIODS = 100.0
+#: Hard ceiling of a reference's step cap: a run estimated to need more (with
+#: the margin) is not run and its row says so (status ``step_cap``). 5e8
+#: heyoka steps take of the order of an hour on a few-DOF model.
+STEP_CAP_CEILING = 500_000_000
+#: The ``status`` of a work-precision row whose reference reached (or would
+#: need more than) its step cap: a failure, never a truncated run read as ok.
+STEP_CAP_STATUS = "step_cap"
+
+
+def reference_step_cap(model, y0, name: str, rtol: float, t_end: float) -> dict:
+    """The step cap of reference ``name`` at ``rtol`` over ``[0, t_end]`` (s).
+
+    A horizon no longer than :data:`STEP_CAP_CALIBRATION_PERIODS` slowest
+    periods keeps the references' default cap (``DEFAULT_MAX_STEPS``, 5e6).
+    A longer one is sized from a calibration run over that many periods at the
+    same rtol: ``estimate = n_steps * t_end / t_cal`` (adaptive steps on a
+    bounded orbit are about uniform in time), and the cap is
+    ``max(DEFAULT_MAX_STEPS, STEP_CAP_MARGIN * estimate)``, at most
+    :data:`STEP_CAP_CEILING`.
+
+    Returns
+    -------
+    dict
+        ``cap`` (int steps, or 0: do not run), ``estimate`` (steps; NaN
+        without a calibration), ``why`` (one line: how the cap was set, or
+        why the run is refused).
+    """
+    from rk4h.references.solvers import DEFAULT_MAX_STEPS, integrate
+
+    t_cal = STEP_CAP_CALIBRATION_PERIODS * slowest_period(model)
+    if t_end <= t_cal:
+        return {"cap": int(DEFAULT_MAX_STEPS), "estimate": math.nan,
+                "why": f"default cap {DEFAULT_MAX_STEPS:.3g} steps (horizon within {STEP_CAP_CALIBRATION_PERIODS:g} "
+                       f"slowest periods)"}
+    r = integrate(name, model, y0, np.array([0.0, t_cal]), rtol)
+    if getattr(r.status, "value", str(r.status)) != "ok" or r.n_steps <= 0:
+        return {"cap": 0, "estimate": math.nan,
+                "why": f"its calibration run over {t_cal:.4g} s failed ({(r.message or '').splitlines()[0][:120]})"}
+    est = r.n_steps * t_end / t_cal
+    need = math.ceil(STEP_CAP_MARGIN * est)
+    if need > STEP_CAP_CEILING:
+        return {"cap": 0, "estimate": est,
+                "why": f"estimated {est:.3g} steps ({r.n_steps} over {t_cal:.4g} s), x {STEP_CAP_MARGIN:g} above the "
+                       f"ceiling {STEP_CAP_CEILING:.3g}: not run"}
+    cap = int(max(DEFAULT_MAX_STEPS, need))
+    return {"cap": cap, "estimate": est,
+            "why": f"cap {cap:.3g} steps: {STEP_CAP_MARGIN:g} x the {est:.3g} estimated from {r.n_steps} steps over "
+                   f"{t_cal:.4g} s"}
+
+
+def _reference_row(scene_name, model, y0, name, rtol, periods, t_end, max_steps=None, t_exchange=math.nan) -> dict:
     """One adaptive reference's run for :func:`work_precision_rows` (``nfev``: its
-    RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it)."""
+    RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it).
+
+    Its step cap is :func:`reference_step_cap`'s (``max_steps`` overrides it).
+    A run that reaches its cap, or would need more than the ceiling, is a row
+    with status :data:`STEP_CAP_STATUS` and NaN energy (``message`` says
+    where it stopped and what the cap was)."""
     from rk4h.references.solvers import integrate
     from rk4h.energy import relative_energy_error
 
     from .trust import rhs_calls
 
+    sized = (reference_step_cap(model, y0, name, rtol, t_end) if max_steps is None
+             else {"cap": int(max_steps), "estimate": math.nan, "why": f"cap {int(max_steps):.3g} steps (given)"})
+    row = {"scene": scene_name, "solver": name, "periods": float(periods), "t_end": t_end, "h": math.nan,
+           "rtol": float(rtol), "energy_drift_max": math.nan, "energy_growth_exponent": math.nan, "nfev": 0,
+           "wall_s": 0.0, "status": STEP_CAP_STATUS, "max_steps": sized["cap"], "message": sized["why"]}
+    if sized["cap"] <= 0:
+        if "calibration" in sized["why"]:
+            row["status"] = "failed"
+        return row
     t = np.linspace(0.0, t_end, dense_samples(model, t_end))
-    r = integrate(name, model, y0, t, rtol)
+    r = integrate(name, model, y0, t, rtol, max_steps=sized["cap"])
     status = getattr(r.status, "value", str(r.status))
     ok = status == "ok"
+    if not ok and (r.n_steps >= sized["cap"] or "step cap" in (r.message or "")):
+        status = STEP_CAP_STATUS
     with np.errstate(all="ignore"):
         e = relative_energy_error(model, r.y)
-    return {"scene": scene_name, "solver": name, "periods": float(periods), "t_end": t_end, "h": math.nan,
-            "rtol": float(rtol), "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
-            "energy_growth_exponent": growth_exponent(t, e)[0] if ok else math.nan,
-            "nfev": int(rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})),
-            "wall_s": float(r.wall_s), "status": status}
-
+    k, note = _fit(t, e, t_exchange) if ok else (math.nan, "")
+    row.update({"energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
+                "energy_growth_exponent": k,
+                "nfev": int(rhs_calls({"nfev": r.nfev, "n_steps": r.n_steps, "taylor_order": r.taylor_order or 0})),
+                "wall_s": float(r.wall_s), "status": status,
+                "message": ("; ".join(x for x in (note, sized["why"]) if x) if ok
+                            else f"{(r.message or status).splitlines()[0][:200]} ({sized['why']})")})
+    return row

@@ -280,8 +280,10 @@ def _methods_table(scene, res):
     :func:`rk4h.stability_function.imaginary_axis_boundary`: RK4 2 sqrt 2,
     Heun3 sqrt 3) and its principal error coefficient
     (:attr:`rk4h.methods.Tableau.error_coefficient`: RK4 0.01450).
-    Computed from the coefficients, not from runs; the built-in tableaux are
-    exact rationals (every residual 0)."""
+    Computed from the coefficients, not from runs; the thesis' built-in
+    tableaux are exact rationals (every residual 0), the geometric ones are
+    judged at their coefficients' precision (60-digit irrationals, Yoshida-6's
+    40 digits, Blanes-Moan's 15)."""
     from rk4h.references.registry import BUILTIN
     from rk4h.stability_function import imaginary_axis_boundary
 

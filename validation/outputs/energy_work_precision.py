@@ -98,10 +98,17 @@ COLUMNS = (
     ("energy_drift_max", "1", "float", "max over the run of |E(t) - E0| / E_motion, sampled 16 times per "
                                        "fastest period; NaN for a run that did not end ok"),
     ("energy_growth_exponent", "1", "float", "slope of log max_{s<=t}|E(s) - E0| against log t over the last two "
-                                             "decades of the run: ~0 bounded, ~1 secular"),
+                                             "decades of the run: ~0 bounded, ~1 secular; NaN (not fitted) when "
+                                             "those decades start before half an FPUT-alpha chain's 2:1 exchange "
+                                             "period (energy_time.exchange_period)"),
     ("nfev", "calls", "int", "right-hand-side calls of the run (heyoka: Taylor steps times order)"),
     ("wall_s", "s", "float", "wall time of the run, compile time apart"),
-    ("status", "", "category", "outcome of the run: ok, unstable, or the solver's failure"),
+    ("status", "", "category", "outcome of the run: ok, unstable, step_cap (a reference reached its step cap, "
+                               "or would need more than the ceiling: a failure, no numbers), or the solver's "
+                               "failure"),
+    ("max_steps", "steps", "float", "a reference's step cap, sized from the horizon (energy_time.reference_step_cap: "
+                                    "2 x the steps estimated from 100 slowest periods, at least 5e6, at most 5e8; "
+                                    "0: not run); NaN for a fixed-step run"),
 )
 
 
@@ -120,10 +127,11 @@ def measure(m) -> None:
             m.res.check("energy work-precision completes", False, f"{what} raised {rec.message or 'no message'}")
             continue
         for r in rec.values["rows"]:
-            row = {c[0]: r[c[0]] for c in COLUMNS}
+            row = {c[0]: r.get(c[0], math.nan) for c in COLUMNS}
             m.res.add("energy_work_precision", row)
-            rows.append(row)
+            rows.append({**row, "message": r.get("message", "")})
     _bounded_checks(m, rows)
+    _step_cap_checks(m, rows)
     if m.draw and any(r["status"] == "ok" for r in rows):
         m.res.figures.append(FigureJob(m.scene.name, FIGURE, {"rows": rows}))
 
@@ -146,6 +154,11 @@ def _bounded_checks(m, rows) -> None:
             continue
         mine = [r for r in rows if r["solver"] == solver and r["periods"] == per]
         ok = [r for r in mine if r["status"] == "ok" and math.isfinite(r["energy_growth_exponent"])]
+        unfitted = [r for r in mine if r["status"] == "ok" and str(r.get("message", "")).startswith("not fitted")]
+        if not ok and unfitted:
+            m.res.findings.append(f"{m.scene.name}: {solver} over {per:g} periods: bounded-energy check not made, "
+                                  f"{unfitted[0]['message']}")
+            continue
         if not ok:
             m.res.check("symplectic energy bounded", False,
                         f"{m.scene.name}: {solver} over {per:g} periods: no stable run to fit "
@@ -157,6 +170,20 @@ def _bounded_checks(m, rows) -> None:
                     f"{m.scene.name}: {solver} over {per:g} periods at h = {worst['h']:.4g} s: energy growth "
                     f"exponent {k:.3f} >= {BOUNDED_EXPONENT} (secular, not bounded)",
                     measured=k, expected=0.0, tolerance=BOUNDED_EXPONENT)
+
+
+def _step_cap_checks(m, rows) -> None:
+    """Every reference run ended within its step cap: a run cut at the cap
+    (or refused over the ceiling) is a failed check naming where it stopped,
+    never a shorter run read as the horizon's."""
+    from rk4h.validation.energy_time import STEP_CAP_STATUS
+
+    for r in rows:
+        if not math.isfinite(r["rtol"]):
+            continue
+        m.res.check("reference within its step cap", r["status"] != STEP_CAP_STATUS,
+                    f"{m.scene.name}: {r['solver']} at rtol {r['rtol']:g} over {r['periods']:g} periods: "
+                    f"{r.get('message') or 'step cap reached'}")
 
 
 def caption(scene_name, rows) -> str:
