@@ -61,10 +61,31 @@ def test_groups_hold_the_points_of_one_untimed_run(batched):
     assert timed and sweep_batch.group(timed) == timed  # timed runs never join a batch
 
 
-def test_the_threshold_keeps_small_sweeps_apart(monkeypatch):
+def test_the_threshold_keeps_small_sweeps_apart_without_building_models(monkeypatch):
     jobs = _untimed(_points())
     monkeypatch.setattr(sweep_batch, "BATCH_MIN_STEPS", 10 ** 12)
+
+    def no_models(scene):
+        raise AssertionError("a model was built")
+
+    monkeypatch.setattr(ex, "problem", no_models)
     assert sweep_batch.group(jobs) == jobs
+
+
+def test_the_cheap_bound_bounds_the_steps():
+    from rk4h import step_count
+
+    n = 0
+    for scene, spec in _untimed(_points()):
+        key = sweep_batch.batch_key(scene, spec)
+        if key is None:
+            continue
+        t = np.frombuffer(key[5], dtype=np.float64)
+        steps = step_count((float(t[0]), float(t[-1])), key[4])
+        bound = sweep_batch._bound(scene, spec)[1]
+        assert steps <= bound < 3 * steps + 10, (spec.purpose, steps, bound)
+        n += 1
+    assert n > 6
 
 
 def test_a_batch_equals_each_point_alone_and_a_diverging_point_stops_alone(batched, monkeypatch):

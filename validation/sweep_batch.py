@@ -146,13 +146,42 @@ def _steps(key) -> int:
     return int(step_count((float(t[0]), float(t[-1])), key[4]))
 
 
+def _bound(scene, spec):
+    """``(key, steps)`` without building the model: a coarser key than
+    :func:`batch_key`'s (points of one batch share it) and an upper bound on
+    the steps of the spec's run (inf when unknown); None when it runs alone."""
+    if not getattr(scene, "sweep", None) or spec.purpose not in BATCH_PURPOSES or spec.timed:
+        return None
+    key = (scene.base, spec.purpose, spec.solver, spec.setting, spec.grid, spec.params)
+    if spec.purpose != "order":  # the figure and modal grids end at t_end, stepped by h = setting
+        return key, math.ceil(scene.t_end / spec.setting) + 1
+    if "t_end" in scene.convergence:
+        return key, math.inf
+    # one period of the fastest mode, n0 = ceil(T omega_max / theta0) <= ceil(2 pi / theta0) intervals
+    theta0 = spec.param("theta0")
+    return key, (math.ceil(2.0 * math.pi / theta0) + 1) * max(1, round(theta0 / spec.setting)) + 1
+
+
 def group(jobs) -> list:
     """``jobs`` (``[(scene, spec), ...]``) with the jobs of each batch key
     held by two or more of them, with :data:`BATCH_MIN_STEPS` steps or more
     in all, replaced by one ``(None, SpecGroup)`` at the place of the first;
     the others as they were."""
-    keys = []
+    coarse = []
     for scene, spec in jobs:
+        try:
+            coarse.append(_bound(scene, spec))
+        except Exception:  # noqa: BLE001 - runs alone, where its fault becomes its record
+            coarse.append(None)
+    counts: dict = {}
+    for c in coarse:
+        if c is not None:
+            counts[c[0]] = counts.get(c[0], 0) + 1
+    keys = []
+    for (scene, spec), c in zip(jobs, coarse):
+        if c is None or counts[c[0]] < 2 or counts[c[0]] * c[1] < BATCH_MIN_STEPS:
+            keys.append(None)  # no batch can reach the threshold: no model built to find out
+            continue
         try:
             keys.append(batch_key(scene, spec))
         except Exception:  # noqa: BLE001 - a point that cannot build fails at execution, with its message
