@@ -139,3 +139,22 @@ def test_a_failing_batch_fails_each_spec_with_its_own_key():
     assert all(r.status == "failed" for _, r in split)
     split = g.split(RunRecord(jobs[0][1].key, status="failed", message="boom"))
     assert [r.key for _, r in split] == [sp.key for _, sp in jobs] and split[1][1].message == "boom"
+
+
+def test_a_batch_that_raises_runs_its_points_alone(batched, monkeypatch):
+    import rk4h
+
+    jobs = _untimed(_points())
+    g = next(g for _, g in sweep_batch.group(jobs) if isinstance(g, sweep_batch.SpecGroup))
+
+    calls = []
+
+    def broken(*a, **k):
+        calls.append(1)
+        raise ValueError("no batch today")
+
+    monkeypatch.setattr(rk4h, "ensemble", broken)
+    recs = sweep_batch.execute_group(g)
+    assert calls == [1] and len(recs) == len(g.jobs)
+    for a, (scene, spec) in zip(recs, g.jobs):
+        _same(a, ex.execute(scene, spec))

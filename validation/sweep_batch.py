@@ -205,7 +205,8 @@ def execute_group(group_: SpecGroup, quick: bool = False) -> list:
     """The records of ``group_``'s specs, in order: one batch
     (:func:`rk4h.ensemble`, numba), each ok instance's run handed to
     :func:`rk4h.validation.execute.execute` for its spec; an instance that
-    failed, or a job that cannot join, runs alone."""
+    failed, a job that cannot join, and every job of a batch that raised run
+    alone."""
     import time
 
     import rk4h
@@ -232,9 +233,17 @@ def execute_group(group_: SpecGroup, quick: bool = False) -> list:
         mass = np.stack([np.asarray(prepared[i][1].mass, np.float64) for i in batch])
         groups = [(np.arange(len(batch)), np.ascontiguousarray(fp), np.ascontiguousarray(mass), kern)]
         start = time.perf_counter()
-        res = rk4h.ensemble(model, y0, (float(t[0]), float(t[-1])), h=h, method=tab, t_eval=t, backend="numba",
-                            max_growth=MAX_GROWTH, y_scale=y_scale, groups=groups)
-        wall = (time.perf_counter() - start) / len(batch)
+        try:
+            res = rk4h.ensemble(model, y0, (float(t[0]), float(t[-1])), h=h, method=tab, t_eval=t,
+                                backend="numba", max_growth=MAX_GROWTH, y_scale=y_scale, groups=groups)
+        except Exception as e:  # noqa: BLE001 - the points run alone, where a fault becomes their record
+            from . import interrupt
+            from .atomic import is_environment_error
+
+            if is_environment_error(e) or interrupt.pending():
+                raise
+            batch = []
+        wall = (time.perf_counter() - start) / max(1, len(batch))
         for b, i in enumerate(batch):
             if res.status[b] != 0:
                 continue  # rerun alone: its failure is a run of its own
