@@ -19,6 +19,24 @@ instance-step, and the numba column is printed as a multiple of it (issue 31's
 target: within 1.5x at B = 1e5). Where jax's device is not a GPU the GPU
 column says so; nothing is measured for it.
 
+Long chains (``--chains``, default 1e5 1e6 1e7 masses; ``--chain-steps``,
+default 300): ns per mass-step of ONE uniform chain between walls (the
+thesis lattice, m = 0.815 kg, k = 41.5 N/m, h = 0.01 s, omega_max h = 0.14,
+random displacements of +-1 mm, seed 2), float64: the numba loop
+:func:`rk4h.fast.solve_model` generates for the chain (one core: one
+instance) against a plain jax ``lax.scan`` RK4 whose force is written here for
+the uniform chain (``w^2 (q[i-1] - 2 q[i] + q[i+1])``: rk4h's jax backend
+takes models of at most 8 degrees of freedom). The two end states must agree
+to 1e-12 relative (round-off of two force expressions), else the row says
+so. A state of 1e7 masses is 160 MB; RK4's stages and the loops' work arrays
+take about 10 states (1.6 GB) per backend.
+
+diffrax beside (``--diffrax``, default B = 1e3 1e5; skipped with one line
+when diffrax is not importable): Tsit5 with a PID controller (rtol 1e-8,
+atol 1e-8 x 5 mm) on the ensemble case (the 2-DOF chain, ``jax.vmap`` over
+the instances, 1 s), its wall time and mean accepted steps, beside the numba
+RK4 batch (h = 1e-3 s) over the same instances and span.
+
 With ``--docs PATH`` the markdown table replaces the block between
 ``<!-- bench_ensemble:begin -->`` and ``<!-- bench_ensemble:end -->`` of that
 file (the markers must be there; nothing else is touched).
@@ -65,6 +83,118 @@ def timed(fn, repeats):
     return statistics.median(ts)
 
 
+CHAIN_M, CHAIN_K, CHAIN_H = 0.815, 41.5, 0.01
+
+
+def _jax64():
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    return jax
+
+
+def bench_chain(N, steps, repeats, with_jax=True):
+    """``(N, steps, numba ns/mass-step, jax ns/mass-step or None, max relative
+    difference of the end states or None)`` for one chain of ``N`` masses."""
+    import rk4h.fast
+
+    model = rk4h.make_model("chain", {"masses": CHAIN_M, "springs": CHAIN_K, "n": N, "walls": "both"})
+    rng = np.random.default_rng(2)
+    y0 = np.concatenate([rng.uniform(-1e-3, 1e-3, N), np.zeros(N)])
+    t1 = steps * CHAIN_H
+
+    def numba_run():
+        return rk4h.fast.solve_model(model, (0.0, t1), y0, h=CHAIN_H, t_eval=[0.0, t1])
+
+    t = time.perf_counter()
+    y_nb = numba_run().y[:, -1]
+    first = time.perf_counter() - t
+    nb = timed(numba_run, repeats) / (N * steps) * 1e9
+    print(f"chain N={N:.0e} steps={steps}: numba {nb:.3f} ns/mass-step (first call {first:.1f} s)", flush=True)
+    jx = diff = None
+    if with_jax:
+        try:
+            jax = _jax64()
+        except ImportError:
+            return N, steps, nb, None, None
+        import jax.numpy as jnp
+
+        w2, h = CHAIN_K / CHAIN_M, CHAIN_H
+
+        def f(y):
+            q, v = y[0], y[1]
+            z = jnp.zeros(1, q.dtype)
+            return jnp.stack([v, w2 * (jnp.concatenate([z, q[:-1]]) - 2.0 * q + jnp.concatenate([q[1:], z]))])
+
+        def step(y, _):
+            k1 = f(y)
+            k2 = f(y + (0.5 * h) * k1)
+            k3 = f(y + (0.5 * h) * k2)
+            k4 = f(y + h * k3)
+            return y + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4), None
+
+        run = jax.jit(lambda y: jax.lax.scan(step, y, None, length=steps)[0])
+        yj0 = jnp.asarray(y0.reshape(2, N))
+        t = time.perf_counter()
+        y_jx = np.asarray(run(yj0).block_until_ready()).reshape(-1)
+        first = time.perf_counter() - t
+        jx = timed(lambda: run(yj0).block_until_ready(), repeats) / (N * steps) * 1e9
+        diff = float(np.max(np.abs(y_jx - y_nb)) / np.max(np.abs(y_nb)))
+        ok = "" if diff <= 1e-12 else "  DIFFERS beyond 1e-12"
+        print(f"chain N={N:.0e} steps={steps}: jax {jx:.3f} ns/mass-step (first call {first:.1f} s), "
+              f"max relative difference {diff:.1e}{ok}", flush=True)
+    return N, steps, nb, jx, diff
+
+
+def bench_diffrax(model, sizes, repeats, t1=1.0, rtol=1e-8):
+    """``[(B, wall s, mean accepted steps, numba RK4 wall s, max |y_dfx - y_rk4|), ...]``;
+    ``[]`` (one printed line) when diffrax is not importable."""
+    try:
+        jax = _jax64()
+        import diffrax
+    except ImportError as e:
+        print(f"diffrax is not importable ({e}): its rows are skipped")
+        return []
+    import jax.numpy as jnp
+
+    (m0, m1), (k0, k1, k2) = MASSES, SPRINGS
+
+    def vf(t, y, args):
+        q0, q1, v0, v1 = y[0], y[1], y[2], y[3]
+        return jnp.stack([v0, v1, (-(k0 + k1) * q0 + k1 * q1) / m0, (k1 * q0 - (k1 + k2) * q1) / m1])
+
+    term, solver = diffrax.ODETerm(vf), diffrax.Tsit5()
+    ctrl = diffrax.PIDController(rtol=rtol, atol=rtol * 5e-3)
+
+    def one(y0):
+        sol = diffrax.diffeqsolve(term, solver, 0.0, t1, 1e-3, y0, stepsize_controller=ctrl,
+                                  saveat=diffrax.SaveAt(t1=True), max_steps=100_000)
+        return sol.ys[-1], sol.stats["num_accepted_steps"]
+
+    run = jax.jit(jax.vmap(one))
+    rng = np.random.default_rng(3)
+    rows = []
+    for B in sizes:
+        y0 = rng.uniform(-0.005, 0.005, (B, 4))
+        yj = jnp.asarray(y0)
+        t = time.perf_counter()
+        y_end, n_acc = (np.asarray(x) for x in jax.block_until_ready(run(yj)))
+        first = time.perf_counter() - t
+        wall = timed(lambda: jax.block_until_ready(run(yj)), repeats)
+
+        def rk4_run():
+            return rk4h.ensemble(model, y0, (0.0, t1), h=1e-3, t_eval=[0.0, t1], backend="numba")
+
+        nb_wall = timed(rk4_run, repeats)
+        diff = float(np.max(np.abs(rk4_run().y[:, -1] - y_end)))
+        steps = float(np.mean(n_acc))
+        print(f"diffrax Tsit5 B={B:.0e}: {wall:.3f} s (first call {first:.1f} s), {steps:.0f} accepted steps per "
+              f"instance, {wall / (B * steps) * 1e9:.2f} ns/instance-step; numba RK4 h=1e-3: {nb_wall:.3f} s; "
+              f"max difference {diff:.1e} m", flush=True)
+        rows.append((B, wall, steps, nb_wall, diff))
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tiny", action="store_true", help="small sizes (a smoke run)")
@@ -74,7 +204,14 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--backends", nargs="+", default=["numba", "jax"], choices=["numba", "jax"])
     ap.add_argument("--docs", type=pathlib.Path, default=None, help="markdown file holding the table's markers")
+    ap.add_argument("--chains", type=float, nargs="*", default=None,
+                    help="masses of the one-chain runs (default 1e5 1e6 1e7; none: skip)")
+    ap.add_argument("--chain-steps", type=int, default=300, help="RK4 steps of each chain run (default 300)")
+    ap.add_argument("--diffrax", type=float, nargs="*", default=None,
+                    help="instances of the diffrax Tsit5 runs (default 1e3 1e5; none: skip)")
     a = ap.parse_args(argv)
+    chains = [int(n) for n in (a.chains if a.chains is not None else ([1e4, 1e5] if a.tiny else [1e5, 1e6, 1e7]))]
+    dfx_sizes = [int(n) for n in (a.diffrax if a.diffrax is not None else ([100] if a.tiny else [1e3, 1e5]))]
     sizes = [int(s) for s in (a.sizes or ([1, 100, 1000] if a.tiny else [1, 1e3, 1e5, 1e6]))]
     work = 2e5 if a.tiny else a.work
     if a.docs is not None:
@@ -95,7 +232,7 @@ def main(argv=None) -> int:
     tight = timed(lambda: rk4_two_mass(*MASSES, *SPRINGS, y1, h, n_tight), a.repeats) / n_tight * 1e9
     print(f"tight single-instance loop: {tight:.2f} ns/step; numba threads: {cores}")
     devices = {"numba": f"{cpu_name()}, {cores} threads"}
-    gpu_note = "no GPU was lent"
+    gpu_note = "no GPU lent to this session"
     if "jax" in a.backends:
         try:
             import jax
@@ -125,6 +262,8 @@ def main(argv=None) -> int:
             print(f"B={B:>8} steps={steps:>7} {backend:>5}: {cells[backend]:8.3f} ns/instance-step "
                   f"(first call incl. compile {first:.1f} s)", flush=True)
         rows.append((B, steps, cells))
+    chain_rows = [bench_chain(N, 20 if a.tiny else a.chain_steps, a.repeats, "jax" in a.backends) for N in chains]
+    dfx_rows = bench_diffrax(model, dfx_sizes, a.repeats) if dfx_sizes else []
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
@@ -143,6 +282,20 @@ def main(argv=None) -> int:
         L.append(f"| {B:.0e} | {steps} | {'%.3f' % nb if nb else '-'} | "
                  f"{'%.2f' % (nb / (tight / cores)) if nb else '-'} | {'%.3f' % jx if jx else '-'} | "
                  f"{gpu_note or '%.3f' % jx} |")
+    if chain_rows:
+        L += ["", f"One uniform chain between walls (m = {CHAIN_M} kg, k = {CHAIN_K} N/m, h = {CHAIN_H} s), "
+              "RK4, float64, ns per mass-step (numba: one core, one instance):", "",
+              "| masses | steps | numba loop | jax lax.scan | max relative difference | GPU |", "|---|---|---|---|---|---|"]
+        for N, steps, nb, jx, diff in chain_rows:
+            L.append(f"| {N:.0e} | {steps} | {nb:.3f} | {'%.3f' % jx if jx is not None else '-'} | "
+                     f"{'%.1e' % diff if diff is not None else '-'} | {gpu_note or '%.3f' % jx} |")
+    if dfx_rows:
+        L += ["", "diffrax Tsit5 (rtol 1e-8) beside the numba RK4 batch (h = 1e-3 s) on the 2-DOF ensemble over "
+              "1 s:", "", "| B | diffrax wall (s) | accepted steps (mean) | ns per instance-step | "
+              "numba RK4 wall (s) | max difference (m) |", "|---|---|---|---|---|---|"]
+        for B, wall, steps, nb_wall, diff in dfx_rows:
+            L.append(f"| {B:.0e} | {wall:.3f} | {steps:.0f} | {wall / (B * steps) * 1e9:.2f} | {nb_wall:.3f} | "
+                     f"{diff:.1e} |")
     L += ["", "Devices: " + "; ".join(f"{k}: {v}" for k, v in devices.items()) + "."]
     table = "\n".join(L)
     print()

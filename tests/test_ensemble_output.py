@@ -53,11 +53,36 @@ def test_a_small_ensemble_scene_through_run_all(tmp_path):
 
 def test_the_boundary_check_can_fail(tmp_path, monkeypatch):
     # a wrong limit (Heun3's sqrt(3) for an RK4 map) must fail the check at every value
-    monkeypatch.setattr(smap_output, "_limit", lambda solver: np.sqrt(3.0))
+    monkeypatch.setattr(smap_output, "_limit", lambda method: np.sqrt(3.0))
     doc = copy.deepcopy(DOC)
     doc["run"]["outputs"] = ["stability_map"]
     results, failures = run_all.run([scene_from_dict(doc)], tmp_path, workers=1)
     assert any("of 1.7321 at 8 of 8 values" in f for f in failures)
+
+
+def test_a_heun3_map_meets_its_own_boundary(tmp_path):
+    # the limit is the tableau's imaginary-axis boundary, not RK4's: Heun3's is sqrt(3)
+    doc = copy.deepcopy(DOC)
+    doc["name"] = "ens-heun3"
+    doc["methods"] = {"heun3": {"A": [[0, 0, 0], ["1/3", 0, 0], [0, "2/3", 0]], "b": ["1/4", 0, "3/4"],
+                                "c": [0, "1/3", "2/3"]}}  # a scene tableau: Heun's third-order method
+    doc["run"].update(solvers=["heun3"], outputs=["stability_map"])
+    doc["ensemble"].update(map_h={"low": 0.015, "high": 0.15, "n": 30})
+    results, failures = run_all.run([scene_from_dict(doc)], tmp_path, workers=1)
+    assert failures == []
+    m = pd.read_csv(tmp_path / "stability_map.csv")
+    assert len(m) == 8 and (m.solver == "heun3").all()
+    assert (np.abs(m.z_max - np.sqrt(3.0)) < m.z_next - m.z_max).all()
+    assert not (np.abs(m.z_max - 2.0 * np.sqrt(2.0)) < m.z_next - m.z_max).any()
+    assert "1.7321" in (tmp_path / "index.md").read_text()
+
+
+def test_limit_is_the_tableau_boundary():
+    scene = scene_from_dict(copy.deepcopy(DOC))
+    assert smap_output._limit(scene.method("rk4")) == pytest.approx(2.0 * np.sqrt(2.0), rel=1e-12)
+    assert smap_output._limit(scene.method("stormer-verlet")) == pytest.approx(2.0, rel=1e-12)
+    assert smap_output._limit(scene.method("euler")) is None  # no stable interval on the imaginary axis
+    assert smap_output._limit(scene.method("dop853")) is None  # adaptive: no tableau
 
 
 @pytest.mark.parametrize("edit, field", [

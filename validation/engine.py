@@ -168,7 +168,10 @@ def _warm():
 
 def _execute(scene, spec, quick):
     from rk4h.validation.execute import execute
+    from rk4h.validation.sweep_batch import SpecGroup, execute_group
 
+    if isinstance(spec, SpecGroup):  # sweep points' untimed runs as one batch: a list of records
+        return execute_group(spec, quick)
     return execute(scene, spec, quick)
 
 
@@ -224,8 +227,16 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
     if cost is not None:
         stages = [sorted(s, key=lambda j: -cost(*j)) for s in stages]
     stats.timed_executed = len(stages[-1])
+    if not scheduler:  # untimed fixed-step runs of sweep points as one batch (rk4h.validation.sweep_batch)
+        from .sweep_batch import group
+
+        stages[1] = group(stages[1])
 
     def done(spec, rec):
+        if hasattr(spec, "split"):  # a SpecGroup: its records, or its failure given to each spec
+            for one, r in spec.split(rec):
+                done(one, r)
+            return
         if store is not None:
             store.put(rec, spec)
         records[spec.key] = rec
@@ -242,7 +253,7 @@ def run_plan(jobs, *, quick=False, workers=1, scheduler=None, store=None, progre
         for i, stage in enumerate(stages):
             _load_mark(stats, stages, i)
             for scene, spec in stage:
-                done(spec, execute(scene, spec, quick))
+                done(spec, _execute(scene, spec, quick) if scene is None else execute(scene, spec, quick))
         _load_mark(stats, stages, len(stages))
     else:
         own = pools is None
@@ -401,8 +412,8 @@ def _pool(stages, quick, pools, done, stats, exclusive_timing=False):
                     jobs.submit(name, _execute, (scene, spec, quick), spec)
                 for job, rec in jobs.wait():
                     free[job.name] += 1
-                    if isinstance(rec, BaseException):  # the run raised, or its worker died twice
-                        rec = failed_record(job.what.key, rec)
+                    if isinstance(rec, BaseException) and not hasattr(job.what, "split"):
+                        rec = failed_record(job.what.key, rec)  # the run raised, or its worker died twice
                     done(job.what, rec)
         _load_mark(stats, stages, len(stages))
     except BaseException:

@@ -196,6 +196,21 @@ def execute(scene, spec: RunSpec, quick: bool = False) -> RunRecord:
     return rec
 
 
+#: Runs made before their spec executes (a sweep's batch, :mod:`rk4h.validation.sweep_batch`):
+#: spec key -> SolverRun, taken by the spec's executor in place of its own integration.
+PREPARED: dict = {}
+
+
+def _integrate(scene, spec, model, y0, t, h):
+    """``integrate`` of ``spec``'s method, or the run :data:`PREPARED` holds for it."""
+    run = PREPARED.pop(spec.key, None)
+    if run is not None:
+        return run
+    from rk4h.references.solvers import integrate
+
+    return integrate(scene.method(spec.solver), model, y0, t, h)
+
+
 def _truth_spec(scene, spec, quick):
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
@@ -279,11 +294,9 @@ def _trajectory(model, t, run) -> dict:
 
 
 def _figure_spec(scene, spec, quick):
-    from rk4h.references.solvers import integrate
-
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
-    run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
+    run = _integrate(scene, spec, model, y0, t, spec.setting)
     status = _status(run)
     values, arrays = {}, {}
     if status == "ok":
@@ -293,14 +306,12 @@ def _figure_spec(scene, spec, quick):
 
 
 def _order_spec(scene, spec, quick):
-    from rk4h.references.solvers import integrate
-
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
     y_ref = _usable_truth_y(model, y0, t)
     n0 = t.shape[0] - 1
     h = float(t[-1]) / (n0 * max(1, round(spec.param("theta0") / spec.setting)))
-    run = integrate(scene.method(spec.solver), model, y0, t, h)
+    run = _integrate(scene, spec, model, y0, t, h)
     status = _status(run)
     err = metrics.error_max(run.y, y_ref) if status == "ok" else math.nan
     return RunRecord(spec.key, status=status, message=_first_line(run.message),
@@ -406,15 +417,13 @@ def recorded_modal(record) -> dict:
 
 
 def _modal_spec(scene, spec, quick):
-    from rk4h.references.solvers import integrate
-
     model, y0 = problem(scene)
     omega, phi = model.modes()
     k = min(MODAL_MODES, model.n_dof)
     order = np.argsort(omega)[:k]
     omega, phi = omega[order], phi[:, order]
     t = grid(scene, model, spec)
-    run = integrate(scene.method(spec.solver), model, y0, t, spec.setting)
+    run = _integrate(scene, spec, model, y0, t, spec.setting)
     from rk4h.energy import energy_scale
 
     # fractions of the energy of the motion (E0 - V(q*)), which the modes share

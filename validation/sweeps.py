@@ -67,6 +67,10 @@ without the sweep.
   names are unique within the file, also as figure-file stems (checked), at
   most :data:`_POINT_NAME_MAX` characters, and never match the rule for names
   in files (they hold ``@``), so a point cannot shadow a file's scene.
+
+The points' untimed fixed-step runs that share method, step and grid run as
+one batch (:mod:`rk4h.validation.sweep_batch`), each record bit for bit the
+one its point makes alone.
 """
 from __future__ import annotations
 

@@ -157,12 +157,9 @@ def measure(m) -> None:
     import numpy as np
 
     from rk4h.validation.measure import FigureJob
+    from rk4h.validation.outputs._batch import ok_records
 
-    for spec in m.specs("amplitude_ensemble"):
-        rec = m.records[spec.key]
-        if not rec.ok:
-            m.res.check("amplitude ensemble", False, f"{m.scene.name}: amplitude ensemble: {rec.message}")
-            continue
+    for spec, rec in ok_records(m, "amplitude_ensemble", "amplitude ensemble"):
         a = {k: np.asarray(v) for k, v in rec.arrays.items()}
         rows = bin_rows(a["amplitude"], a["deviation"], a["scale"], a["status"], a["edges"], a["check"],
                         a["check_error"])

@@ -59,13 +59,10 @@ def execute(scene, spec, quick):
 
 
 def measure(m) -> None:
+    from rk4h.validation.outputs._batch import ok_records
+
     rows = []
-    for spec in m.specs("ensemble"):
-        rec = m.records[spec.key]
-        if not rec.ok:
-            m.res.check(f"ensemble {spec.solver} h={spec.setting:g}", False,
-                        f"{m.scene.name}: ensemble {spec.solver} h={spec.setting:g}: {rec.message}")
-            continue
+    for spec, rec in ok_records(m, "ensemble", lambda spec: f"ensemble {spec.solver} h={spec.setting:g}"):
         v = rec.values
         row = {"scene": m.scene.name, "solver": spec.solver, "h_s": spec.setting,
                "instances": v["instances"], "failed": v["failed"], "rhs_calls": v.get("rhs_calls", -1),

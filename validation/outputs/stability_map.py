@@ -31,24 +31,28 @@ def execute(scene, spec, quick):
                              "omega_max": smap.omega_max, "h_max": smap.h_max})
 
 
-def _limit(solver):
-    """The imaginary-axis stability limit of ``solver``'s stability function,
-    when it is known in closed form (RK4: 2 sqrt(2)), else None."""
-    from rk4h.batch.maps import RK4_IMAGINARY_LIMIT
+def _limit(method):
+    """The imaginary-axis stability boundary (``omega h``, rad) of ``method``'s
+    tableau (:func:`rk4h.stability_function.imaginary_axis_boundary`: RK4 and
+    the 3/8 rule 2 sqrt(2), Heun3 sqrt(3), Stormer-Verlet 2), or None when it
+    has no tableau or no finite positive boundary (Euler: 0)."""
+    import math
 
-    return RK4_IMAGINARY_LIMIT if solver == "rk4" else None
+    from rk4h.stability_function import imaginary_axis_boundary
+
+    if method.tableau is None:
+        return None
+    b = float(imaginary_axis_boundary(method.tableau))
+    return b if math.isfinite(b) and b > 0 else None
 
 
 def measure(m) -> None:
     import numpy as np
 
     from rk4h.validation.measure import FigureJob
+    from rk4h.validation.outputs._batch import ok_records
 
-    for spec in m.specs("stability_map"):
-        rec = m.records[spec.key]
-        if not rec.ok:
-            m.res.check("stability map", False, f"{m.scene.name}: stability map: {rec.message}")
-            continue
+    for spec, rec in ok_records(m, "stability_map", "stability map"):
         a, param = rec.arrays, rec.values["param"]
         values, h, omega, h_max = (np.asarray(a[k], float) for k in ("values", "h", "omega_max", "h_max"))
         idx = np.searchsorted(h, h_max)  # index of h_max in the grid (NaN: past the end)
@@ -59,7 +63,7 @@ def measure(m) -> None:
                                         "h_max_s": float(h_max[i]), "z_max": float(omega[i] * h_max[i]),
                                         "z_next": float(omega[i] * h_next[i]),
                                         "n_steps": rec.values["n_steps"]})
-        limit = _limit(spec.solver)
+        limit = _limit(m.scene.method(spec.solver))
         if limit is not None:
             # the boundary found (the largest stable grid step) lies within one grid spacing of the limit at
             # every value; just past the limit |R| - 1 is small, so a step there may stay inside the growth
