@@ -185,13 +185,23 @@ class _Problem:
         self.omega_max = trust.fastest_omega(self.model)  # NaN: no stability cap, no aliasing check
         self.rate = {}      # method name -> the smallest wall s per RHS call of its runs
         self.compile = {}   # (method name, setting) and method name -> largest compile s (heyoka's JIT, numba)
+        self.implementation = {}  # method name -> "compiled" where its compiled loop ran (see run)
+        self.runs = {}      # (method name, setting) -> the first run's result (see measured)
 
     def run(self, method, setting):
-        """``(error_rel, rhs calls, wall s, status)`` of one run."""
-        from rk4h.references.solvers import integrate
+        """``(error_rel, rhs calls, wall s, status)`` of one run.
 
+        A reference with a compiled loop (DOP853:
+        :func:`rk4h.references.solvers.integrate_compiled`, equal to scipy's
+        to round-off) runs it, for its calibration, confirmation and timing
+        alike; :attr:`implementation` records that it did."""
+        from rk4h.references.solvers import COMPILED_RUNNERS, integrate, integrate_compiled
+
+        runner = integrate_compiled if method.name in COMPILED_RUNNERS else integrate
         with np.errstate(all="ignore"):
-            run = integrate(method, self.model, self.y0, self.t, setting)
+            run = runner(method, self.model, self.y0, self.t, setting)
+        if (run.extra or {}).get("implementation") == "compiled":
+            self.implementation[method.name] = "compiled"
         err = metrics.error_max(run.y, self.y_ref) / self.scale
         rhs = trust.rhs_calls({"nfev": run.nfev, "n_steps": run.n_steps, "taylor_order": run.taylor_order or 0})
         status = getattr(run.status, "value", str(run.status))
@@ -199,7 +209,16 @@ class _Problem:
             self.rate[method.name] = min(self.rate.get(method.name, math.inf), run.wall_s / rhs)
         for key in ((method.name, float(setting)), method.name):
             self.compile[key] = max(self.compile.get(key, 0.0), float(run.compile_s or 0.0))
-        return (err if status == "ok" else math.nan), rhs, run.wall_s, status
+        out = (err if status == "ok" else math.nan), rhs, run.wall_s, status
+        self.runs.setdefault((method.name, float(setting)), out)
+        return out
+
+    def measured(self, method, setting):
+        """:meth:`run`'s result at ``setting``, from the run already made there
+        (a calibration run reused as a confirmation) or from a new run; the
+        runs are deterministic, so the error and calls are the same."""
+        hit = self.runs.get((method.name, float(setting)))
+        return hit if hit is not None else self.run(method, setting)
 
     def h_stab(self, method) -> float:
         return trust.stable_step(method, self.omega_max)
@@ -362,7 +381,7 @@ def _confirm_fixed(p, method, cand, target) -> dict:
 
     def run(h):
         if h not in cache:
-            cache[h] = p.run(method, h)
+            cache[h] = getattr(p, "measured", p.run)(method, h)
         return cache[h]
 
     rise = _rise(cand["calibration"])
@@ -403,7 +422,7 @@ def _confirm_adaptive(p, method, cand, target) -> dict:
     :func:`_confirm_fixed`'s."""
     setting, evidence = cand["setting"], []
     for _ in range(CONFIRM_TRIES):
-        err, rhs, wall, status = p.run(method, setting)
+        err, rhs, wall, status = getattr(p, "measured", p.run)(method, setting)
         evidence.append([setting, err])
         if status == "ok" and err <= target:
             return {"status": "ok", "setting": setting, "error": err, "rhs": rhs, "wall": wall, "sample": [],
@@ -546,6 +565,7 @@ def advise(scene, target: float) -> Advice:
             continue
         compile_s = getattr(p, "compile", {}).get(m.name if m.fixed_step else (m.name, float(conf["setting"])), 0.0)
         cand = _listed(m, c, conf, _timed(p, m, conf["setting"], conf["wall"]), compile_s)
+        cand["implementation"] = getattr(p, "implementation", {}).get(m.name, "")
         if m.fixed_step:
             rise = _rise([(h, e) for h, e in cand["calibration"] + cand["evidence"]
                           if cand["setting"] / 8 <= h <= 8 * cand["setting"]])
@@ -575,7 +595,7 @@ def advise(scene, target: float) -> Advice:
     by_time = sorted(listed, key=lambda x: (x["cost_s"], x["method"]))
     fast = by_time[0]
     adv.fastest = {k: fast[k] for k in ("method", "setting", "setting_name", "confirmed_error", "cost_rhs", "cost_s",
-                                        "cost_s_min", "cost_s_max", "compile_s")}
+                                        "cost_s_min", "cost_s_max", "compile_s", "implementation")}
     if len(by_time) > 1:
         nxt = by_time[1]
         adv.fastest["runner_up"] = nxt["method"]
@@ -622,6 +642,11 @@ def _text(adv: Advice) -> str:
                      f"{c['confirmed_error']:>9.2g} {c['cost_rhs']:>9.3g} {c['cost_s'] * 1e3:>8.3g} "
                      f"{c['compile_s'] * 1e3:>10.3g}  {how}")
     lines.append(f"  time: {adv.timing}")
+    for c in adv.candidates:
+        if c.get("implementation") == "compiled":
+            lines.append(f"  {c['method']}: run and timed as its compiled loop "
+                         f"(rk4h.references.solvers.integrate_compiled, equal to scipy's to round-off); scipy's "
+                         f"solve_ivp, which steps in Python, was not run")
     if adv.not_listed:
         lines.append("  not listed:")
         for c in adv.not_listed:
