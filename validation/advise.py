@@ -67,6 +67,13 @@ How (all plain data):
    unless the medians are :data:`rk4h.validation.trust.TIME_MARGIN` apart and the
    repeats disjoint), and ``fastest_one_run`` the fastest with its compile
    time added.
+   DOP853 (any reference with a compiled loop,
+   :data:`rk4h.references.solvers.COMPILED_RUNNERS`) is calibrated, confirmed
+   and timed as that loop (:func:`rk4h.references.solvers.integrate_compiled`,
+   equal to scipy's DOP853 to round-off; scipy's ``solve_ivp`` steps in
+   Python and is not run): its candidate says ``implementation =
+   "compiled"``. A confirmation at a setting a calibration run already ran
+   reuses that run (the runs are deterministic); timing repeats are new runs.
 4. *Model.* A linear model has a closed form (its modal solution: no
    integration needed for the answer); a nonlinear one with a linearization
    is compared with its linearized closed form at this amplitude.
