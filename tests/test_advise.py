@@ -304,3 +304,42 @@ def test_heyoka_sympy_and_matplotlib_are_imported_only_when_needed(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert "LOADED []" in r.stdout and "fewest RHS calls:" in r.stdout
+
+
+class _Calls:
+    """A problem whose adaptive runs return ``(err, rhs, wall)`` per rtol."""
+
+    def __init__(self, table):
+        self.table, self.ran = table, []
+
+    def run(self, method, tol):
+        self.ran.append(tol)
+        err, rhs, wall = self.table[tol]
+        return err, rhs, wall, "ok"
+
+    def measured(self, method, tol):   # as _Problem.measured: a run already made is reused
+        return self.run(method, tol) if tol not in self.ran else (*self.table[tol], "ok")
+
+
+_CVODE = SimpleNamespace(name="cvode-adams", adapter="cvode-adams", advisor_rtols=None, setting_name="rtol")
+
+
+def test_cvode_is_not_calibrated_further_when_its_loosest_run_cannot_win():
+    """CVODE (a Python callback per RHS call) after the others: its rtol 1e-4
+    run already took more calls than the fewest confirmed and over 10x the
+    fastest time: not run at 1e-8, named with the figures. Fewer calls, or a
+    quick run, or the method under test: calibrated as before (1e-4, 1e-8)."""
+    listed = [{"cost_rhs": 1e3, "cost_s": 1e-3}]
+    p = _Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)})
+    c = advise_mod._late_candidate(p, _CVODE, 1e-3, listed, "rk4")
+    assert p.ran == [1e-4] and c["skip"].startswith("not run past its calibration run at rtol = 0.0001")
+    assert "2e+04 RHS calls and 0.4 s (20 us per call)" in c["skip"] and "a prediction" in c["skip"]
+    assert advise_mod._not_listed(_CVODE, c, c["skip"])["reason"] == c["skip"]
+    for table, under in (({1e-4: (0.3, 5e2, 0.4), 1e-8: (1e-5, 9e4, 1.8)}, "rk4"),    # fewer calls than 1e3
+                         ({1e-4: (0.3, 2e4, 0.005), 1e-8: (1e-5, 9e4, 0.02)}, "rk4"),  # within 10x the fastest
+                         ({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}, "cvode-adams")):
+        p = _Calls(table)
+        c = advise_mod._late_candidate(p, _CVODE, 1e-3, listed, under)
+        assert "skip" not in c and p.ran == [1e-4, 1e-8] and c["source"] == "log-log line through 2 rtol"
+    assert "skip" not in advise_mod._late_candidate(_Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}),
+                                                    _CVODE, 1e-3, [], "rk4")   # nothing confirmed yet

@@ -108,7 +108,7 @@ from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step 
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
-           "SKIP_FACTOR", "SKIP_MIN_S", "sample_steps"]
+           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
@@ -139,6 +139,11 @@ TIMING_REPEATS = 3
 #: this factor.
 SKIP_FACTOR = 10.0
 SKIP_MIN_S = 0.2
+#: References whose right-hand side is a Python callback per call (CVODE
+#: through scikit-sundae, about 10 us a call): calibrated after every other
+#: candidate is confirmed, and only as far as they can still win
+#: (:func:`_late_candidate`).
+PYTHON_CALLBACK = ("cvode-adams", "cvode-bdf")
 TIMING_NOTE = (f"wall time measured on this machine: median of up to {TIMING_REPEATS} runs at the setting, "
                f"compile time (heyoka's JIT, numba) apart; a shared machine's load moves it")
 #: The two tolerances an adaptive method is first probed at, unless its
@@ -293,7 +298,7 @@ def _fixed_candidate(p: _Problem, method, target):
 
 def _adaptive_candidate(p: _Problem, method, target):
     tols = method.advisor_rtols or _RTOL_PAIR
-    pts = [(tol, *p.run(method, tol)) for tol in tols]
+    pts = [(tol, *getattr(p, "measured", p.run)(method, tol)) for tol in tols]
     good = [(tol, e, rhs) for tol, e, rhs, _, st in pts if st == "ok" and e > 0 and math.isfinite(e)]
     if len(good) < 2:
         return {"method": method.name, "setting": math.nan, "predicted_error": math.nan,
@@ -531,14 +536,52 @@ def _skip_reason(p, m, c, listed):
     return ""
 
 
+def _screen(m, c, target) -> str:
+    """Why the calibrated candidate ``c`` is not run at all ("" to run it)."""
+    if not (math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])):
+        return f"no setting predicted ({c['source']})"
+    if not c["predicted_error"] <= target:
+        return (f"predicted to miss: error {c['predicted_error']:.2g} at {m.setting_name} = {c['setting']:.3g} "
+                f"({c['source']})")
+    return ""
+
+
+def _late_candidate(p, m, target, listed, under) -> dict:
+    """A reference with a Python callback per RHS call (:data:`PYTHON_CALLBACK`),
+    calibrated after every other candidate was confirmed: its run at the
+    looser calibration rtol first; where that one run already took more RHS
+    calls than the fewest confirmed and over :data:`SKIP_FACTOR` times the
+    fastest time confirmed (and over :data:`SKIP_MIN_S`), it can win neither
+    choice at a tighter rtol, which takes more calls and time (a prediction),
+    and it is not calibrated further: ``c["skip"]`` says so. Else
+    :func:`_adaptive_candidate` (which reuses that run)."""
+    tol = (m.advisor_rtols or _RTOL_PAIR)[0]
+    err, rhs, wall, status = p.measured(m, tol)
+    if listed and m.name != under and status == "ok":
+        fewest = min(x["cost_rhs"] for x in listed)
+        fastest = min(x["cost_s"] for x in listed)
+        if rhs > fewest and wall > SKIP_FACTOR * fastest and wall > SKIP_MIN_S:
+            return {"setting": tol, "predicted_error": err, "predicted_rhs": rhs, "source": "one calibration run",
+                    "skip": (f"not run past its calibration run at {m.setting_name} = {tol:g}: that run already "
+                             f"took {rhs:.3g} RHS calls and {wall:.3g} s ({wall / rhs * 1e6:.3g} us per call), more "
+                             f"than the fewest calls confirmed ({fewest:.3g}) and over {SKIP_FACTOR:g}x the "
+                             f"fastest time confirmed ({fastest:.3g} s); a tighter {m.setting_name} takes more "
+                             f"(a prediction, not a measurement)")}
+    c = _adaptive_candidate(p, m, target)
+    return {**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]}
+
+
 def advise(scene, target: float) -> Advice:
     """Advice for ``scene`` (a :class:`rk4h.validation.scenes.Scene`) at the target
     relative error ``target``; see the module docstring."""
     p = _Problem(scene)
     adv = Advice(scene.name, float(target))
     methods = [scene.method(s) for s in scene.solvers]
+    late = [m for m in methods if not m.fixed_step and (m.adapter or m.name) in PYTHON_CALLBACK]
     cands = []
     for m in methods:
+        if any(m is x for x in late):
+            continue
         if m.fixed_step and m.kind in (Kind.TABLEAU, Kind.PARTITIONED):
             cands.append((m, _fixed_candidate(p, m, target)))
         elif not m.fixed_step:
@@ -549,27 +592,27 @@ def advise(scene, target: float) -> Advice:
     adv.warnings = _warnings(p, methods, [c for _, c in cands], target)
     todo = []
     for m, c in cands:
-        if not (math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])):
-            adv.not_listed.append(_not_listed(m, c, f"no setting predicted ({c['source']})"))
-        elif not c["predicted_error"] <= target:
-            adv.not_listed.append(_not_listed(m, c, f"predicted to miss: error {c['predicted_error']:.2g} at "
-                                                    f"{m.setting_name} = {c['setting']:.3g} ({c['source']})"))
+        why = _screen(m, c, target)
+        if why:
+            adv.not_listed.append(_not_listed(m, c, why))
         else:
             todo.append((m, c))
     from rk4h.validation.plan import under_test
 
     under = under_test(scene)  # the method under test is always confirmed
     listed = []
-    for m, c in sorted(todo, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name)):
+
+    def consider(m, c):
+        """Confirm ``c`` (unless it cannot win) and list it, or say why not."""
         skip = "" if m.name == under else _skip_reason(p, m, c, listed)
         if skip:
             adv.not_listed.append(_not_listed(m, c, skip))
-            continue
+            return
         conf = (_confirm_fixed if m.fixed_step else _confirm_adaptive)(p, m, c, target)
         if conf["status"] != "ok":
             adv.not_listed.append(_not_listed(m, c, f"not confirmed: the last run, at {m.setting_name} = "
                                                     f"{conf['setting']:.3g}, gave error {conf['error']:.2g}"))
-            continue
+            return
         compile_s = getattr(p, "compile", {}).get(m.name if m.fixed_step else (m.name, float(conf["setting"])), 0.0)
         cand = _listed(m, c, conf, _timed(p, m, conf["setting"], conf["wall"]), compile_s)
         cand["implementation"] = getattr(p, "implementation", {}).get(m.name, "")
@@ -590,6 +633,15 @@ def advise(scene, target: float) -> Advice:
                     f"sampled in [h/2, h] met the target when run (worst {cand['confirmed_error']:.2g}){above}; "
                     f"a step that was not run may still miss")
         listed.append(cand)
+    for m, c in sorted(todo, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name)):
+        consider(m, c)
+    for m in late:  # a Python callback per RHS call: calibrated only as far as it can still win
+        c = _late_candidate(p, m, target, listed, under)
+        why = c.get("skip") or _screen(m, c, target)
+        if why:
+            adv.not_listed.append(_not_listed(m, c, why))
+        else:
+            consider(m, c)
     adv.candidates = listed
     if not listed:
         adv.status = "no method confirmed to reach the target"
