@@ -11,7 +11,7 @@ default ``thesis-2dof-case1 planar4-case2``) it runs, as a subprocess,
 ``PY -m rk4h.validation.advise SCENE --target T --json`` (``--target``,
 default 1e-3) with before and after alternated (before, after, after,
 before, ...), after one untimed warm-up call of each (truths, numba and
-heyoka caches on disk). Printed per call: wall s (``time.perf_counter``
+heyoka caches on disk; ``--no-warm-up``: none). Printed per call: wall s (``time.perf_counter``
 around the subprocess), CPU s (user + system of the child,
 ``resource.getrusage(RUSAGE_CHILDREN)``), the 1-minute load average before
 it, and the answer (method, setting). The last lines per scene are the
@@ -55,10 +55,11 @@ def main(argv=None) -> int:
     ap.add_argument("--scenes", nargs="+", default=["thesis-2dof-case1", "planar4-case2"])
     ap.add_argument("--target", default="1e-3")
     ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--no-warm-up", action="store_true", help="skip the untimed first call (caches known warm)")
     args = ap.parse_args(argv)
     sides = [("before", args.before), ("after", args.after)] if args.before else [("after", args.after)]
     for scene in args.scenes:
-        for _, py in sides:  # warm-up: disk caches
+        for _, py in ([] if args.no_warm_up else sides):  # warm-up: disk caches
             _call(py, scene, args.target)
         got = {name: [] for name, _ in sides}
         for k in range(args.rounds):
