@@ -59,7 +59,11 @@ How (all plain data):
    report), with the compile time (``compile_s``) apart. A candidate other
    than the method under test whose predicted calls and time are both over
    :data:`SKIP_FACTOR` times the best confirmed is not run
-   (:data:`SKIP_MIN_S`).
+   (:data:`SKIP_MIN_S`). CVODE (:data:`PYTHON_CALLBACK`: a Python callback
+   per right-hand-side call) is calibrated after every other candidate is
+   confirmed, and not past its looser calibration run when that run alone
+   already took more calls than the fewest confirmed and over
+   :data:`SKIP_FACTOR` times the fastest time (:func:`_late_candidate`).
 3. *Choice.* The answer (``method``, ``setting``, ...) is the listed
    candidate with the fewest RHS calls, a deterministic cost; ``fastest``
    names the listed one with the smallest median wall time, with
