@@ -239,3 +239,107 @@ def test_planar4_case2_rk4_step_meets_the_target_when_run_independently(target):
     assert float(np.max(np.abs(run.y - y_ref)) / np.max(np.abs(y_ref))) <= target
     # against the independent truth, within what the two truths differ by
     assert float(np.max(np.abs(run.y - y_ind)) / np.max(np.abs(y_ind))) <= target + truths_apart
+
+
+def test_dop853_is_run_and_timed_as_its_compiled_loop_and_said_so(monkeypatch):
+    """DOP853's calibration, confirmation and timing runs go through
+    integrate_compiled (scipy's solve_ivp steps in Python): the listed
+    candidate says so, its confirmed error is the compiled loop's at the
+    listed rtol, scipy's DOP853 there meets the target too, and a
+    confirmation at an rtol the calibration ran reuses that run."""
+    from rk4h.references.solvers import integrate_compiled
+    from rk4h.validation.execute import problem
+
+    target = 1e-3
+    runs = []
+    real_run = _Problem.run
+
+    def spy(self, method, setting):
+        runs.append((method.name, float(setting)))
+        return real_run(self, method, setting)
+
+    monkeypatch.setattr(_Problem, "run", spy)
+    scene = _scene("thesis-2dof-case1")
+    adv = advise(scene, target)
+    listed = {c["method"]: c for c in adv.candidates}
+    dop = listed["dop853"]
+    assert dop["implementation"] == "compiled"
+    assert all(c["implementation"] == "" for n, c in listed.items() if n != "dop853")
+    model, y0 = problem(scene)
+    t = scene.t_eval()
+    run = integrate_compiled(scene.method("dop853"), model, y0, t, dop["setting"])
+    assert run.extra["implementation"] == "compiled" and run.nfev == dop["cost_rhs"]
+    assert _error(scene, "dop853", dop["setting"]) <= target      # scipy's, at the listed rtol
+    assert "dop853: run and timed as its compiled loop" in advise_mod._text(adv)
+    # heyoka's predicted rtol is one it was calibrated at: the confirming run is that run, the rest timing repeats
+    hey = listed["heyoka"]
+    assert any(s == hey["setting"] for s, _ in hey["calibration"])
+    assert runs.count(("heyoka", hey["setting"])) == hey["timing_runs"]
+
+
+def test_a_candidate_that_cannot_win_is_not_run_and_named_with_why():
+    """The skip rule (SKIP_FACTOR): predicted calls and time both over 10x the
+    best confirmed, and over SKIP_MIN_S: not run, with the figures; under any
+    of the three: run."""
+    p = SimpleNamespace(rate={"slow": 1e-4})
+    listed = [{"cost_rhs": 1e3, "cost_s": 1e-3}]
+    m = SimpleNamespace(name="slow")
+    why = advise_mod._skip_reason(p, m, {"predicted_rhs": 1e5}, listed)     # 1e5 calls, 10 s
+    assert why.startswith("not run: predicted 1e+05 RHS calls and 10 s") and "a prediction" in why
+    assert advise_mod._skip_reason(p, m, {"predicted_rhs": 9e3}, listed) == ""       # calls within 10x
+    assert advise_mod._skip_reason(SimpleNamespace(rate={"slow": 1e-9}), m, {"predicted_rhs": 1e5}, listed) == ""
+    assert advise_mod._skip_reason(p, m, {"predicted_rhs": 1e5}, []) == ""           # nothing confirmed yet
+
+
+def test_heyoka_sympy_and_matplotlib_are_imported_only_when_needed(tmp_path):
+    """A scene without heyoka among its solvers: the advice imports neither
+    heyoka nor sympy (its import pulls sympy in), nor matplotlib."""
+    text = (REPO / "validation" / "scenes" / "thesis_2dof_case1.toml").read_text()
+    lines = [('solvers = ["rk4", "dop853"]' if ln.startswith("solvers =") else ln) for ln in text.splitlines()]
+    scene = tmp_path / "lite.toml"
+    scene.write_text("\n".join(lines) + "\n")
+    code = ("import sys\nfrom rk4h.validation import advise\n"
+            f"assert advise.main([{str(scene)!r}, '--target', '1e-3']) == 0\n"
+            "print('LOADED', sorted(m for m in ('heyoka', 'sympy', 'matplotlib') if m in sys.modules))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "LOADED []" in r.stdout and "fewest RHS calls:" in r.stdout
+
+
+class _Calls:
+    """A problem whose adaptive runs return ``(err, rhs, wall)`` per rtol."""
+
+    def __init__(self, table):
+        self.table, self.ran = table, []
+
+    def run(self, method, tol):
+        self.ran.append(tol)
+        err, rhs, wall = self.table[tol]
+        return err, rhs, wall, "ok"
+
+    def measured(self, method, tol):   # as _Problem.measured: a run already made is reused
+        return self.run(method, tol) if tol not in self.ran else (*self.table[tol], "ok")
+
+
+_CVODE = SimpleNamespace(name="cvode-adams", adapter="cvode-adams", advisor_rtols=None, setting_name="rtol")
+
+
+def test_cvode_is_not_calibrated_further_when_its_loosest_run_cannot_win():
+    """CVODE (a Python callback per RHS call) after the others: its rtol 1e-4
+    run already took more calls than the fewest confirmed and over 10x the
+    fastest time: not run at 1e-8, named with the figures. Fewer calls, or a
+    quick run, or the method under test: calibrated as before (1e-4, 1e-8)."""
+    listed = [{"cost_rhs": 1e3, "cost_s": 1e-3}]
+    p = _Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)})
+    c = advise_mod._late_candidate(p, _CVODE, 1e-3, listed, "rk4")
+    assert p.ran == [1e-4] and c["skip"].startswith("not run past its calibration run at rtol = 0.0001")
+    assert "2e+04 RHS calls and 0.4 s (20 us per call)" in c["skip"] and "a prediction" in c["skip"]
+    assert advise_mod._not_listed(_CVODE, c, c["skip"])["reason"] == c["skip"]
+    for table, under in (({1e-4: (0.3, 5e2, 0.4), 1e-8: (1e-5, 9e4, 1.8)}, "rk4"),    # fewer calls than 1e3
+                         ({1e-4: (0.3, 2e4, 0.005), 1e-8: (1e-5, 9e4, 0.02)}, "rk4"),  # within 10x the fastest
+                         ({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}, "cvode-adams")):
+        p = _Calls(table)
+        c = advise_mod._late_candidate(p, _CVODE, 1e-3, listed, under)
+        assert "skip" not in c and p.ran == [1e-4, 1e-8] and c["source"] == "log-log line through 2 rtol"
+    assert "skip" not in advise_mod._late_candidate(_Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}),
+                                                    _CVODE, 1e-3, [], "rk4")   # nothing confirmed yet

@@ -59,7 +59,11 @@ How (all plain data):
    report), with the compile time (``compile_s``) apart. A candidate other
    than the method under test whose predicted calls and time are both over
    :data:`SKIP_FACTOR` times the best confirmed is not run
-   (:data:`SKIP_MIN_S`).
+   (:data:`SKIP_MIN_S`). CVODE (:data:`PYTHON_CALLBACK`: a Python callback
+   per right-hand-side call) is calibrated after every other candidate is
+   confirmed, and not past its looser calibration run when that run alone
+   already took more calls than the fewest confirmed and over
+   :data:`SKIP_FACTOR` times the fastest time (:func:`_late_candidate`).
 3. *Choice.* The answer (``method``, ``setting``, ...) is the listed
    candidate with the fewest RHS calls, a deterministic cost; ``fastest``
    names the listed one with the smallest median wall time, with
@@ -67,6 +71,13 @@ How (all plain data):
    unless the medians are :data:`rk4h.validation.trust.TIME_MARGIN` apart and the
    repeats disjoint), and ``fastest_one_run`` the fastest with its compile
    time added.
+   DOP853 (any reference with a compiled loop,
+   :data:`rk4h.references.solvers.COMPILED_RUNNERS`) is calibrated, confirmed
+   and timed as that loop (:func:`rk4h.references.solvers.integrate_compiled`,
+   equal to scipy's DOP853 to round-off; scipy's ``solve_ivp`` steps in
+   Python and is not run): its candidate says ``implementation =
+   "compiled"``. A confirmation at a setting a calibration run already ran
+   reuses that run (the runs are deterministic); timing repeats are new runs.
 4. *Model.* A linear model has a closed form (its modal solution: no
    integration needed for the answer); a nonlinear one with a linearization
    is compared with its linearized closed form at this amplitude.
@@ -101,7 +112,7 @@ from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step 
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
-           "SKIP_FACTOR", "SKIP_MIN_S", "sample_steps"]
+           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
@@ -132,6 +143,11 @@ TIMING_REPEATS = 3
 #: this factor.
 SKIP_FACTOR = 10.0
 SKIP_MIN_S = 0.2
+#: References whose right-hand side is a Python callback per call (CVODE
+#: through scikit-sundae, about 10 us a call): calibrated after every other
+#: candidate is confirmed, and only as far as they can still win
+#: (:func:`_late_candidate`).
+PYTHON_CALLBACK = ("cvode-adams", "cvode-bdf")
 TIMING_NOTE = (f"wall time measured on this machine: median of up to {TIMING_REPEATS} runs at the setting, "
                f"compile time (heyoka's JIT, numba) apart; a shared machine's load moves it")
 #: The two tolerances an adaptive method is first probed at, unless its
@@ -185,13 +201,23 @@ class _Problem:
         self.omega_max = trust.fastest_omega(self.model)  # NaN: no stability cap, no aliasing check
         self.rate = {}      # method name -> the smallest wall s per RHS call of its runs
         self.compile = {}   # (method name, setting) and method name -> largest compile s (heyoka's JIT, numba)
+        self.implementation = {}  # method name -> "compiled" where its compiled loop ran (see run)
+        self.runs = {}      # (method name, setting) -> the first run's result (see measured)
 
     def run(self, method, setting):
-        """``(error_rel, rhs calls, wall s, status)`` of one run."""
-        from rk4h.references.solvers import integrate
+        """``(error_rel, rhs calls, wall s, status)`` of one run.
 
+        A reference with a compiled loop (DOP853:
+        :func:`rk4h.references.solvers.integrate_compiled`, equal to scipy's
+        to round-off) runs it, for its calibration, confirmation and timing
+        alike; :attr:`implementation` records that it did."""
+        from rk4h.references.solvers import COMPILED_RUNNERS, integrate, integrate_compiled
+
+        runner = integrate_compiled if method.name in COMPILED_RUNNERS else integrate
         with np.errstate(all="ignore"):
-            run = integrate(method, self.model, self.y0, self.t, setting)
+            run = runner(method, self.model, self.y0, self.t, setting)
+        if (run.extra or {}).get("implementation") == "compiled":
+            self.implementation[method.name] = "compiled"
         err = metrics.error_max(run.y, self.y_ref) / self.scale
         rhs = trust.rhs_calls({"nfev": run.nfev, "n_steps": run.n_steps, "taylor_order": run.taylor_order or 0})
         status = getattr(run.status, "value", str(run.status))
@@ -199,7 +225,16 @@ class _Problem:
             self.rate[method.name] = min(self.rate.get(method.name, math.inf), run.wall_s / rhs)
         for key in ((method.name, float(setting)), method.name):
             self.compile[key] = max(self.compile.get(key, 0.0), float(run.compile_s or 0.0))
-        return (err if status == "ok" else math.nan), rhs, run.wall_s, status
+        out = (err if status == "ok" else math.nan), rhs, run.wall_s, status
+        self.runs.setdefault((method.name, float(setting)), out)
+        return out
+
+    def measured(self, method, setting):
+        """:meth:`run`'s result at ``setting``, from the run already made there
+        (a calibration run reused as a confirmation) or from a new run; the
+        runs are deterministic, so the error and calls are the same."""
+        hit = self.runs.get((method.name, float(setting)))
+        return hit if hit is not None else self.run(method, setting)
 
     def h_stab(self, method) -> float:
         return trust.stable_step(method, self.omega_max)
@@ -267,7 +302,7 @@ def _fixed_candidate(p: _Problem, method, target):
 
 def _adaptive_candidate(p: _Problem, method, target):
     tols = method.advisor_rtols or _RTOL_PAIR
-    pts = [(tol, *p.run(method, tol)) for tol in tols]
+    pts = [(tol, *getattr(p, "measured", p.run)(method, tol)) for tol in tols]
     good = [(tol, e, rhs) for tol, e, rhs, _, st in pts if st == "ok" and e > 0 and math.isfinite(e)]
     if len(good) < 2:
         return {"method": method.name, "setting": math.nan, "predicted_error": math.nan,
@@ -362,7 +397,7 @@ def _confirm_fixed(p, method, cand, target) -> dict:
 
     def run(h):
         if h not in cache:
-            cache[h] = p.run(method, h)
+            cache[h] = getattr(p, "measured", p.run)(method, h)
         return cache[h]
 
     rise = _rise(cand["calibration"])
@@ -403,7 +438,7 @@ def _confirm_adaptive(p, method, cand, target) -> dict:
     :func:`_confirm_fixed`'s."""
     setting, evidence = cand["setting"], []
     for _ in range(CONFIRM_TRIES):
-        err, rhs, wall, status = p.run(method, setting)
+        err, rhs, wall, status = getattr(p, "measured", p.run)(method, setting)
         evidence.append([setting, err])
         if status == "ok" and err <= target:
             return {"status": "ok", "setting": setting, "error": err, "rhs": rhs, "wall": wall, "sample": [],
@@ -505,14 +540,52 @@ def _skip_reason(p, m, c, listed):
     return ""
 
 
+def _screen(m, c, target) -> str:
+    """Why the calibrated candidate ``c`` is not run at all ("" to run it)."""
+    if not (math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])):
+        return f"no setting predicted ({c['source']})"
+    if not c["predicted_error"] <= target:
+        return (f"predicted to miss: error {c['predicted_error']:.2g} at {m.setting_name} = {c['setting']:.3g} "
+                f"({c['source']})")
+    return ""
+
+
+def _late_candidate(p, m, target, listed, under) -> dict:
+    """A reference with a Python callback per RHS call (:data:`PYTHON_CALLBACK`),
+    calibrated after every other candidate was confirmed: its run at the
+    looser calibration rtol first; where that one run already took more RHS
+    calls than the fewest confirmed and over :data:`SKIP_FACTOR` times the
+    fastest time confirmed (and over :data:`SKIP_MIN_S`), it can win neither
+    choice at a tighter rtol, which takes more calls and time (a prediction),
+    and it is not calibrated further: ``c["skip"]`` says so. Else
+    :func:`_adaptive_candidate` (which reuses that run)."""
+    tol = (m.advisor_rtols or _RTOL_PAIR)[0]
+    err, rhs, wall, status = p.measured(m, tol)
+    if listed and m.name != under and status == "ok":
+        fewest = min(x["cost_rhs"] for x in listed)
+        fastest = min(x["cost_s"] for x in listed)
+        if rhs > fewest and wall > SKIP_FACTOR * fastest and wall > SKIP_MIN_S:
+            return {"setting": tol, "predicted_error": err, "predicted_rhs": rhs, "source": "one calibration run",
+                    "skip": (f"not run past its calibration run at {m.setting_name} = {tol:g}: that run already "
+                             f"took {rhs:.3g} RHS calls and {wall:.3g} s ({wall / rhs * 1e6:.3g} us per call), more "
+                             f"than the fewest calls confirmed ({fewest:.3g}) and over {SKIP_FACTOR:g}x the "
+                             f"fastest time confirmed ({fastest:.3g} s); a tighter {m.setting_name} takes more "
+                             f"(a prediction, not a measurement)")}
+    c = _adaptive_candidate(p, m, target)
+    return {**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]}
+
+
 def advise(scene, target: float) -> Advice:
     """Advice for ``scene`` (a :class:`rk4h.validation.scenes.Scene`) at the target
     relative error ``target``; see the module docstring."""
     p = _Problem(scene)
     adv = Advice(scene.name, float(target))
     methods = [scene.method(s) for s in scene.solvers]
+    late = [m for m in methods if not m.fixed_step and (m.adapter or m.name) in PYTHON_CALLBACK]
     cands = []
     for m in methods:
+        if any(m is x for x in late):
+            continue
         if m.fixed_step and m.kind in (Kind.TABLEAU, Kind.PARTITIONED):
             cands.append((m, _fixed_candidate(p, m, target)))
         elif not m.fixed_step:
@@ -523,29 +596,30 @@ def advise(scene, target: float) -> Advice:
     adv.warnings = _warnings(p, methods, [c for _, c in cands], target)
     todo = []
     for m, c in cands:
-        if not (math.isfinite(c["setting"]) and math.isfinite(c["predicted_rhs"])):
-            adv.not_listed.append(_not_listed(m, c, f"no setting predicted ({c['source']})"))
-        elif not c["predicted_error"] <= target:
-            adv.not_listed.append(_not_listed(m, c, f"predicted to miss: error {c['predicted_error']:.2g} at "
-                                                    f"{m.setting_name} = {c['setting']:.3g} ({c['source']})"))
+        why = _screen(m, c, target)
+        if why:
+            adv.not_listed.append(_not_listed(m, c, why))
         else:
             todo.append((m, c))
     from rk4h.validation.plan import under_test
 
     under = under_test(scene)  # the method under test is always confirmed
     listed = []
-    for m, c in sorted(todo, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name)):
+
+    def consider(m, c):
+        """Confirm ``c`` (unless it cannot win) and list it, or say why not."""
         skip = "" if m.name == under else _skip_reason(p, m, c, listed)
         if skip:
             adv.not_listed.append(_not_listed(m, c, skip))
-            continue
+            return
         conf = (_confirm_fixed if m.fixed_step else _confirm_adaptive)(p, m, c, target)
         if conf["status"] != "ok":
             adv.not_listed.append(_not_listed(m, c, f"not confirmed: the last run, at {m.setting_name} = "
                                                     f"{conf['setting']:.3g}, gave error {conf['error']:.2g}"))
-            continue
+            return
         compile_s = getattr(p, "compile", {}).get(m.name if m.fixed_step else (m.name, float(conf["setting"])), 0.0)
         cand = _listed(m, c, conf, _timed(p, m, conf["setting"], conf["wall"]), compile_s)
+        cand["implementation"] = getattr(p, "implementation", {}).get(m.name, "")
         if m.fixed_step:
             rise = _rise([(h, e) for h, e in cand["calibration"] + cand["evidence"]
                           if cand["setting"] / 8 <= h <= 8 * cand["setting"]])
@@ -563,6 +637,15 @@ def advise(scene, target: float) -> Advice:
                     f"sampled in [h/2, h] met the target when run (worst {cand['confirmed_error']:.2g}){above}; "
                     f"a step that was not run may still miss")
         listed.append(cand)
+    for m, c in sorted(todo, key=lambda mc: (mc[1]["predicted_rhs"], mc[0].name)):
+        consider(m, c)
+    for m in late:  # a Python callback per RHS call: calibrated only as far as it can still win
+        c = _late_candidate(p, m, target, listed, under)
+        why = c.get("skip") or _screen(m, c, target)
+        if why:
+            adv.not_listed.append(_not_listed(m, c, why))
+        else:
+            consider(m, c)
     adv.candidates = listed
     if not listed:
         adv.status = "no method confirmed to reach the target"
@@ -575,7 +658,7 @@ def advise(scene, target: float) -> Advice:
     by_time = sorted(listed, key=lambda x: (x["cost_s"], x["method"]))
     fast = by_time[0]
     adv.fastest = {k: fast[k] for k in ("method", "setting", "setting_name", "confirmed_error", "cost_rhs", "cost_s",
-                                        "cost_s_min", "cost_s_max", "compile_s")}
+                                        "cost_s_min", "cost_s_max", "compile_s", "implementation")}
     if len(by_time) > 1:
         nxt = by_time[1]
         adv.fastest["runner_up"] = nxt["method"]
@@ -622,6 +705,11 @@ def _text(adv: Advice) -> str:
                      f"{c['confirmed_error']:>9.2g} {c['cost_rhs']:>9.3g} {c['cost_s'] * 1e3:>8.3g} "
                      f"{c['compile_s'] * 1e3:>10.3g}  {how}")
     lines.append(f"  time: {adv.timing}")
+    for c in adv.candidates:
+        if c.get("implementation") == "compiled":
+            lines.append(f"  {c['method']}: run and timed as its compiled loop "
+                         f"(rk4h.references.solvers.integrate_compiled, equal to scipy's to round-off); scipy's "
+                         f"solve_ivp, which steps in Python, was not run")
     if adv.not_listed:
         lines.append("  not listed:")
         for c in adv.not_listed:
