@@ -241,3 +241,24 @@ def test_every_two_dof_model_per_instance(name, params, swept):
         res = ensemble(model, y0, (0.0, 1.0), h=0.01, method="stormer-verlet", params={swept: values},
                        backend="jax")
         assert _rel(res.y, ref) <= 1e-13
+
+
+def test_second_process_loads_the_batch_wrapper_from_the_disk_cache():
+    # The prange wrapper is generated beside its loop and loaded through codegen's loader: after
+    # this process has run a batch, a new process finds the wrapper in numba's on-disk cache (no
+    # compilation), and its instances still equal the scalar path bit for bit.
+    code = ("import numpy as np, rk4h\n"
+            "from rk4h.batch import _numba\n"
+            "from rk4h.references.solvers import integrate\n"
+            "m = rk4h.make_model('chain', {'masses': [0.815, 3.099], 'springs': [41.5, 138.0, 157.8]})\n"
+            "y0 = np.tile(m.state(np.array([0.005, 0.005])), (3, 1)); y0[:, 0] *= [0.5, 1.0, 1.5]\n"
+            "te = np.array([0.0, 0.5])\n"
+            "r = rk4h.ensemble(m, y0, (0.0, 0.5), h=0.01, method='rk4', backend='numba', t_eval=te)\n"
+            "(fn,) = _numba._BATCH.values()\n"
+            "same = all(np.array_equal(r.y[i], integrate('rk4', m, y0[i].copy(), te, 0.01).y.T) for i in range(3))\n"
+            "print(sum(fn.stats.cache_misses.values()), sum(fn.stats.cache_hits.values()), same)\n")
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    assert first.stdout.split()[2] == "True"
+    misses, hits, same = out.stdout.split()
+    assert (int(misses), int(hits), same) == (0, 1, "True")

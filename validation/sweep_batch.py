@@ -33,12 +33,13 @@ import numpy as np
 __all__ = ["BATCH_PURPOSES", "SpecGroup", "group", "execute_group", "batch_key"]
 
 #: A batch is formed only when its points together take at least this many
-#: steps (instances x steps each): below it, separate runs cost less than the
-#: batch's one-off compilation (the numba ``prange`` wrapper, once per process
-#: and method, not cached on disk: measured 3.7-12 s in a fresh process on the
-#: loaded 2-core development machine, against about 30 ns per RK4 step of a
-#: small model on one core).
-BATCH_MIN_STEPS = 10 ** 8
+#: steps (instances x steps each): below it, separate runs cost less than
+#: loading the batch's ``prange`` wrapper (generated beside the loop and kept
+#: in numba's on-disk cache, :func:`rk4h.batch._numba.batch_loop`: 0.47-0.59 s
+#: for the first batch of a process with a warm cache, 3.8-4.1 s when it is
+#: compiled, ``benchmarks/bench_batch_load.py`` on the loaded 2-core
+#: development machine), against about 30 ns per RK4 step of a small model.
+BATCH_MIN_STEPS = 2 * 10 ** 7
 #: Untimed purposes whose run is one fixed-step integration from the scene's
 #: initial state (:mod:`rk4h.validation.execute`): the state figures' run, a
 #: convergence sweep's run, the modal-energy run.

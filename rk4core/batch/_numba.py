@@ -7,46 +7,49 @@ scalar path's bit for bit."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
 
-from ..fast.codegen import MAX_UNROLLED_DIM, array_kernel, kernel
+from ..fast import codegen
+from ..fast.codegen import MAX_UNROLLED_DIM
 
 __all__ = ["run", "batch_loop"]
 
 _BATCH: dict = {}
 
 
-def _make(loop, array: bool):
-    """A ``parallel=True`` function running ``loop`` on every row of its
-    batched arguments (compiled in memory on first call, once per loop and
-    process)."""
-    if array:
-        @njit(parallel=True, error_model="numpy")
-        def batch(fp, ip, mass, w, y0, t0, step, n, idx, theta, ys, bound, pending, y_fail, out):
-            for b in prange(y0.shape[0]):
-                r = loop(fp[b], ip, mass[b], w[b], y0[b], t0, step, n, idx, theta, ys[b], bound[b], pending[b],
-                         y_fail[b])
-                out[b, 0] = r[0]
-                out[b, 1] = r[2]
-    else:
-        @njit(parallel=True, error_model="numpy")
-        def batch(fp, ip, mass, w, y0, t0, step, n, idx, theta, ys, bound, pending, y_fail, out):
-            for b in prange(y0.shape[0]):
-                r = loop(fp[b], ip, mass[b], y0[b], t0, step, n, idx, theta, ys[b], bound[b], pending[b],
-                         y_fail[b])
-                out[b, 0] = r[0]
-                out[b, 1] = r[2]
-    return batch
+def batch_source(loop_text: str, array: bool) -> str:
+    """``loop_text`` (:func:`rk4h.fast.codegen.source` or
+    :func:`~rk4h.fast.codegen.array_source`: the very text the scalar path
+    loads) followed by ``batch``, a ``parallel=True`` function running that
+    module's ``integrate`` on every row of its batched arguments;
+    ``out[b] = (steps completed, status)``. Loaded through codegen's loader,
+    the module and numba's compiled code of both functions live in rk4h's
+    private on-disk cache: the wrapper is compiled once per machine, not once
+    per process."""
+    work = "w[b], " if array else ""
+    return loop_text + f"""
+
+from numba import prange  # noqa: E402
+
+
+@njit(parallel=True, error_model="numpy")  # on-disk caching is switched on by codegen's loader
+def batch(fp, ip, mass, w, y0, t0, step, n, idx, theta, ys, bound, pending, y_fail, out):
+    for b in prange(y0.shape[0]):
+        r = integrate(fp[b], ip, mass[b], {work}y0[b], t0, step, n, idx, theta, ys[b], bound[b], pending[b],
+                      y_fail[b])
+        out[b, 0] = r[0]
+        out[b, 1] = r[2]
+"""
 
 
 def batch_loop(tab, kern, dim: int):
     """``(batch function, uses the array loop)`` for method ``tab``, force kernel ``kern``, state size ``dim``."""
     array = not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
-    loop = array_kernel(tab, kern) if array else kernel(tab, kern)
-    fn = _BATCH.get(id(loop))
+    key = codegen.loop_key(tab, kern, array)
+    fn = _BATCH.get(key)
     if fn is None:
-        fn = _BATCH[id(loop)] = (_make(loop, array), loop)  # the loop is kept, so its id is never reused
-    return fn[0], array
+        text = codegen.array_source(tab, kern) if array else codegen.source(tab, kern)
+        fn = _BATCH[key] = codegen.load_generated(batch_source(text, array)).batch
+    return fn, array
 
 
 def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64"):

@@ -74,8 +74,8 @@ from ..cachedir import UntrustedCacheError, private_dir
 from ..methods import Tableau
 from . import _kernels as K
 
-__all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "model_module", "compiled_kernels",
-           "module_name", "CacheWarning"]
+__all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "model_module",
+           "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
 
 #: Largest state size (2 n_dof) that gets a generated loop: the two-degree-of-
 #: freedom models, where the loop overhead is most of the cost. Larger states
@@ -518,7 +518,7 @@ def _array_stage(plan: _Plan, i: int) -> list:
 def array_kernel(tab: Tableau, kern):
     """The array loop of :func:`array_source` for ``(tab, kern)``, loaded as
     :func:`kernel` loads a straight-line loop."""
-    key = ("array",) + _cache_key(tab) + (kern.key(),)
+    key = loop_key(tab, kern, True)
     fn = _KERNELS.get(key)
     if fn is None:
         fn = _KERNELS[key] = _module(array_source(tab, kern)).integrate
@@ -707,6 +707,22 @@ def _module(text: str):
     return module
 
 
+def load_generated(text: str):
+    """The module of generated source ``text`` (a loop's text with more
+    generated functions after it), loaded as :func:`kernel` loads a loop:
+    from the verified private cache directory, numba's on-disk cache of every
+    function in it beside it."""
+    return _module(text)
+
+
+def loop_key(tab: Tableau, kern, array: bool) -> tuple:
+    """The key of :func:`kernel` (``array`` False) or :func:`array_kernel`
+    (True) for ``(tab, kern)``: equal keys, equal generated text."""
+    if array:
+        return ("array",) + _cache_key(tab) + (kern.key(),)
+    return ("loop",) + _cache_key(tab) + (kern.n_dof, kern.key(), kern.scalar_key())
+
+
 def kernel(tab: Tableau, kern):
     """The straight-line loop for method ``tab`` and force kernel ``kern``
     (:func:`source`): generated on first use in a process, then kept (numba
@@ -722,7 +738,7 @@ def kernel(tab: Tableau, kern):
     rewritten atomically and a :class:`CacheWarning` says so. If the
     directory cannot be verified, the loop is compiled in memory (no on-disk
     cache; one :class:`CacheWarning` names the directory and why)."""
-    key = ("loop",) + _cache_key(tab) + (kern.n_dof, kern.key(), kern.scalar_key())
+    key = loop_key(tab, kern, False)
     fn = _KERNELS.get(key)
     if fn is None:
         fn = _KERNELS[key] = _module(source(tab, kern)).integrate
