@@ -165,7 +165,8 @@ class Truth:
     def y_ext(self) -> np.ndarray:
         """The reference in extended precision: a ``heyoka.real128`` array
         (``y + y_lo``); for exact-modal, ``y`` converted."""
-        import heyoka as hy
+        from rk4h._heyoka import heyoka as _heyoka
+        hy = _heyoka()
 
         y = self.y.astype(hy.real128)
         return y if self.y_lo is None else y + self.y_lo.astype(hy.real128)
@@ -388,7 +389,8 @@ def _exact_modal(model, y0, t) -> Truth:
 
 
 def _energy_cfunc(model):
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     key = model_key(model)
     cf = _ENERGY_CFUNC.get(key)
@@ -400,7 +402,8 @@ def _energy_cfunc(model):
 
 
 def _real128(model, y0, t, tol) -> Truth:
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     R = hy.real128
     ta, compile_s, _ = get_integrator(model, tol, "real128")

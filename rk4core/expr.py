@@ -1272,7 +1272,8 @@ def to_heyoka(exprs, symbols: Mapping):
     the Taylor recurrence of ``pow(x, a)`` divides by ``x`` and is NaN where
     ``x`` is exactly 0 (an FPUT spring at zero extension).
     """
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     items, single = _as_list(exprs)
     if not isinstance(symbols, Mapping):

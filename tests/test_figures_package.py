@@ -136,3 +136,25 @@ def test_scene_figures_quote_the_recorded_modes_without_an_eigensolve(tmp_path, 
     out = dict((p.name, s) for p, s in figures.scene_figures(tmp_path, "d", model, t, y, title="d"))
     assert "mode" not in out["d_displacement.png"]
     assert len(dict((p.name, f) for f, p in seen)["d_displacement.png"].axes) == 1
+
+
+def test_the_reading_guides_load_without_matplotlib_and_the_drawings_on_first_use():
+    """``--no-figures`` loads no drawing stack: the package imports its drawing
+    modules (and matplotlib) only when one of their names is used."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from rk4h.validation.figures import GENERIC_CAPTIONS, Caption\n"
+        "import rk4h.validation.report\n"
+        "assert GENERIC_CAPTIONS and 'matplotlib' not in sys.modules, sorted(m for m in sys.modules if 'matplotlib' in m)[:3]\n"
+        "from rk4h.validation import figures as F\n"
+        "assert callable(F.work_precision) and F.style.DPI == 120 and 'matplotlib' in sys.modules\n"
+        "ns = {}\n"
+        "exec('from rk4h.validation.figures import *', ns)\n"
+        "assert {'work_precision', 'new_figure', 'slug', 'GENERIC_CAPTIONS', 'scene_figures'} <= set(ns)\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"

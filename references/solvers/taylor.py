@@ -83,7 +83,8 @@ def scaled_system(model):
     with the reciprocal rounded to double, which in real128 is a different
     mass (relative 1e-17) and breaks energy conservation at that level.
     """
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     from rk4h.models import HEYOKA
 
@@ -107,7 +108,8 @@ def _pars(model, scales, dtype=float):
 def start_up() -> None:
     """heyoka's one-time start-up in this process, untimed (module docstring):
     a compile of a one-line system, done once."""
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     x, v = hy.make_vars("x", "v")
     hy.taylor_adaptive([(x, v), (v, -x)], [0.0, 1.0], tol=1e-6)
@@ -117,7 +119,8 @@ def get_integrator(model, tol: float, fp_type: str = "double"):
     """``(ta, compile_s, cached)``: the ``taylor_adaptive`` for ``(model, tol,
     fp_type)``, the seconds its compilation took (now, or when it was cached)
     and whether it came from the cache."""
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     key = (model_key(model), float(tol), fp_type)
     hit = _CACHE.get(key)
@@ -211,7 +214,8 @@ def outcome_status(outcome, n_rows: int, m: int, max_steps: int, t_fail: float, 
     state) is UNSTABLE; ``step_limit`` (the ``max_steps`` cap) and anything
     else, or fewer rows than the grid, are FAILED. ``t_fail`` (s) is heyoka's
     time when it stopped."""
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     if outcome == hy.taylor_outcome.time_limit and n_rows == m:
         return Status.OK, ""

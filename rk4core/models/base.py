@@ -114,7 +114,8 @@ NUMPY = Ops("numpy", np.sqrt, np.sin, np.cos)
 
 
 def _heyoka_ops():
-    import heyoka as hy
+    from rk4h._heyoka import heyoka as _heyoka
+    hy = _heyoka()
 
     vec = lambda f: np.frompyfunc(f, 1, 1)  # noqa: E731 - elementwise over object arrays
     return Ops("heyoka", vec(hy.sqrt), vec(hy.sin), vec(hy.cos))
@@ -599,7 +600,8 @@ class Model:
         The solvers therefore integrate
         :func:`rk4h.references.solvers.taylor.scaled_system`, which builds on the
         same ``_force`` and passes the masses as runtime parameters."""
-        import heyoka as hy
+        from rk4h._heyoka import heyoka as _heyoka
+        hy = _heyoka()
 
         names = [f"q{i}" for i in range(self.n_dof)] + [f"v{i}" for i in range(self.n_dof)]
         vs = hy.make_vars(*names)

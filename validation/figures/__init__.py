@@ -24,13 +24,41 @@ This package re-exports the public names of all four, so
 ``F.new_figure()`` and ``F.slug(...)`` work. Module-level settings that code
 changes at run time (:data:`style.SAVE_HOOK`, :data:`style.MINOR_SUBS`) are
 read where they live: set them on :mod:`rk4h.validation.figures.style`.
+The drawing modules (and matplotlib) are imported on the first use of one
+of their names; :data:`GENERIC_CAPTIONS` alone imports neither.
 """
 from __future__ import annotations
 
-from . import captions, measurement, scene, style
-from .captions import *  # noqa: F403
-from .measurement import *  # noqa: F403
-from .scene import *  # noqa: F403
-from .style import *  # noqa: F403
+import importlib
 
-__all__ = [*captions.__all__, *style.__all__, *scene.__all__, *measurement.__all__]
+from . import captions
+from .captions import *  # noqa: F403
+
+#: The drawing modules, imported on first use of one of their names: the
+#: reading guides (:mod:`captions`) need no matplotlib, so a run without
+#: figures (``--no-figures``) does not load the drawing stack.
+_DRAWING = ("style", "scene", "measurement")
+
+
+def _load_all():
+    names = list(captions.__all__)
+    for mod in _DRAWING:
+        m = importlib.import_module(f"{__name__}.{mod}")
+        for name in m.__all__:
+            globals()[name] = getattr(m, name)
+        names += m.__all__
+    globals()["__all__"] = names
+    return names
+
+
+def __getattr__(name):
+    if name in _DRAWING:
+        return importlib.import_module(f"{__name__}.{name}")
+    _load_all()
+    if name in globals():
+        return globals()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_load_all()) | set(_DRAWING))

@@ -1,0 +1,38 @@
+"""heyoka, imported without sympy.
+
+heyoka's compiled core imports sympy when it can, for its ``to_sympy`` /
+``from_sympy`` bridges, which nothing in rk4h uses; sympy is most of
+heyoka's import time (about 2 s of 2.7 s on the development machine, and
+that in every process that runs a heyoka reference or truth).
+:func:`heyoka` imports heyoka with sympy hidden for the duration of that one
+import, so its core skips the bridge; sympy itself stays importable
+afterwards (a later ``import sympy`` loads it as usual). Where sympy is
+already loaded nothing is hidden and heyoka gets its bridges.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+import threading
+
+__all__ = ["heyoka"]
+
+_LOCK = threading.Lock()
+
+
+def heyoka():
+    """The ``heyoka`` module (imported on the first call, without sympy
+    unless sympy is already loaded); ``ImportError`` when heyoka is not
+    installed, as ``import heyoka`` would."""
+    mod = sys.modules.get("heyoka")
+    if mod is not None:
+        return mod
+    with _LOCK:
+        if "sympy" in sys.modules:
+            return importlib.import_module("heyoka")
+        sys.modules["sympy"] = None  # an import of sympy now raises ImportError, which heyoka's core allows
+        try:
+            return importlib.import_module("heyoka")
+        finally:
+            if sys.modules.get("sympy", 0) is None:
+                del sys.modules["sympy"]
