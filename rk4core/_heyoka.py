@@ -15,20 +15,30 @@ import importlib
 import sys
 import threading
 
-__all__ = ["heyoka"]
+__all__ = ["heyoka", "own_process"]
 
 _LOCK = threading.Lock()
+_OWN_PROCESS = False
+
+
+def own_process() -> None:
+    """Say that this process is rk4h's own (a command-line tool or one of its
+    workers), where nothing needs heyoka's sympy bridges: :func:`heyoka`
+    may then import heyoka without sympy."""
+    global _OWN_PROCESS
+    _OWN_PROCESS = True
 
 
 def heyoka():
-    """The ``heyoka`` module (imported on the first call, without sympy
-    unless sympy is already loaded); ``ImportError`` when heyoka is not
-    installed, as ``import heyoka`` would."""
+    """The ``heyoka`` module (imported on the first call; without sympy in a
+    process marked by :func:`own_process` where sympy is not loaded yet);
+    ``ImportError`` when heyoka is not installed, as ``import heyoka``
+    would."""
     mod = sys.modules.get("heyoka")
     if mod is not None:
         return mod
     with _LOCK:
-        if "sympy" in sys.modules:
+        if not _OWN_PROCESS or "sympy" in sys.modules:
             return importlib.import_module("heyoka")
         sys.modules["sympy"] = None  # an import of sympy now raises ImportError, which heyoka's core allows
         try:

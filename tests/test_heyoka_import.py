@@ -1,4 +1,6 @@
-"""rk4h._heyoka: heyoka imported without sympy, sympy still importable after."""
+"""rk4h._heyoka: in rk4h's own processes heyoka is imported without sympy,
+sympy still importable after; a program using rk4h as a library keeps
+heyoka's sympy bridges."""
 import subprocess
 import sys
 
@@ -8,7 +10,8 @@ pytest.importorskip("heyoka")
 
 _CHILD = r"""
 import sys
-from rk4h._heyoka import heyoka
+from rk4h._heyoka import heyoka, own_process
+own_process()
 hy = heyoka()
 assert "sympy" not in sys.modules, "sympy was imported with heyoka"
 assert sys.modules["heyoka"] is hy and heyoka() is hy
@@ -25,7 +28,8 @@ print("ok")
 _CHILD_SYMPY_FIRST = r"""
 import sys
 import sympy
-from rk4h._heyoka import heyoka
+from rk4h._heyoka import heyoka, own_process
+own_process()
 hy = heyoka()
 x = hy.make_vars("x")
 s = hy.to_sympy(x)  # sympy loaded first: heyoka keeps its bridge
@@ -34,7 +38,29 @@ print("ok")
 """
 
 
-@pytest.mark.parametrize("code", [_CHILD, _CHILD_SYMPY_FIRST], ids=["fresh", "sympy-first"])
+_CHILD_LIBRARY = r"""
+import numpy as np
+import rk4h
+from rk4h.references.solvers import integrate
+m = rk4h.make_model("chain", {"masses": [1.0, 2.0], "springs": [1.0, 2.0, 3.0]})
+integrate("heyoka", m, m.state(np.array([0.01, 0.0])), np.array([0.0, 1.0]), 1e-10)  # rk4h imports heyoka
+import heyoka as hy
+import sympy
+assert hy.from_sympy(sympy.Symbol("x") ** 2) is not None  # a library user's heyoka keeps its bridge
+print("ok")
+"""
+
+_CHILD_CLI = r"""
+from rk4h import _heyoka
+import rk4h.validation.engine as engine
+engine._worker_init()
+assert _heyoka._OWN_PROCESS  # a worker of rk4h's runner is rk4h's own
+print("ok")
+"""
+
+
+@pytest.mark.parametrize("code", [_CHILD, _CHILD_SYMPY_FIRST, _CHILD_LIBRARY, _CHILD_CLI],
+                         ids=["fresh", "sympy-first", "library", "worker"])
 def test_heyoka_imports_without_sympy_and_leaves_it_importable(code):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr

@@ -730,8 +730,10 @@ _EXAMPLES = """examples:
 
 
 def main(argv=None, *, prog="advise.py") -> int:
+    from rk4h import _heyoka
     from rk4h.validation import extras
 
+    _heyoka.own_process()  # this process is rk4h's: heyoka may come without sympy
     lack = extras.message("advise", prog)
     if lack:
         print(lack, file=sys.stderr)

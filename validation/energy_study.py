@@ -45,6 +45,9 @@ def main(argv=None) -> int:
     status ``step_cap`` and a line on stderr. Exit 0; 1 when a reference hit
     its step cap (the rest is written); 2 on bad input (one line).
     """
+    from rk4h import _heyoka
+
+    _heyoka.own_process()  # this process is rk4h's: heyoka may come without sympy
     import argparse
     import csv
     import pathlib

@@ -103,6 +103,9 @@ _TELL = None
 def _worker_init(tell=None):
     global _TELL
     _TELL = tell
+    from rk4h import _heyoka
+
+    _heyoka.own_process()  # a worker of rk4h's runner: heyoka may come without sympy
     # Ctrl-C reaches the whole process group: the parent decides, workers stay quiet.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     # A worker dies with its parent (kill -9 of run_all): an orphan would go on

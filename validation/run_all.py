@@ -294,8 +294,10 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
 
     SIGINT and SIGTERM handlers are installed for the call and restored after
     it (``restore_signals=False``: ignored after it, for the process's exit)."""
+    from rk4h import _heyoka
     from rk4h.validation import extras, interrupt
 
+    _heyoka.own_process()  # this process is rk4h's: heyoka may come without sympy
     lack = extras.message("run", prog)
     if lack is None and argv is not None and "--scheduler" in argv:
         lack = extras.message("cluster", prog)
