@@ -6,8 +6,6 @@ step is backed by a sample of steps in [h/2, h] and meets the target when
 run independently."""
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -163,12 +161,36 @@ def test_a_candidate_predicted_to_miss_is_not_listed_nor_run(monkeypatch):
         assert (c["method"], c["setting"]) in runs and c["confirmed_error"] <= target
 
 
-def test_every_listed_candidate_is_confirmed_and_both_choices_are_named():
-    target = 1e-6
-    r = subprocess.run([sys.executable, "validation/advise.py", "thesis-2dof-case1", "--target", str(target), "--json"],
-                       cwd=REPO, capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr
-    d = json.loads(r.stdout)
+_TARGET = 1e-6
+
+
+@pytest.fixture(scope="module")
+def advised():
+    """``advise.py thesis-2dof-case1 --target 1e-6 --json`` run once, in
+    process (the advisor's run is what costs; these tests are not about the
+    process): its standard output and the :class:`Advice` it printed, which
+    the text test prints again."""
+    import contextlib
+    import io
+
+    seen = []
+    real = advise_mod.advise
+
+    def spy(scene, target):
+        seen.append(real(scene, target))
+        return seen[-1]
+
+    out = io.StringIO()
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out):
+        mp.setattr(advise_mod, "advise", spy)
+        rc = advise_mod.main(["thesis-2dof-case1", "--target", str(_TARGET), "--json"])
+    assert rc == 0 and len(seen) == 1
+    return out.getvalue(), seen[0]
+
+
+def test_every_listed_candidate_is_confirmed_and_both_choices_are_named(advised):
+    target = _TARGET
+    d = json.loads(advised[0])
     for key in ("method", "setting", "model", "predicted_error", "confirmed_error", "cost_rhs", "cost_s", "fastest"):
         assert key in d
     listed = {c["method"]: c for c in d["candidates"]}
@@ -192,11 +214,12 @@ def test_every_listed_candidate_is_confirmed_and_both_choices_are_named():
         assert _error(scene, name, listed[name]["setting"]) <= target
 
 
-def test_the_text_says_the_time_is_measured_here():
-    r = subprocess.run([sys.executable, "validation/advise.py", "three-blocks", "--target", "1e-3"],
-                       cwd=REPO, capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stderr
-    out = r.stdout
+def test_the_text_says_the_time_is_measured_here(advised, monkeypatch, capsys):
+    """The text form of the same advice (``advised``): main prints it without
+    running the advisor again."""
+    monkeypatch.setattr(advise_mod, "advise", lambda scene, target: advised[1])
+    assert advise_mod.main(["thesis-2dof-case1", "--target", str(_TARGET)]) == 0
+    out = capsys.readouterr().out
     assert "fewest RHS calls:" in out and "fastest here:" in out and "measured on this machine" in out
 
 

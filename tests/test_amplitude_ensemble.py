@@ -26,8 +26,17 @@ DOC = {
 }
 
 
-def test_a_small_amplitude_ensemble_through_run_all(tmp_path):
-    results, failures = run_all.run([scene_from_dict(copy.deepcopy(DOC))], tmp_path, workers=1)
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """``DOC`` through run_all once: (output directory, failures); the tests
+    below read the same run."""
+    out = tmp_path_factory.mktemp("amp-small")
+    results, failures = run_all.run([scene_from_dict(copy.deepcopy(DOC))], out, workers=1)
+    return out, failures
+
+
+def test_a_small_amplitude_ensemble_through_run_all(small_run):
+    tmp_path, failures = small_run
     assert failures == []
     t = pd.read_csv(tmp_path / "amplitude_ensemble.csv")
     assert len(t) == 10 and t.instances.sum() == 200 and (t.failed == 0).all()
@@ -39,10 +48,10 @@ def test_a_small_amplitude_ensemble_through_run_all(tmp_path):
     assert (tmp_path / "amp-small-amplitude-ensemble.png").stat().st_size > 0
 
 
-def test_the_slope_is_the_cubic_nonlinearity(tmp_path):
+def test_the_slope_is_the_cubic_nonlinearity(small_run):
     # displaced along x, the x springs stay linear and the y springs (no pretension at l) add k x^3 / l^2:
     # a frequency shift ~ (x/l)^2, so over a fixed time the deviation ~ x (x/l)^2 = x^3 while it is small
-    results, failures = run_all.run([scene_from_dict(copy.deepcopy(DOC))], tmp_path, workers=1)
+    tmp_path, _ = small_run
     t = pd.read_csv(tmp_path / "amplitude_ensemble.csv")
     small = t[(t.amplitude_high < 0.03 * L) & t.slope.notna()]
     assert len(small) >= 5

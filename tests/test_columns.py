@@ -2,7 +2,6 @@
 beside CSV, columns.json in every report, docs/columns.md generated from it."""
 import json
 import math
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -30,10 +29,17 @@ def fresh(tmp_path_factory):
     scene = tmp / "tiny.toml"
     scene.write_text(TINY)
     out = tmp / "out"
-    p = subprocess.run([sys.executable, "validation/run_all.py", "--scene", str(scene), "--out", str(out),
-                        "--repeats", "1", "--no-figures", "--workers", "1"], cwd=REPO,
-                       env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True, text=True, timeout=300)
-    assert p.returncode == 0, p.stdout + p.stderr
+    # in process: these tests read the tables, not the process (its start-up alone was ~10 s of ~20)
+    import contextlib
+    import io
+
+    from rk4h.validation import run_all
+
+    log = io.StringIO()
+    with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
+        rc = run_all.main(["--scene", str(scene), "--out", str(out), "--repeats", "1", "--no-figures",
+                           "--workers", "1"])
+    assert rc == 0, log.getvalue()
     return out
 
 

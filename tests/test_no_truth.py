@@ -45,7 +45,15 @@ outputs = ["state", "energy"]
 
 @pytest.fixture
 def tmp_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("RK4H_CACHE", str(tmp_path / "cache"))
+    """An empty truth cache (``tmp_path/cache/truth``): the truths here are
+    computed, not read from one an older heyoka wrote. Only the truth's: the
+    compiled loops keep the user's cache (a fresh ``RK4H_CACHE`` made the
+    scene's run compile its numba loop cold, 22 of its 30 s)."""
+    from rk4h.references import truth as T
+
+    real = T.cache_dir
+    fresh = tmp_path / "cache" / "truth"
+    monkeypatch.setattr(T, "cache_dir", lambda path=None: real(path if path is not None else fresh))
     return tmp_path / "cache"
 
 

@@ -8,9 +8,6 @@ exact tie of RHS calls is a tie, no run reaching the target is
 over a fresh ``--quick`` run and over the committed ``reports/cheapest.csv``.
 """
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -229,11 +226,17 @@ def _quick_scenes():
 def quick_cheapest(tmp_path_factory):
     out = tmp_path_factory.mktemp("verdict") / "q"
     names = _quick_scenes()
-    p = subprocess.run([sys.executable, "validation/run_all.py", "--quick", *(a for n in names for a in ("--scene", n)),
-                        "--out", str(out), "--repeats", "1", "--no-figures", "--workers", "1"],
-                       cwd=REPO, env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True, text=True,
-                       timeout=900)
-    assert p.returncode in (0, 1) and (out / "cheapest.csv").exists(), p.stdout[-2000:] + p.stderr
+    # in process: these tests read cheapest.csv, not the process
+    import contextlib
+    import io
+
+    from rk4h.validation import run_all
+
+    log = io.StringIO()
+    with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
+        rc = run_all.main(["--quick", *(a for n in names for a in ("--scene", n)), "--out", str(out),
+                           "--repeats", "1", "--no-figures", "--workers", "1"])
+    assert rc in (0, 1) and (out / "cheapest.csv").exists(), log.getvalue()[-2000:]
     return pd.read_csv(out / "cheapest.csv"), names
 
 

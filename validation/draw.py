@@ -36,36 +36,50 @@ def draw(job, out_dir, scenes_by_name) -> list:
         return _draw(job, out_dir, scenes_by_name)
 
 
-def _draw(job, out_dir, scenes_by_name) -> list:
+def _state(f, out_dir, name, d, scenes_by_name):
+    model = scenes_by_name[name].build_model()
+    thesis = d.get("thesis")
+    return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"],
+                           thesis=f"thesis {thesis}" if thesis else None, modal=d.get("modal"))
+
+
+def _stability(f, out_dir, name, d, scenes_by_name):
+    from . import stability
+
+    return [stability.draw(d["plot"], out_dir)]
+
+
+def _frame(rows):
     import pandas as pd
 
+    return pd.DataFrame(rows)
+
+
+#: The figure kinds drawn here: kind -> ``fn(figures module, out_dir, scene name, job data, scenes_by_name)``
+#: returning ``[(Path, sentence), ...]``. Kinds not listed are drawn by the output that declares them
+#: (:func:`rk4h.validation.outputs.drawer`).
+DRAWERS = {
+    "work_precision": lambda f, out, name, d, sc: [f.work_precision(out, name, _frame(d["rows"]))],
+    "energy_error": lambda f, out, name, d, sc: [f.energy_error(out, name, d["series"])],
+    "convergence": lambda f, out, name, d, sc: [f.convergence(out, name, _frame(d["points"]), _frame(d["fits"]))],
+    "modal_energy": lambda f, out, name, d, sc: [f.modal_energy(out, name, d["t"], d["series"], d["omega"],
+                                                                recurrence=d.get("recurrence", True))],
+    "dispersion": lambda f, out, name, d, sc: [f.dispersion(out, d["m"], d["k"], d["d"], d["n"], d["finite"],
+                                                            d["packets"], scene_name=name)],
+    "state": _state,
+    "stability": _stability,
+    "sweep": lambda f, out, name, d, sc: [sweep_figure(out, **d)],
+    "crossover": lambda f, out, name, d, sc: [f.crossover(out, _frame(d["rows"]))],
+}
+
+
+def _draw(job, out_dir, scenes_by_name) -> list:
     from . import figures as f
 
     d, name = job.data, job.scene
-    if job.kind == "work_precision":
-        return [f.work_precision(out_dir, name, pd.DataFrame(d["rows"]))]
-    if job.kind == "energy_error":
-        return [f.energy_error(out_dir, name, d["series"])]
-    if job.kind == "convergence":
-        return [f.convergence(out_dir, name, pd.DataFrame(d["points"]), pd.DataFrame(d["fits"]))]
-    if job.kind == "modal_energy":
-        return [f.modal_energy(out_dir, name, d["t"], d["series"], d["omega"],
-                               recurrence=d.get("recurrence", True))]
-    if job.kind == "dispersion":
-        return [f.dispersion(out_dir, d["m"], d["k"], d["d"], d["n"], d["finite"], d["packets"], scene_name=name)]
-    if job.kind == "state":
-        model = scenes_by_name[name].build_model()
-        thesis = d.get("thesis")
-        return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"],
-                               thesis=f"thesis {thesis}" if thesis else None, modal=d.get("modal"))
-    if job.kind == "stability":
-        from . import stability
-
-        return [stability.draw(d["plot"], out_dir)]
-    if job.kind == "sweep":
-        return [sweep_figure(out_dir, **d)]
-    if job.kind == "crossover":
-        return [f.crossover(out_dir, pd.DataFrame(d["rows"]))]
+    own = DRAWERS.get(job.kind)
+    if own is not None:
+        return own(f, out_dir, name, d, scenes_by_name)
     from . import outputs
 
     fn = outputs.drawer(job.kind)  # a figure an output draws itself (rk4h.validation.outputs.Output.draw)

@@ -140,8 +140,18 @@ def _with_values(specs, records, res):
 
 
 # -- accuracy, energy, work-precision --------------------------------------------------
+def _tables_wanted(scene) -> frozenset:
+    """Names of the tables the scene's outputs declare
+    (:attr:`rk4h.validation.outputs.Output.tables`): which rows the shared
+    runs add beside ``accuracy``."""
+    from . import outputs
+
+    return frozenset(t.name for o in scene.outputs if o in outputs.OUTPUTS for t in outputs.OUTPUTS[o].tables)
+
+
 def _runs(scene, specs, records, res, draw, confirm_specs=()):
     series = {}
+    wanted = _tables_wanted(scene)
     no_truth_runs = []
     for spec in specs:
         rec = records[spec.key]
@@ -172,14 +182,14 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
                              "nfev": nfev, "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
                              "compile_s": tm["compile_s"], "status": status, "message": rec.message,
                              "note": no_truth})
-        if "work_precision" in scene.outputs:
+        if "work_precision" in wanted:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                                        "wall_s": tm["wall_s"], "nfev": nfev, "n_steps": v["n_steps"],
                                        "taylor_order": v["taylor_order"], "status": status,
                                        "wall_min": tm.get("wall_min", tm["wall_s"]),
                                        "wall_max": tm.get("wall_max", tm["wall_s"]),
                                        "compile_s": tm["compile_s"]})
-        if "energy" in scene.outputs:
+        if "energy" in wanted:
             res.add("energy", _energy_row(scene, spec, rec, row, res))
             if "energy_rel" in rec.arrays and math.isfinite(v["energy_drift_max"]) and v["error_rel"] <= 10.0:
                 label = f"{spec.solver} {scene.method(spec.solver).setting_name}={spec.setting:g}"
@@ -188,12 +198,12 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
         runs = [f"{sp.solver} {sp.setting:g}" for sp, r in no_truth_runs if r == reason]
         res.check("errors against the truth", False,
                   f"{scene.name}: {len(runs)} run(s) have no errors ({', '.join(runs)}): {reason}")
-    if "work_precision" in scene.outputs and specs:
+    if "work_precision" in wanted and specs:
         _cheapest(scene, res, confirm_specs, records)
         if draw:
             wp = [r for r in res.tables.get("work_precision", []) if r["error_rel"] <= 10.0]
             res.figures.append(FigureJob(scene.name, "work_precision", {"rows": wp}))
-    if "convergence" in scene.outputs:
+    if "convergence" in wanted:
         _tolerance_checks(scene, res)
     if draw and series:
         res.figures.append(FigureJob(scene.name, "energy_error",
