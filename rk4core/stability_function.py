@@ -411,9 +411,15 @@ def partitioned_step_matrix(tab, hw):
     return out
 
 
+_BOUNDARIES: dict = {}
+
+
 def imaginary_axis_boundary(tab) -> float:
     """Largest ``y >= 0`` such that the method is stable on an undamped
     oscillator for every ``h w`` in ``[0, y]``.
+
+    Computed once per process for each set of exact coefficients (a
+    ten-stage splitting's exact polynomials take seconds) and kept.
 
     Classical: ``|R(i y')| <= 1`` for all ``0 <= y' <= y`` (RK4 and the 3/8
     rule ``2 sqrt 2``, Heun3 ``sqrt 3``; 0.0 when none, as Euler and
@@ -422,6 +428,15 @@ def imaginary_axis_boundary(tab) -> float:
     and symplectic Euler: 2). Dimensionless (``h w``); ``inf`` if stable for
     every ``h w``.
     """
+    key = (tab.A_exact, tab.b_exact, tab.c_exact, tab.A_v_exact, tab.b_v_exact, tab.partitioned,
+           tuple(None if x is None else np.asarray(x, dtype=float).tobytes() for x in (tab.A, tab.b, tab.A_v, tab.b_v)))
+    y = _BOUNDARIES.get(key)
+    if y is None:
+        y = _BOUNDARIES[key] = _imaginary_axis_boundary(tab)
+    return y
+
+
+def _imaginary_axis_boundary(tab) -> float:
     if not tab.partitioned:
         r = stability_polynomial(tab)
         excess = _snap(_modulus_excess_on_imaginary_axis(r), _excess_bound(r, _stability_polynomial_bound(tab)))

@@ -316,3 +316,22 @@ def test_real_boundary_matches_a_run(name):
 
     assert final(0.99 * edge) < 1.0
     assert final(1.01 * edge) > 1e6
+
+
+def test_imaginary_boundary_kept_per_coefficients_not_per_name():
+    # The boundary is kept per process for each set of coefficients: a tableau with the same name and
+    # other coefficients gets its own, and a repeated call answers from the memory without recomputing.
+    third = F(1, 3)
+    heun3 = make_tableau("same-name", [[0, 0, 0], [third, 0, 0], [0, 2 * third, 0]], [F(1, 4), 0, F(3, 4)])
+    rk4 = make_tableau("same-name", [[0, 0, 0, 0], [F(1, 2), 0, 0, 0], [0, F(1, 2), 0, 0], [0, 0, 1, 0]],
+                       [F(1, 6), F(1, 3), F(1, 3), F(1, 6)])
+    assert sf.imaginary_axis_boundary(heun3) == pytest.approx(math.sqrt(3), rel=1e-12)
+    assert sf.imaginary_axis_boundary(rk4) == pytest.approx(2 * math.sqrt(2), rel=1e-12)
+    calls = []
+    real = sf._imaginary_axis_boundary
+    try:
+        sf._imaginary_axis_boundary = lambda tab: calls.append(tab) or real(tab)
+        assert sf.imaginary_axis_boundary(heun3) == pytest.approx(math.sqrt(3), rel=1e-12)
+    finally:
+        sf._imaginary_axis_boundary = real
+    assert calls == []
