@@ -6,6 +6,8 @@ step is backed by a sample of steps in [h/2, h] and meets the target when
 run independently."""
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 from types import SimpleNamespace
 
