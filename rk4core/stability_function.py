@@ -421,7 +421,24 @@ def imaginary_axis_boundary(tab) -> float:
     :func:`partitioned_step_matrix` in the closed unit disk (Stormer-Verlet
     and symplectic Euler: 2). Dimensionless (``h w``); ``inf`` if stable for
     every ``h w``.
+
+    Worked out once per process for each tableau, by value (a tableau equal
+    to one seen before, as the same scene loaded again, reuses the result):
+    in exact arithmetic it takes seconds for the sixth-order geometric
+    methods (yoshida6 about 2 s CPU, blanes-moan6 about 4 s).
     """
+    try:
+        return _imaginary_axis_boundary_cached(tab)
+    except TypeError:  # an unhashable stand-in for a tableau
+        return _imaginary_axis_boundary(tab)
+
+
+@lru_cache(maxsize=256)
+def _imaginary_axis_boundary_cached(tab) -> float:
+    return _imaginary_axis_boundary(tab)
+
+
+def _imaginary_axis_boundary(tab) -> float:
     if not tab.partitioned:
         r = stability_polynomial(tab)
         excess = _snap(_modulus_excess_on_imaginary_axis(r), _excess_bound(r, _stability_polynomial_bound(tab)))

@@ -126,3 +126,23 @@ def test_importing_the_references_does_not_load_scipy_integrate():
     code = "import sys, rk4h.references.solvers, rk4h.references.truth; print('scipy.integrate' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "False"
+
+
+# -- the imaginary-axis boundary once per tableau ----------------------------------------------------------------
+def test_imaginary_axis_boundary_is_worked_out_once_per_tableau(monkeypatch):
+    from rk4h import stability_function as sf
+    from rk4h.methods import METHODS
+
+    sf._imaginary_axis_boundary_cached.cache_clear()
+    first = {n: sf.imaginary_axis_boundary(METHODS[n]) for n in ("rk4", "stormer-verlet", "forest-ruth")}
+    assert first["rk4"] == pytest.approx(8 ** 0.5, rel=1e-15) and first["stormer-verlet"] == 2.0
+    monkeypatch.setattr(sf, "_imaginary_axis_boundary", lambda tab: pytest.fail("recomputed"))
+    assert {n: sf.imaginary_axis_boundary(METHODS[n]) for n in first} == first
+    # a scene loaded twice gives equal (not identical) tableaux: the second reuses the first's result
+    a, b = (S.load_scene(S.SCENE_DIR / "geometric_2dof.toml").method("forest-ruth-as-data").tableau
+            for _ in range(2))
+    assert a is not b and a == b
+    monkeypatch.undo()
+    bound = sf.imaginary_axis_boundary(a)
+    monkeypatch.setattr(sf, "_imaginary_axis_boundary", lambda tab: pytest.fail("recomputed"))
+    assert sf.imaginary_axis_boundary(b) == bound
