@@ -425,12 +425,31 @@ def imaginary_axis_boundary(tab) -> float:
     Worked out once per process for each tableau, by value (a tableau equal
     to one seen before, as the same scene loaded again, reuses the result):
     in exact arithmetic it takes seconds for the sixth-order geometric
-    methods (yoshida6 about 2 s CPU, blanes-moan6 about 4 s).
+    methods (yoshida6 about 2 s CPU, blanes-moan6 about 4 s). For the
+    shipped geometric tableaux themselves (the objects of
+    :data:`rk4h.geometric.GEOMETRIC`) it is read from data that a test
+    recomputes.
     """
+    shipped = _shipped_bound(tab)
+    if shipped is not None:
+        return shipped
     try:
         return _imaginary_axis_boundary_cached(tab)
     except TypeError:  # an unhashable stand-in for a tableau
         return _imaginary_axis_boundary(tab)
+
+
+def _shipped_bound(tab):
+    """The stored boundary of a shipped geometric tableau (this very object),
+    else None. Reads :mod:`rk4h.geometric` only when it is loaded: a tableau
+    of it cannot exist otherwise."""
+    import sys
+
+    geometric = sys.modules.get(f"{__package__}.geometric")
+    name = getattr(tab, "name", None)
+    if geometric is None or not isinstance(name, str) or geometric.GEOMETRIC.get(name) is not tab:
+        return None
+    return geometric._IMAGINARY_AXIS_BOUNDS.get(name)
 
 
 @lru_cache(maxsize=256)

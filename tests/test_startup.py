@@ -146,3 +146,28 @@ def test_imaginary_axis_boundary_is_worked_out_once_per_tableau(monkeypatch):
     bound = sf.imaginary_axis_boundary(a)
     monkeypatch.setattr(sf, "_imaginary_axis_boundary", lambda tab: pytest.fail("recomputed"))
     assert sf.imaginary_axis_boundary(b) == bound
+
+
+def test_shipped_geometric_boundaries_are_those_worked_out():
+    """The shipped geometric tableaux' boundaries are data; recomputed here in exact arithmetic."""
+    from rk4h import geometric as G
+    from rk4h import stability_function as sf
+
+    assert set(G._IMAGINARY_AXIS_BOUNDS) == set(G.GEOMETRIC)
+    for name, tab in G.GEOMETRIC.items():
+        assert sf.imaginary_axis_boundary(tab) == G._IMAGINARY_AXIS_BOUNDS[name]
+        assert sf._imaginary_axis_boundary(tab) == G._IMAGINARY_AXIS_BOUNDS[name], name
+
+
+def test_a_copy_of_a_shipped_tableau_is_worked_out_not_read(monkeypatch):
+    import copy as copy_
+
+    from rk4h import geometric as G
+    from rk4h import stability_function as sf
+
+    copy = copy_.copy(G.FOREST_RUTH)
+    assert copy is not G.FOREST_RUTH and copy == G.FOREST_RUTH
+    monkeypatch.setitem(G._IMAGINARY_AXIS_BOUNDS, "forest-ruth", -1.0)  # would be read for the shipped object
+    assert sf.imaginary_axis_boundary(G.FOREST_RUTH) == -1.0
+    sf._imaginary_axis_boundary_cached.cache_clear()
+    assert sf.imaginary_axis_boundary(copy) == pytest.approx(1.5734, abs=1e-4)
