@@ -291,9 +291,9 @@ BOUNDARY_ALWAYS = ("rk4", "symplectic-euler", "stormer-verlet", "euler")
 GROWTH_ALWAYS = ("rk4", "symplectic-euler", "euler")
 
 
-def _tableau_method(tab) -> Method:
+def _tableau_method(tab, order: int | None = None) -> Method:
     kind = Kind.PARTITIONED if tab.partitioned else Kind.TABLEAU
-    return Method(tab.name, kind, int(tab.order), int(tab.nfev_per_step),
+    return Method(tab.name, kind, int(tab.order if order is None else order), int(tab.nfev_per_step),
                   _STYLES.get(tab.name, _USER_STYLES[0]), tab.description, tableau=tab)
 
 
@@ -310,12 +310,21 @@ BUILTIN_TABLEAUX = ("rk4", "euler", "symplectic-euler", "stormer-verlet")
 #: coefficients. Listed by name so that importing the registry does not
 #: build their tableaux; a test holds the list equal to ``GEOMETRIC``.
 GEOMETRIC_TABLEAUX = ("yoshida4", "yoshida6", "suzuki4", "forest-ruth", "blanes-moan4", "blanes-moan6")
+#: The order of each of :data:`GEOMETRIC_TABLEAUX`, as data: their order
+#: conditions in exact arithmetic cost about 0.5 s CPU (yoshida6 most), which
+#: every process importing the registry would pay for methods most runs never
+#: use. Each tableau's own ``order`` is still computed from its order
+#: conditions when a table or check reads it, and ``tests/test_startup.py``
+#: recomputes each and holds it equal to this.
+_GEOMETRIC_ORDERS = {"yoshida4": 4, "yoshida6": 6, "suzuki4": 4, "forest-ruth": 4, "blanes-moan4": 4,
+                     "blanes-moan6": 6}
 
 
 def _builtins() -> dict[str, Method]:
     from rk4h.methods import METHODS
 
-    out = {name: _tableau_method(METHODS[name]) for name in BUILTIN_TABLEAUX + GEOMETRIC_TABLEAUX}
+    out = {name: _tableau_method(METHODS[name], _GEOMETRIC_ORDERS.get(name))
+           for name in BUILTIN_TABLEAUX + GEOMETRIC_TABLEAUX}
     for name, text in _REFERENCE_TEXT.items():
         out[name] = Method(name, Kind.REFERENCE, None, None, _STYLES[name], text, **_REFERENCE_DATA[name])
     return out

@@ -558,6 +558,15 @@ BLANES_MOAN6 = _bm(["0.0502627644003922", "0.413514300428344", "0.04507988979439
 #: The shipped geometric methods by name (added to :data:`rk4h.methods.METHODS`).
 GEOMETRIC: dict[str, Tableau] = {t.name: t for t in (YOSHIDA4, YOSHIDA6, SUZUKI4, FOREST_RUTH, BLANES_MOAN4,
                                                      BLANES_MOAN6)}
+#: The end of each shipped method's stable interval of the imaginary axis
+#: (:func:`rk4h.stability_function.imaginary_axis_boundary`, dimensionless
+#: ``h w``), as data for these very objects: its exact root isolation takes
+#: about 2 s CPU for yoshida6 and 4 s for blanes-moan6, in every process whose
+#: methods table lists them. ``tests/test_startup.py`` recomputes each and
+#: holds it equal to this.
+_IMAGINARY_AXIS_BOUNDS = {"yoshida4": 1.57340194743454, "yoshida6": 2.2690579963976596,
+                          "suzuki4": 2.72097453856015, "forest-ruth": 1.57340194743454,
+                          "blanes-moan4": 3.1328233983908755, "blanes-moan6": 3.1342475220889923}
 
 
 def agreement(written: Tableau, shipped: Tableau) -> dict:

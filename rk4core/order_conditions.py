@@ -298,9 +298,29 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
         ``<= p`` holds; ``max_order`` means "at least ``max_order``". 0 when
         the weights do not sum to 1.
     """
+    key = _order_key(A, b, A_v, b_v, max_order, tol, uncertainty, trees)
+    found = _ORDERS.get(key) if key is not None else None
+    if found is not None:
+        return found
     J = _Judge(A, b, A_v, b_v, uncertainty, tol, trees)
     if max_order is None:
         max_order = MAX_ORDER_PARTITIONED if J.partitioned else MAX_ORDER
+    p_found = _order(J, max_order)
+    if key is not None:
+        if len(_ORDERS) >= _ORDERS_MAX:
+            _ORDERS.clear()
+        _ORDERS[key] = p_found
+    return p_found
+
+
+#: :func:`order` by its exact arguments, so that one tableau's order is worked
+#: out once per process (a scene loaded again, each point of a sweep, a
+#: written tableau equal to a shipped one), however many objects carry it.
+_ORDERS: dict = {}
+_ORDERS_MAX = 512
+
+
+def _order(J, max_order: int) -> int:
     for p in range(1, max_order + 1):
         for t in J.trees(p):
             residual = J.residual(t)
@@ -310,6 +330,18 @@ def order(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence |
                 continue
             return p - 1
     return max_order
+
+
+def _order_key(A, b, A_v, b_v, max_order, tol, uncertainty, trees):
+    """The exact arguments of :func:`order` as a hashable key; None when they
+    do not convert (the call then computes and raises as it would)."""
+    try:
+        unc = None if uncertainty is None else tuple(_exact(u) if u is not None else None for u in uncertainty)
+        key = (_exact(A), _exact(b), _exact(A_v), _exact(b_v), max_order, Fraction(tol), unc, trees)
+        hash(key)
+        return key
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+        return None
 
 
 def residuals(A: Sequence, b: Sequence, A_v: Sequence | None = None, b_v: Sequence | None = None, *,

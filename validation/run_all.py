@@ -11,8 +11,9 @@ Usage::
 Runs every scene in ``validation/scenes/`` (``--quick``: those marked
 ``quick = true``; ``--scene``: the files named) and writes CSV tables,
 figures and ``index.md`` into ``DIR`` (default: ``reports/`` at the
-repository root). All scenes are validated, and their cost estimated
-(:mod:`rk4h.validation.budget`), before anything runs.
+repository root). Every scene the run runs is validated, and its cost
+estimated (:mod:`rk4h.validation.budget`), before anything runs; ``--quick``
+reads the other files' ``quick`` mark only, and does not validate them.
 
 ``DIR`` is replaced only if it is absent, empty, or a report this tool wrote
 and nothing has changed in since (:mod:`rk4h.validation.atomic`: a marker file with

@@ -684,15 +684,22 @@ def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
 
     Returns one :class:`Scene` per sweep point (:mod:`rk4h.validation.sweeps`),
     file by file. A path may also name one point of a shipped scene,
-    ``BASE@TOKEN=VALUE...``. With ``quick``, keep the scenes marked ``quick =
-    true``. Every file is validated before any is run; the first bad one raises
-    :class:`SceneError`; two scenes with one name (or one figure-file stem) are
-    refused too. ``allow_code`` as for :func:`load_scene`.
+    ``BASE@TOKEN=VALUE...``. With ``quick`` (and no ``paths``), only the files
+    marked ``quick = true`` are loaded: the mark is read from each file's TOML
+    parse alone, and the other files are not validated, so a broken scene
+    outside the subset does not stop a quick run (a file whose mark cannot be
+    read is loaded, and refused). Every file loaded is validated before any is
+    run; the first bad one raises :class:`SceneError`; two loaded scenes with
+    one name (or one figure-file stem) are refused too. ``allow_code`` as for
+    :func:`load_scene`.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
     allow = code_allowed(allow_code)
-    if not paths:
+    if not paths and quick:
+        scenes = [s for f in sorted(SCENE_DIR.glob("*.toml")) if _marked_quick(f)
+                  for s in load_scene_points(f, allow_code=allow)]
+    elif not paths:
         scenes = [s for f in sorted(SCENE_DIR.glob("*.toml")) for s in load_scene_points(f, allow_code=allow)]
     else:
         scenes = [s for p in paths for s in _load_arg(p, allow)]
@@ -709,6 +716,19 @@ def load_scenes(paths=None, *, quick=False, allow_code=None) -> list[Scene]:
     if quick and not paths:
         scenes = [s for s in scenes if s.quick]
     return scenes
+
+
+def _marked_quick(path) -> bool:
+    """Whether a scene file is in the ``--quick`` subset, read from its TOML
+    parse alone (``quick = true`` at the top). A file that cannot be read or
+    parsed, or whose ``quick`` is not a boolean, counts as marked, so that
+    loading it raises its own error: what it meant cannot be told."""
+    try:
+        doc = _read_doc(Path(path))
+    except SceneError:
+        return True
+    flag = doc.get("quick", False)
+    return flag is True or not isinstance(flag, bool)
 
 
 def _exists(p) -> bool:

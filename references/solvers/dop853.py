@@ -44,7 +44,6 @@ import time
 import warnings
 
 import numpy as np
-from scipy.integrate import DOP853
 
 from .base import SolverRun, Status, compiled_rhs
 
@@ -129,6 +128,10 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
                max_steps: int = DEFAULT_MAX_STEPS) -> SolverRun:
     """Integrate ``model`` with DOP853 at ``rtol``/``atol``; never raises, and
     ends after at most ``max_steps`` accepted steps (see the module docstring)."""
+    # imported here, before the clock starts: scipy.integrate loads scipy.optimize and
+    # scipy.special, which a process running only the compiled loop never uses
+    from scipy.integrate import DOP853
+
     m = t_eval.shape[0]
     y = np.full((y0.shape[0], m), np.nan)
     y[:, 0] = y0

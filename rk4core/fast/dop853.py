@@ -71,9 +71,46 @@ def coefficients():
     read from ``scipy.integrate._ivp.dop853_coefficients``: ``A`` (16, 16)
     with the three dense-output stages in rows 13-15, ``B`` (12,), ``C`` (16,),
     ``E3``/``E5`` (13,), ``D`` (4, 16)."""
-    from scipy.integrate._ivp import dop853_coefficients as dc
-
+    dc = _scipy_coefficients()
     return tuple(np.ascontiguousarray(x, dtype=float) for x in (dc.A, dc.B, dc.C, dc.E3, dc.E5, dc.D))
+
+
+def _scipy_coefficients():
+    """The module ``scipy.integrate._ivp.dop853_coefficients``. Importing it
+    by name runs ``scipy.integrate``'s ``__init__``, which loads
+    ``scipy.optimize``, ``scipy.special`` and the rest of ``scipy.integrate``
+    (about 0.4 s CPU) that the compiled loop never uses; so, unless that
+    package is loaded already, the file (numpy arrays only) is executed from
+    scipy's installation under a private name. Any failure falls back to the
+    plain import."""
+    import sys
+
+    name = "scipy.integrate._ivp.dop853_coefficients"
+    if name in sys.modules or "scipy.integrate" in sys.modules:
+        import importlib
+
+        return importlib.import_module(name)
+    mod = sys.modules.get("rk4h.fast._scipy_dop853_coefficients")
+    if mod is not None:
+        return mod
+    try:
+        import importlib.util
+        from pathlib import Path
+
+        import scipy
+
+        path = Path(scipy.__file__).parent / "integrate" / "_ivp" / "dop853_coefficients.py"
+        spec = importlib.util.spec_from_file_location("rk4h.fast._scipy_dop853_coefficients", path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        for k in ("A", "B", "C", "E3", "E5", "D"):
+            getattr(mod, k)
+    except Exception:  # noqa: BLE001 - another layout of scipy: the plain import
+        import importlib
+
+        return importlib.import_module(name)
+    sys.modules["rk4h.fast._scipy_dop853_coefficients"] = mod
+    return mod
 
 
 def rhs_source(kern) -> str:
