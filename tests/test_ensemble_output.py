@@ -128,6 +128,22 @@ def test_chunks_of_instances_give_the_same_statistics(monkeypatch):
     assert chunked == whole and whole["instances"] == 40
 
 
+def test_loading_a_huge_ensemble_scene_draws_no_instances():
+    # Validation checks every field on one instance; the 10^8 instances (3.2 GB of y0 here) are
+    # drawn only by a run, which the budget refuses first.
+    import tracemalloc
+
+    doc = copy.deepcopy(DOC)
+    doc["ensemble"]["size"] = 10 ** 8
+    tracemalloc.start()
+    try:
+        scene_from_dict(doc)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 50e6, peak
+
+
 def test_the_budget_counts_every_instance():
     from rk4h.validation import budget
 

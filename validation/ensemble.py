@@ -113,7 +113,7 @@ def _index(key):
     return head, name, i
 
 
-def draw_instances(table, model, x, v=None):
+def draw_instances(table, model, x, v=None, *, probe: bool = False):
     """The instances of an ``[ensemble]`` table.
 
     Parameters
@@ -125,6 +125,10 @@ def draw_instances(table, model, x, v=None):
         The scene's model (its parameters are the defaults of the others).
     x, v : array_like, shape (n_dof,)
         The scene's initial positions and velocities (defaults of the others).
+    probe : bool
+        Check every field as for the full draw, but draw only one copy of
+        the grid (one instance when there is no grid): what a scene's
+        validation needs, without allocating ``size`` instances.
 
     Returns
     -------
@@ -169,6 +173,8 @@ def draw_instances(table, model, x, v=None):
     n_grid = int(np.prod([g.size for _, g in grids])) if grids else 1
     if size % n_grid:
         raise ValueError(f"`ensemble.size` must be a multiple of the grid's {n_grid} points, got {size}")
+    if probe:
+        size = n_grid
     rng = np.random.default_rng(seed)
     columns = {}
     if grids:

@@ -503,7 +503,7 @@ def _ensemble(path, table, outputs, model, x, v):
             raise SceneError(path, "run.outputs", f"`{wants[0]}` needs an [ensemble] table", wants[0])
         return None
     try:
-        draw_instances(table, model, x, v)
+        draw_instances(table, model, x, v, probe=True)  # the run draws all `size` instances
         if "stability_map" in outputs:
             map_settings(table, model)
     except ValueError as e:
