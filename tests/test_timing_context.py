@@ -1,6 +1,7 @@
 """Timings carry their context: the load average and CPU count around the
 timed runs are recorded in the report, and under a load above the CPUs every
-time verdict is a tie, with the reason (rk4h.validation.timing_context)."""
+time verdict between two measured sides is a tie, with the reason; one
+measured side keeps its verdict (rk4h.validation.timing_context)."""
 import math
 
 import pandas as pd
@@ -9,9 +10,14 @@ import pytest
 from rk4h.validation import timing_context as tc
 
 ROWS = [{"scene": "a", "target_error": 1e-3, "verdict_rhs": "rk4", "verdict_amortized": "rk4",
-         "verdict_one_run": "dop853", "note": "rk4 at h = 0.01 s"},
+         "verdict_one_run": "dop853", "note": "rk4 at h = 0.01 s", "confirmed": True, "alt_confirmed": True},
         {"scene": "a", "target_error": 1e-6, "verdict_rhs": "dop853", "verdict_amortized": "tie",
-         "verdict_one_run": "tie", "note": ""}]
+         "verdict_one_run": "tie", "note": "", "confirmed": True, "alt_confirmed": True}]
+# one measured side (the method had no run at the target), then neither
+ONE_SIDE = [{"scene": "b", "target_error": 1e-3, "verdict_rhs": "cvode-adams", "verdict_amortized": "cvode-adams",
+             "verdict_one_run": "cvode-adams", "note": "", "confirmed": False, "alt_confirmed": True},
+            {"scene": "b", "target_error": 1e-12, "verdict_rhs": "unmeasured", "verdict_amortized": "unmeasured",
+             "verdict_one_run": "unmeasured", "note": "", "confirmed": "False", "alt_confirmed": "False"}]
 
 
 def _snap(load, cpus=2):
@@ -32,9 +38,19 @@ def test_a_load_above_the_cpus_makes_every_time_verdict_a_tie():
     assert [r["verdict_rhs"] for r in out] == ["rk4", "dop853"]  # calls are deterministic: kept
     assert [r["note"] for r in out] == [r["note"] for r in ROWS]  # a deterministic column: kept
     assert out[0]["time_context"] == ("load 1.50 -> 6.30 (1 min, before -> after the timed runs) on 2 CPUs; time "
-                                      "verdicts are ties: load average 6.30 exceeded the 2 CPUs during the timed "
-                                      "runs (timings include waiting for a CPU)")
+                                      "verdicts between two measured sides are ties: load average 6.30 exceeded "
+                                      "the 2 CPUs during the timed runs (timings include waiting for a CPU)")
     assert ROWS[0]["verdict_amortized"] == "rk4"  # the input is not modified
+
+
+def test_under_load_a_verdict_with_one_measured_side_keeps_it():
+    # No tie without both sides measured: the one side with a run at the target keeps the verdict
+    # (no speed is compared), and an unmeasured verdict stays unmeasured.
+    ctx = tc.load_context(_snap(1.5), _snap(6.3), executed_timed=10)
+    out = tc.gate_time_verdicts(ONE_SIDE, ctx)
+    for r, was in zip(out, ONE_SIDE):
+        assert [r[c] for c in tc.TIME_VERDICT_COLUMNS] == [was[c] for c in tc.TIME_VERDICT_COLUMNS]
+        assert "exceeded the 2 CPUs" in r["time_context"]
 
 
 def test_the_context_column_is_a_timing_column():
@@ -92,12 +108,18 @@ def test_the_report_records_the_load_and_ties_under_it(tmp_path, monkeypatch, lo
     assert f"Load average (1 min) {load:.2f} before the timed runs and {load:.2f} after them, on 2 CPUs" in header
     assert cheapest.time_context.str.startswith(f"load {load:.2f} -> {load:.2f} (1 min").all()
     if load > 2:
-        assert set(cheapest.verdict_amortized) == {"tie"} and set(cheapest.verdict_one_run) == {"tie"}
+        both = cheapest.confirmed.astype(bool) & cheapest.alt_confirmed.astype(bool)
+        assert both.any()
+        for col in ("verdict_amortized", "verdict_one_run"):
+            assert set(cheapest.loc[both, col]) == {"tie"}
+            one = cheapest[~both & cheapest.confirmed.astype(bool)]   # only the method measured: it keeps the verdict
+            assert (one[col] == one["method"]).all()
         assert cheapest.time_context.str.contains("load average 9.00 exceeded the 2 CPUs").all()
-        assert "every time verdict is `tie`" in header and "ties (load above the CPUs)" in env
-        assert "and every one is `tie` here" in index
+        assert "every time verdict between two measured sides is `tie`" in header
+        assert "ties (load above the CPUs)" in env
+        assert "and every one between two measured sides is `tie` here" in index
         assert "- Timed under load: load average 9.00 exceeded the 2 CPUs" in index
     else:
         assert not cheapest.time_context.str.contains("ties").any()
-        assert "every time verdict is `tie`" not in header and "as measured (load within the CPUs)" in env
+        assert "every time verdict between two measured sides is `tie`" not in header and "as measured (load within the CPUs)" in env
         assert "Timed under load" not in index

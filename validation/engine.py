@@ -21,7 +21,8 @@ measures what a neighbour integrating on the other core does to a timing).
 Other processes on the machine are not under the report's control: the load
 average just before and after the timed stage is recorded
 (``PlanStats.load_before``/``load_after``, :mod:`rk4h.validation.timing_context`),
-and under a load above the CPU count every time verdict is a tie.
+and under a load above the CPU count every time verdict between two measured
+sides is a tie.
 ``exclusive_timing=True`` (``run_all.py --exclusive-timing``) runs them one at
 a time in one worker process (the *timing lane*) with the other workers idle,
 for a machine where parallel runs do disturb each other's timings.

@@ -348,8 +348,8 @@ def write_index(out_dir, *, results, tables, table_paths, failures, findings, mo
                   "amortized over many runs (compile excluded) and, where it differs, for one run (compile and "
                   "start-up included). A time verdict is `tie` unless the medians differ 3x and the repeats do "
                   "not overlap"
-                  + (", and every one is `tie` here: the load average exceeded the CPUs during the timed runs "
-                     "(see the header)" if load is not _NO_LOAD and timing_context.is_loaded(load) else "")
+                  + (", and every one between two measured sides is `tie` here: the load average exceeded the "
+                     "CPUs during the timed runs (see the header)" if load is not _NO_LOAD and timing_context.is_loaded(load) else "")
                   + ". `unmeasured`: no run of any method reached the target. Details: "
                   "[cheapest.csv](cheapest.csv).", ""]
         lines += trust

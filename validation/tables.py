@@ -101,7 +101,8 @@ DESCRIPTIONS = {
                 "`verdict_one_run` (time with compile and start-up); a time verdict is `tie` unless the "
                 "medians differ 3x and the repeats do not overlap. Only a side with a measured run at most "
                 "the target can win; neither: `unmeasured` (rk4h.validation.trust, rk4h.validation.confirm); every time verdict "
-                "is `tie` when the load average exceeded the CPUs during the timed runs; `time_context` "
+                "between two measured sides is `tie` when the load average exceeded the CPUs during the "
+                "timed runs (one measured side keeps its verdict); `time_context` "
                 "holds the loads before and after the timed runs and the CPUs (rk4h.validation.timing_context).",
     "dispersion": "the 100-mass chain's eigenfrequencies against the lattice dispersion relation "
                   "omega(kp_n); and wave packets integrated by RK4: `measured` is the speed of the energy centroid, "

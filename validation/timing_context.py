@@ -8,8 +8,11 @@ time-verdict cells changed). So a report records the load average
 1, 5 and 15 minutes, machine-wide) and the machine's CPU count just before and
 just after its timed runs (:func:`snapshot`, taken by
 :mod:`rk4h.validation.engine`), and when the load exceeded the CPUs at either
-moment every time verdict is a tie (:func:`gate_time_verdicts`) and index.md
-says why (:func:`sentence`, :func:`environment_lines`).
+moment every time verdict between two measured sides is a tie
+(:func:`gate_time_verdicts`) and index.md says why (:func:`sentence`,
+:func:`environment_lines`). A verdict with one measured side names that side
+whatever the load (the other has no run that meets the target: no speed is
+compared), and an unmeasured one stays unmeasured.
 
 The load includes the report's own worker processes (at most ``--workers``
 of them, one per timed run); a load above the CPU count means some process
@@ -75,8 +78,11 @@ def _reason(ctx) -> str:
 def gate_time_verdicts(rows, ctx) -> list[dict]:
     """``cheapest.csv`` rows with their timing context in ``time_context``
     (a timing column: the loads and CPUs, :func:`context_text`) and, when
-    the timed runs ran under load (:func:`is_loaded`), every time verdict
-    :data:`rk4h.validation.trust.TIE`, the reason in ``time_context``. The
+    the timed runs ran under load (:func:`is_loaded`), every time verdict of
+    a row whose two sides were both measured (``confirmed`` and
+    ``alt_confirmed``) :data:`rk4h.validation.trust.TIE`, the reason in
+    ``time_context``. A row with one measured side keeps its verdicts: they
+    name the only side with a run at the target, not the faster one. The
     RHS-call verdict is deterministic and kept, and so is ``note``.
     Returns new dicts; ``ctx`` None (no timed run) leaves the rows as they
     are."""
@@ -88,12 +94,18 @@ def gate_time_verdicts(rows, ctx) -> list[dict]:
     text = context_text(ctx)
     for r in rows:
         if any(c in r for c in TIME_VERDICT_COLUMNS):
-            if is_loaded(ctx):
+            if is_loaded(ctx) and _truthy(r.get("confirmed")) and _truthy(r.get("alt_confirmed")):
                 for c in TIME_VERDICT_COLUMNS:
                     if c in r:
                         r[c] = TIE
             r["time_context"] = text
     return rows
+
+
+def _truthy(v) -> bool:
+    """A ``confirmed`` cell as read back from a table or as built (bool, or "True")."""
+    return v is True or (isinstance(v, str) and v.lower() == "true") or (not isinstance(v, str) and bool(v) and
+                                                                      v == v)
 
 
 def context_text(ctx) -> str:
@@ -105,7 +117,7 @@ def context_text(ctx) -> str:
     if ctx["resumed_timed"]:
         text += f"; {ctx['resumed_timed']} timed record(s) resumed, load not known"
     if is_loaded(ctx):
-        text += f"; time verdicts are ties: {_reason(ctx)}"
+        text += f"; time verdicts between two measured sides are ties: {_reason(ctx)}"
     return text
 
 
@@ -115,7 +127,8 @@ def findings(ctx) -> list[str]:
     cost sweeps' wall times) are no evidence of speed; empty otherwise."""
     if not is_loaded(ctx):
         return []
-    return [f"Timed under load: {_reason(ctx)}; every time verdict is `tie`, and the wall times and the fits "
+    return [f"Timed under load: {_reason(ctx)}; every time verdict between two measured sides is `tie`, and "
+            f"the wall times and the fits "
             f"made from them (large-N time per step ~ N^p, the cost sweeps' time panels) describe this load, "
             f"not the methods."]
 
@@ -137,8 +150,9 @@ def sentence(ctx) -> str:
         bits.append(f"{ctx['resumed_timed']} timed record(s) were resumed from an earlier run, whose load is not "
                     f"known")
     if is_loaded(ctx):
-        bits.append(f"the load exceeded the CPUs, so the runs waited for CPUs: every time verdict is `tie` and "
-                    f"the timings and time fits (wall_s, the large-N time slopes) are not evidence of speed")
+        bits.append(f"the load exceeded the CPUs, so the runs waited for CPUs: every time verdict between two "
+                    f"measured sides is `tie` and the timings and time fits (wall_s, the large-N time slopes) are "
+                    f"not evidence of speed")
     elif not ctx["known"]:
         bits.append("the load during every timed run is not known: read the time verdicts with that in mind")
     return "; ".join(bits) + "."
