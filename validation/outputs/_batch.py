@@ -1,6 +1,21 @@
 """What the batch outputs (``ensemble``, ``stability_map``,
-``amplitude_ensemble``) share: their records, a failed one as a failed check."""
+``amplitude_ensemble``) share: the solvers they run, the words of their
+statistics, their records (a failed one as a failed check)."""
 from __future__ import annotations
+
+#: Each statistic over a batch's instances: its column suffix and its words.
+STAT_WORDS = (("median", "median"), ("p95", "95th percentile"), ("max", "maximum"))
+
+
+def tableau_solvers(scene) -> list:
+    """The scene's fixed-step solvers a batch can run (a tableau or a built-in name)."""
+    return [s for s in scene.fixed_solvers if scene.method(s).tableau is not None]
+
+
+def one_solver(scene) -> str:
+    """``rk4`` when the scene runs it, else its first solver a batch can run (else ``rk4``)."""
+    fixed = tableau_solvers(scene)
+    return "rk4" if "rk4" in fixed else (fixed[0] if fixed else "rk4")
 
 
 def ok_records(m, purpose: str, what):

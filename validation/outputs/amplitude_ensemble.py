@@ -5,6 +5,7 @@ function of the initial amplitude (statistics per amplitude bin, the local
 log-log slope, and the integration error of a few instances rerun at half the
 step, which must lie far below the deviation)."""
 from rk4h.validation.outputs import Output, Table
+from rk4h.validation.outputs._batch import STAT_WORDS, one_solver
 
 #: Log-spaced amplitude bins of the table and the figure.
 N_BINS = 10
@@ -16,16 +17,10 @@ ERROR_FRACTION = 1e-2
 CHUNK = 2000
 
 
-def _method(scene) -> str:
-    """``rk4`` when the scene runs it, else its first fixed-step tableau solver."""
-    fixed = [s for s in scene.fixed_solvers if scene.method(s).tableau is not None]
-    return "rk4" if "rk4" in fixed else (fixed[0] if fixed else "rk4")
-
-
 def plan(p) -> list:
     if not p.scene.ensemble:
         return []
-    return [p.spec("amplitude_ensemble", solver=_method(p.scene), setting=float(min(p.scene.h)))]
+    return [p.spec("amplitude_ensemble", solver=one_solver(p.scene), setting=float(min(p.scene.h)))]
 
 
 def linearized_batch(model, y0, t):
@@ -216,7 +211,6 @@ def draw(out_dir, job, scene):
     return [(path, caption)]
 
 
-_STAT_WORDS = (("median", "median"), ("p95", "95th percentile"), ("max", "maximum"))
 _COLUMNS = (("scene", "", "str", "scene name"),
             ("solver", "", "category", "fixed-step method"),
             ("h_s", "s", "float", "step (the scene's smallest run.h)"),
@@ -227,9 +221,9 @@ _COLUMNS = (("scene", "", "str", "scene name"),
             ("failed", "1", "int", "instances in the bin stopped by the instability rule (left out)"),
             *((f"deviation_{k}", "as q", "float", f"{w} over the bin of max_t |q - q_lin|_inf: the exact "
                f"(nonlinear) model against its linearization's exact modal solution (not an integration error)")
-              for k, w in _STAT_WORDS),
+              for k, w in STAT_WORDS),
             *((f"deviation_rel_{k}", "1", "float", f"{w} over the bin of max_t |q - q_lin|_inf / max_t "
-               f"|q_lin|_inf") for k, w in _STAT_WORDS),
+               f"|q_lin|_inf") for k, w in STAT_WORDS),
             ("slope", "1", "float", "log-log slope of deviation_median against amplitude_median from the previous bin"),
             ("integration_error_max", "as q", "float", "largest integration error estimate (16/15 max_t |q_h - "
              "q_h/2|_inf) of the bin's instances rerun at half the step"),

@@ -1,22 +1,18 @@
 """``ensemble``: error and energy-error statistics over a scene's ``[ensemble]``,
 run as one batch per fixed-step solver and step."""
 from rk4h.validation.outputs import Output, Table
+from rk4h.validation.outputs._batch import STAT_WORDS, tableau_solvers
 
 #: The statistics of each quantity (median, 95th percentile, maximum over the instances).
-STATS = ("median", "p95", "max")
+STATS = tuple(k for k, _ in STAT_WORDS)
 #: Bytes of states one batch may hold (the rest runs in further chunks of instances).
 CHUNK_BYTES = 256 * 2**20
-
-
-def _methods(scene) -> list:
-    """The scene's fixed-step solvers the batch can run (a tableau or a built-in name)."""
-    return [s for s in scene.fixed_solvers if scene.method(s).tableau is not None]
 
 
 def plan(p) -> list:
     if not p.scene.ensemble:
         return []
-    return [p.spec("ensemble", solver=solver, setting=float(h)) for solver in _methods(p.scene)
+    return [p.spec("ensemble", solver=solver, setting=float(h)) for solver in tableau_solvers(p.scene)
             for h in p.scene.h]
 
 
@@ -130,9 +126,9 @@ _COLUMNS = (("scene", "", "str", "scene name"),
             ("rhs_calls", "1", "int", "right-hand-side calls per instance over the run (rk4h.nfev_count)"),
             *((f"error_{k}", "1", "float", f"{w} over the instances of max_t |y - y_exact|_inf / max_t "
                f"|y_exact|_inf (each instance's exact modal solution)")
-              for k, w in zip(STATS, ("median", "95th percentile", "maximum"))),
+              for k, w in STAT_WORDS),
             *((f"energy_error_{k}", "1", "float", f"{w} over the instances of max_t |E - E0| / E0")
-              for k, w in zip(STATS, ("median", "95th percentile", "maximum"))))
+              for k, w in STAT_WORDS))
 
 OUTPUT = Output(
     name="ensemble", rank=130, plan_rank=95, measure_rank=95,

@@ -1,18 +1,13 @@
 """``stability_map``: the largest stable ``omega_max h`` over a 2-D grid of
 (one model parameter, h), from a scene's ``[ensemble]`` table."""
 from rk4h.validation.outputs import Output, Table
-
-
-def _method(scene) -> str:
-    """``rk4`` when the scene runs it, else its first fixed-step tableau solver."""
-    fixed = [s for s in scene.fixed_solvers if scene.method(s).tableau is not None]
-    return "rk4" if "rk4" in fixed else (fixed[0] if fixed else "rk4")
+from rk4h.validation.outputs._batch import one_solver
 
 
 def plan(p) -> list:
     if not p.scene.ensemble:
         return []
-    return [p.spec("stability_map", solver=_method(p.scene))]
+    return [p.spec("stability_map", solver=one_solver(p.scene))]
 
 
 def execute(scene, spec, quick):
