@@ -21,6 +21,7 @@ __all__ = ["COLUMNS", "TIMING", "DESCRIPTIONS", "write_tables", "write_index", "
            "errata_rows"]
 
 from .tables import COLUMNS, DESCRIPTIONS, TIMING  # re-exported: the report's tables
+from .trust import is_confirmed
 
 
 
@@ -191,10 +192,6 @@ def trust_lines(rows) -> list[str]:
     return lines
 
 
-def _confirmed(x) -> bool:
-    return str(x).strip().lower() == "true"  # bool, numpy.bool_ or the CSV's text
-
-
 def _trust_cell(r) -> str:
     """One cell of the trust table: the method's step and calls, marked
     "measured E" when a run at that step met the target (``confirmed``) and
@@ -204,13 +201,13 @@ def _trust_cell(r) -> str:
     h = r["h"]
     if isinstance(h, float) and math.isfinite(h):
         step = f"h {_g(h, ' s')}, {_g(r['rhs'])} calls"
-        step += (f", measured {r['confirmed_error_rel']:.3g}" if _confirmed(r.get("confirmed"))
+        step += (f", measured {r['confirmed_error_rel']:.3g}" if is_confirmed(r.get("confirmed"))
                  else ", predicted, unconfirmed")
     else:
         step = f"no h ({r['h_source']})"
     v = r["verdict_rhs"]
-    side = ((v == r["method"] and _confirmed(r.get("confirmed")))
-            or (v == r.get("alternative") and _confirmed(r.get("alt_confirmed"))))
+    side = ((v == r["method"] and is_confirmed(r.get("confirmed")))
+            or (v == r.get("alternative") and is_confirmed(r.get("alt_confirmed"))))
     calls = f"**{v}**" if side else v
     if v == "unmeasured":
         return f"{step}; unmeasured"

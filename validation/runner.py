@@ -380,11 +380,6 @@ def _run(scenes, out_dir, jobs, quick, repeats, figures, scheduler, store, stats
     return results, failures
 
 
-def _true(x) -> bool:
-    """A ``confirmed`` cell: True, or its CSV spelling."""
-    return str(x).strip().lower() == "true"  # bool, numpy.bool_ or the CSV's text
-
-
 #: Relative drawing cost of a figure job by kind (a state job draws two or
 #: three figures; ``python benchmarks/bench_figures.py`` gives each kind's time).
 _DRAW_COST = {"state": 3.0, "dispersion": 1.5, "work_precision": 1.2}
@@ -398,13 +393,14 @@ def _crossover_job(cheapest):
     import pandas as pd
 
     from rk4h.validation import measure
+    from rk4h.validation.trust import is_confirmed
 
     rows = []
     for r in pd.DataFrame(cheapest).to_dict("records"):
         v = r["verdict_rhs"]
-        if v == r["method"] and _true(r.get("confirmed")):
+        if v == r["method"] and is_confirmed(r.get("confirmed")):
             solver, rhs = v, r["rhs"]
-        elif v == r["alternative"] and v and _true(r.get("alt_confirmed")):
+        elif v == r["alternative"] and v and is_confirmed(r.get("alt_confirmed")):
             solver, rhs = v, r["alt_rhs"]
         else:
             solver, rhs = "", float("nan")

@@ -86,7 +86,7 @@ def gate_time_verdicts(rows, ctx) -> list[dict]:
     RHS-call verdict is deterministic and kept, and so is ``note``.
     Returns new dicts; ``ctx`` None (no timed run) leaves the rows as they
     are."""
-    from .trust import TIE
+    from .trust import TIE, is_confirmed
 
     rows = [dict(r) for r in (rows or [])]
     if ctx is None:
@@ -94,18 +94,12 @@ def gate_time_verdicts(rows, ctx) -> list[dict]:
     text = context_text(ctx)
     for r in rows:
         if any(c in r for c in TIME_VERDICT_COLUMNS):
-            if is_loaded(ctx) and _truthy(r.get("confirmed")) and _truthy(r.get("alt_confirmed")):
+            if is_loaded(ctx) and is_confirmed(r.get("confirmed")) and is_confirmed(r.get("alt_confirmed")):
                 for c in TIME_VERDICT_COLUMNS:
                     if c in r:
                         r[c] = TIE
             r["time_context"] = text
     return rows
-
-
-def _truthy(v) -> bool:
-    """A ``confirmed`` cell as read back from a table or as built (bool, or "True")."""
-    return v is True or (isinstance(v, str) and v.lower() == "true") or (not isinstance(v, str) and bool(v) and
-                                                                      v == v)
 
 
 def context_text(ctx) -> str:

@@ -65,7 +65,7 @@ from .metrics import PREASYMPTOTIC_REL, ROUNDOFF_REL
 __all__ = ["TIME_MARGIN", "STABILITY_MARGIN", "TIE", "ORDER_TOLERANCE", "asymptotic_fit", "bracket_step",
            "fit_constant", "measured_step", "in_fit_range", "error_constant", "step_for", "roundoff_level",
            "time_model", "time_verdict", "compile_spread", "rhs_calls", "fixed_rhs", "fastest_omega", "stable_step", "trust_rows", "COLUMNS", "TIMING_COLUMNS",
-           "UNMEASURED", "on_grid", "predicted_steps", "pick_measured", "rhs_verdict"]
+           "UNMEASURED", "on_grid", "predicted_steps", "pick_measured", "rhs_verdict", "is_confirmed"]
 
 #: A time verdict needs the medians this far apart (and the repeats disjoint):
 #: between two --quick reports on the shared 2-core machine (one repeat per
@@ -245,6 +245,12 @@ def time_model(rows):
         return float(med), float(lo), float(hi)
 
     return f
+
+
+def is_confirmed(x) -> bool:
+    """A ``confirmed`` / ``alt_confirmed`` cell: True as built (bool,
+    ``numpy.bool_``) or as read back from a table (the text ``"True"``)."""
+    return str(x).strip().lower() == "true"
 
 
 def time_verdict(a: str, ta, b: str, tb) -> str:
