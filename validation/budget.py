@@ -154,7 +154,12 @@ def spec_steps(scene, spec, model, w, quick=False) -> tuple[float, float]:
     if p == "packet":
         return 4e4, 0.0  # wavepacket.measure_group_velocity: 400 sites, about 4e4 steps
     if p == "ensemble":  # every instance of [ensemble] at this step
-        return float(scene.ensemble["size"] * _steps(scene.t_end, spec.setting)), 0.0
+        n = _steps(scene.t_end, spec.setting)
+        if not getattr(model, "linear", True):  # and the batch reference: at h_ref / 2 and its confirmation at h_ref
+            from .outputs.ensemble import reference_step
+
+            n += 3 * _steps(scene.t_end, reference_step(scene, model))
+        return float(scene.ensemble["size"] * n), 0.0
     if p == "amplitude_ensemble":  # every instance at h, a few at h/2
         return float(scene.ensemble["size"] * _steps(scene.t_end, spec.setting)), 0.0
     if p == "stability_map":  # every (value, h) of the map, map_steps steps each at most

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["draw_instances", "error_statistics", "instance_errors", "stability_map_figure", "map_settings",
+           "batch_reference", "reference_refinement", "EnsembleSums",
            "DISTRIBUTIONS",
            "MAP_KEYS"]
 
@@ -350,3 +351,235 @@ def stability_map_figure(smap, path, *, limit=None, label=None):
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+# -- weak errors and the batch reference of a nonlinear model -------------------------------------------------
+#: The reference method of a nonlinear model's ensemble: Blanes and Moan's sixth-order splitting (the
+#: registry's highest order; every model a batch runs is separable, ``dq/dt = v``, ``dv/dt = a(q)``).
+REFERENCE_METHOD = "blanes-moan6"
+#: What the reference step aims at: the reference's error this fraction of the smallest error it measures.
+REFERENCE_TARGET = 1e-3
+#: The check: the reference bound must lie at least this factor below every error statistic it measures.
+REFERENCE_MARGIN = 10.0
+
+
+def reference_refinement(h, order, omega_max, ref_order=6, target=REFERENCE_TARGET) -> int:
+    """How many reference steps per scene step (an integer ``r >= 2``, so the
+    reference's steps land on every grid point the scene's steps do).
+
+    Model: a method of order ``p`` at ``z = omega_max h`` makes a relative
+    error of about ``z^p`` (constants of order one and the same growth over
+    the run for both methods); the reference of order ``q`` at ``z / r``
+    then makes ``(z / r)^q``, and ``(z / r)^q = target z^p`` gives ``r =
+    target^(-1/q) z^(1 - p/q)``. This is a rule for the step, not a
+    guarantee: the second reference batch measures the bound, and the check
+    fails when it is not :data:`REFERENCE_MARGIN` below the errors.
+
+    Parameters
+    ----------
+    h : float
+        The scene's smallest step (s).
+    order : int
+        The highest order among the scene's methods.
+    omega_max : float
+        The largest angular frequency of the model's linearization (rad/s);
+        ``z = omega_max h`` is taken as at most 1 where it is larger, and as
+        1 where it is unknown (0 or not finite).
+    ref_order : int
+        The reference method's order.
+    target : float
+        The aimed ratio of the reference's error to the scene method's.
+    """
+    z = omega_max * h if np.isfinite(omega_max) and omega_max > 0 else 1.0
+    z = min(z, 1.0)
+    r = target ** (-1.0 / ref_order) * z ** (1.0 - order / ref_order)
+    return max(2, int(np.ceil(r)))
+
+
+_REFERENCE_CACHE: dict = {}
+#: Bytes of reference states kept in memory between the specs of one process (solvers and steps of a scene
+#: share one reference); larger references are recomputed per spec.
+REFERENCE_CACHE_BYTES = 512 * 2 ** 20
+
+
+def batch_reference(model, y0, params, t_eval, t_end, h_ref, method=REFERENCE_METHOD):
+    """A nonlinear model's reference over an ensemble, run as one batch and
+    confirmed by a second one.
+
+    The reference is ``method`` at ``h_ref / 2``; the confirmation the same
+    method at ``h_ref``. Their disagreement, an estimate of the error of the
+    coarser one (``1 - 2^-q`` of it at order ``q``), bounds the reference's
+    error from above.
+
+    Parameters
+    ----------
+    model : rk4h.models.Model
+    y0 : ndarray, shape (B, 2 n)
+        Initial states ``[q, v]`` (the model's units).
+    params : mapping or None
+        Per-instance parameters (as :func:`rk4h.ensemble`).
+    t_eval : ndarray, shape (m,)
+        Output times (s); grid points of both reference steps.
+    t_end : float
+        End of the run (s), from 0.
+    h_ref : float
+        The confirmation's step (s); the reference runs at half of it.
+    method : str
+        A fixed-step method of ``rk4h.METHODS``.
+
+    Returns
+    -------
+    y_ref : ndarray, shape (B, m, 2 n)
+        The reference states (NaN past a failure).
+    bound : ndarray, shape (B,)
+        Per instance ``max_t |y_ref - y_confirm|_inf / max_t |y_ref|_inf``
+        (dimensionless).
+    delta : ndarray, shape (m,)
+        Per output time the largest ``|y_ref - y_confirm|_inf`` over the
+        instances (the model's units), for the weak error's bound.
+    status : ndarray of int, shape (B,)
+        0 where both reference runs reached ``t_end``.
+    """
+    import hashlib
+
+    import rk4h
+
+    hsh = hashlib.sha1()
+    for a in (y0, t_eval, *(np.asarray(params[k]) for k in sorted(params or {}))):
+        hsh.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    key = (model.name, repr(sorted(model.params().items())), tuple(sorted(params or {})), hsh.hexdigest(),
+           float(t_end), float(h_ref), method)
+    if key in _REFERENCE_CACHE:
+        return _REFERENCE_CACHE[key]
+    kw = dict(params=params or None, t_eval=t_eval, backend="numba", method=method)
+    fine = rk4h.ensemble(model, y0, (0.0, t_end), h=h_ref / 2.0, **kw)
+    coarse = rk4h.ensemble(model, y0, (0.0, t_end), h=h_ref, **kw)
+    diff = np.abs(fine.y - coarse.y)
+    bound = np.max(diff, axis=(1, 2)) / np.max(np.abs(fine.y), axis=(1, 2))
+    status = np.where((fine.status == 0) & (coarse.status == 0), 0, -1)
+    delta = np.max(np.where(status[:, None, None] == 0, diff, 0.0), axis=(0, 2))
+    out = (fine.y, bound, delta, status)
+    held = sum(v[0].nbytes for v in _REFERENCE_CACHE.values())
+    if held + fine.y.nbytes > REFERENCE_CACHE_BYTES:
+        _REFERENCE_CACHE.clear()  # the chunks of another scene's reference, or too many to keep
+    if fine.y.nbytes <= REFERENCE_CACHE_BYTES:
+        _REFERENCE_CACHE[key] = out
+    return out
+
+
+class EnsembleSums:
+    """Per-instance (strong) errors and the running sums of the weak errors
+    over the chunks of one ensemble.
+
+    Conventions (all dimensionless), over the instances ``b`` that reached
+    the end (and whose reference did), ``y_ref`` each instance's exact modal
+    solution (a linear model) or its batch reference
+    (:func:`batch_reference`), ``E0_b`` its initial energy:
+
+    * strong: per instance ``max_t |y_b - y_ref_b|_inf / max_t |y_ref_b|_inf``
+      and ``max_t |E_b - E0_b| / E0_b`` (their median, 95th percentile and
+      maximum are the table's statistics);
+    * weak: the error of the ensemble mean, ``max_t |mean_b (y_b(t) -
+      y_ref_b(t))|_inf / max_t mean_b |y_ref_b(t)|_inf`` -- the scale is the
+      mean size of the instances, not the size of their mean (which may be
+      near 0 for a symmetric ensemble) -- and ``max_t |mean_b (E_b(t) -
+      E0_b)| / mean_b E0_b``. This follows the weak error ``weak_l∞`` of
+      SciML's ensemble errors (``calculate_ensemble_errors``, formerly
+      ``calculate_monte_errors``, which DiffEqDevTools' ``test_convergence``
+      reports for ensembles) [1]_: the largest over the output times of the
+      max-norm of the mean over the trajectories of ``u_j - u_true_j``; here
+      divided by the scale above. Its strong errors are the mean and median
+      over the trajectories; here the median, 95th percentile and maximum.
+
+    References
+    ----------
+    .. [1] SciML, DiffEqDevTools.jl (https://github.com/SciML/DiffEqDevTools.jl)
+       and SciMLBase.jl: ``EnsembleTestSolution``, its ``weak_errors``
+       (``weak_final``, ``weak_l2``, ``weak_l∞``) and per-trajectory
+       ``errors`` with their means and medians.
+    """
+
+    def __init__(self):
+        self.errors, self.energy_errors = [], []
+        self.failed = 0
+        self.reference_failed = 0
+        self.count = 0
+        self.dy = self.ref_norm = self.de = None
+        self.e0 = 0.0
+        self.bound = []
+        self.delta = None
+
+    def add(self, model, result, y0, params=None, built=None, y_ref=None, bound=None, delta=None,
+            ref_status=None):
+        """Add one chunk: ``result`` (:class:`rk4h.EnsembleResult`) from
+        ``y0`` with ``params``; ``y_ref`` (B, m, n) its batch reference, or
+        None for a linear model's exact modal solutions; ``bound``, ``delta``
+        and ``ref_status`` as :func:`batch_reference` returns them."""
+        from rk4h.references.exact import modal_solution
+
+        if y_ref is None and not model.linear:
+            raise ValueError(f"`model` {model.name} is nonlinear: its errors need a batch reference")
+        ok = result.status == 0
+        self.failed += int((~ok).sum())
+        if ref_status is not None:
+            self.reference_failed += int((ok & (ref_status != 0)).sum())
+            ok &= ref_status == 0
+        if bound is not None:
+            self.bound.extend(np.asarray(bound)[ok].tolist())
+        if delta is not None:
+            self.delta = delta if self.delta is None else np.maximum(self.delta, delta)
+        m_rows, n = result.y.shape[1], result.y.shape[2]
+        if self.dy is None:
+            self.dy, self.ref_norm, self.de = np.zeros((m_rows, n)), np.zeros(m_rows), np.zeros(m_rows)
+        for b in np.flatnonzero(ok):
+            m = instance_model(model, params, b, built)
+            ref = modal_solution(m, y0[b])(result.t).T if y_ref is None else y_ref[b]
+            err = result.y[b] - ref
+            size = np.max(np.abs(ref), axis=1)
+            self.errors.append(np.max(np.abs(err)) / np.max(size))
+            e = m.energy(result.y[b].T)
+            self.energy_errors.append(np.max(np.abs(e - e[0])) / abs(e[0]) if e[0] != 0 else np.nan)
+            self.dy += err
+            self.ref_norm += size
+            self.de += e - e[0]
+            self.e0 += e[0]
+            self.count += 1
+
+    def weak(self):
+        """``(weak_error, weak_energy_error, weak_reference_bound)``
+        (dimensionless; NaN when no instance counts). The bound is the
+        largest disagreement of the two reference batches over instances and
+        times on the weak error's scale (0 for exact modal solutions)."""
+        if not self.count:
+            return float("nan"), float("nan"), float("nan")
+        scale = np.max(self.ref_norm / self.count)
+        weak = float(np.max(np.abs(self.dy / self.count)) / scale)
+        e0 = self.e0 / self.count
+        weak_e = float(np.max(np.abs(self.de / self.count)) / abs(e0)) if e0 != 0 else float("nan")
+        wbound = 0.0 if self.delta is None else float(np.max(self.delta) / scale)
+        return weak, weak_e, wbound
+
+
+def instance_model(model, params, b, built):
+    """The model of instance ``b``: ``model`` itself without ``params``, else
+    built from its parameter row (once per distinct row when ``built``, a
+    dict, is passed to every call)."""
+    from rk4h.batch.api import _split_key
+
+    if not params:
+        return model
+    row = tuple(x for col in params.values() for x in np.asarray(np.asarray(col)[b], dtype=float).reshape(-1).tolist())
+    built = {} if built is None else built
+    if row not in built:
+        p = {k: (list(x) if isinstance(x, list) else x) for k, x in model.params().items()}
+        for key, col in params.items():
+            name, i = _split_key(key)
+            val = np.asarray(col)[b]
+            if i is not None:
+                p[name][i] = float(val)
+            elif np.ndim(val):
+                p[name] = [float(c) for c in val]
+            else:
+                p[name] = float(val) if not isinstance(p[name], list) else [float(val)] * len(p[name])
+        built[row] = type(model)(**p)
+    return built[row]

@@ -509,7 +509,7 @@ def _ensemble(path, table, outputs, model, x, v):
     except ValueError as e:
         m = re.match(r"`([^`]+)` (.*)", str(e))
         raise SceneError(path, m.group(1) if m else "ensemble", m.group(2) if m else str(e)) from None
-    linear_only = [o for o in wants if o != "amplitude_ensemble"]  # it compares with the linearization
+    linear_only = [o for o in wants if o == "stability_map"]  # omega_max; `ensemble` has a batch reference
     if linear_only and not getattr(model, "linear", False):
         raise SceneError(path, "run.outputs", f"`{linear_only[0]}` needs a linear model (each instance's exact modal "
                          f"solution, omega_max); {model.name} is nonlinear", linear_only[0])

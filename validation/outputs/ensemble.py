@@ -1,5 +1,7 @@
 """``ensemble``: error and energy-error statistics over a scene's ``[ensemble]``,
-run as one batch per fixed-step solver and step."""
+run as one batch per fixed-step solver and step, against each instance's exact
+modal solution (a linear model) or a reference run as a batch too (a nonlinear
+model: :func:`rk4h.validation.ensemble.batch_reference`)."""
 from rk4h.validation.outputs import Output, Table
 from rk4h.validation.outputs._batch import STAT_WORDS, tableau_solvers
 
@@ -7,6 +9,9 @@ from rk4h.validation.outputs._batch import STAT_WORDS, tableau_solvers
 STATS = tuple(k for k, _ in STAT_WORDS)
 #: Bytes of states one batch may hold (the rest runs in further chunks of instances).
 CHUNK_BYTES = 256 * 2**20
+#: The reference: "auto" (a linear model's exact modal solutions, else a batch reference); "batch" runs the
+#: batch reference for a linear model too (what the tests compare with the modal solutions).
+REFERENCE = "auto"
 
 
 def plan(p) -> list:
@@ -16,14 +21,41 @@ def plan(p) -> list:
             for h in p.scene.h]
 
 
-def execute(scene, spec, quick):
-    """One batch: every instance of ``[ensemble]`` with ``spec.solver`` at step
-    ``spec.setting`` (s) over the scene's output grid, against each instance's
-    exact modal solution."""
+def reference_step(scene, model):
+    """The confirmation step of a scene's batch reference (s); the reference
+    runs at half of it.
+
+    ``min(run.h) / r`` with ``r`` from
+    :func:`rk4h.validation.ensemble.reference_refinement`: the highest order
+    among the scene's batch solvers, the order of
+    :data:`~rk4h.validation.ensemble.REFERENCE_METHOD` (6), and ``omega_max``
+    of the model's linearization (``model.modes()``; unknown: ``z`` taken as
+    1). An integer ``r`` keeps every grid point of the scene's steps a grid
+    point of both reference runs.
+    """
     import numpy as np
 
     import rk4h
-    from rk4h.validation.ensemble import draw_instances, instance_errors, statistics
+    from rk4h.validation.ensemble import REFERENCE_METHOD, reference_refinement
+
+    h = float(min(scene.h))
+    order = max((scene.method(s).tableau.order for s in tableau_solvers(scene)), default=4)
+    try:
+        omega = float(np.max(model.modes()[0]))
+    except Exception:  # a model without a linearization: z = 1 (see reference_refinement)
+        omega = float("nan")
+    return h / reference_refinement(h, order, omega, ref_order=rk4h.METHODS[REFERENCE_METHOD].order)
+
+
+def execute(scene, spec, quick):
+    """One batch: every instance of ``[ensemble]`` with ``spec.solver`` at step
+    ``spec.setting`` (s) over the scene's output grid, against each
+    instance's exact modal solution (a linear model) or the batch reference
+    (:func:`reference_step`; shared by the scene's specs run in one process)."""
+    import numpy as np
+
+    import rk4h
+    from rk4h.validation.ensemble import REFERENCE_METHOD, EnsembleSums, batch_reference, draw_instances, statistics
     from rk4h.validation.records import RunRecord
 
     model = scene.build_model()
@@ -31,27 +63,56 @@ def execute(scene, spec, quick):
     t_eval = np.asarray(scene.t_eval(), float)
     tableau = scene.method(spec.solver).tableau
     B = y0.shape[0]
-    # chunks of instances so the batch's states (B x rows x n float64) stay within CHUNK_BYTES
-    chunk = max(1, int(CHUNK_BYTES // (8 * t_eval.size * y0.shape[1])))
-    errs, eerrs, failed, built = [], [], 0, {}
+    batch_ref = REFERENCE == "batch" or not model.linear
+    h_ref = reference_step(scene, model) if batch_ref else float("nan")
+    # chunks of instances so the batch's states (B x rows x n float64; three sets with a batch reference)
+    # stay within CHUNK_BYTES
+    chunk = max(1, int(CHUNK_BYTES // (8 * (3 if batch_ref else 1) * t_eval.size * y0.shape[1])))
+    sums, built = EnsembleSums(), {}
     for lo in range(0, B, chunk):
         sl = slice(lo, min(B, lo + chunk))
         part = {k: np.asarray(v)[sl] for k, v in params.items()}
         res = rk4h.ensemble(model, y0[sl], (0.0, scene.t_end), h=spec.setting, method=tableau,
                                params=part or None, t_eval=t_eval, backend="numba")
-        e, ee, f = instance_errors(model, res, y0[sl], part or None, built)
-        errs.append(e)
-        eerrs.append(ee)
-        failed += f
-    errs, eerrs = np.concatenate(errs), np.concatenate(eerrs)
+        if batch_ref:
+            y_ref, bound, delta, rstatus = batch_reference(model, y0[sl], part or None, t_eval, scene.t_end, h_ref)
+            sums.add(model, res, y0[sl], part or None, built, y_ref=y_ref, bound=bound, delta=delta,
+                     ref_status=rstatus)
+        else:
+            sums.add(model, res, y0[sl], part or None, built)
+    errs, eerrs = np.asarray(sums.errors, float), np.asarray(sums.energy_errors, float)
     st = {"error": statistics(errs) if errs.size else None,
-          "energy_error": statistics(eerrs) if eerrs.size else None, "failed": failed}
-    values = {"instances": int(y0.shape[0]), "failed": st["failed"],
+          "energy_error": statistics(eerrs) if eerrs.size else None}
+    weak, weak_e, weak_bound = sums.weak()
+    values = {"instances": int(y0.shape[0]), "failed": sums.failed,
               "rhs_calls": rk4h.nfev_count(tableau, rk4h.step_count((0.0, scene.t_end), spec.setting))}
     for q in ("error", "energy_error"):
         for k in STATS:
             values[f"{q}_{k}"] = float("nan") if st[q] is None else st[q][k]
+    values.update(weak_error=weak, weak_energy_error=weak_e,
+                  reference=f"{REFERENCE_METHOD} h={h_ref / 2:.6g}" if batch_ref else "modal",
+                  reference_h_s=h_ref / 2, reference_failed=sums.reference_failed,
+                  reference_bound=(float(np.max(sums.bound)) if sums.bound else float("nan")) if batch_ref else 0.0,
+                  weak_reference_bound=weak_bound)
     return RunRecord(spec.key, values=values)
+
+
+def reference_check(row):
+    """``(ok, worst)`` of a batch reference's check on one table row: every
+    instance's reference reached the end, and ``reference_bound`` lies at
+    least :data:`~rk4h.validation.ensemble.REFERENCE_MARGIN` below the
+    smallest strong error statistic, ``weak_reference_bound`` as far below
+    ``weak_error`` (``worst``: the larger of the two ratios bound / error;
+    a missing truth is a failure)."""
+    import math
+
+    from rk4h.validation.ensemble import REFERENCE_MARGIN
+
+    strong = min(row[f"error_{k}"] for k in STATS)
+    ratios = [row["reference_bound"] / strong if strong > 0 else math.inf,
+              row["weak_reference_bound"] / row["weak_error"] if row["weak_error"] > 0 else math.inf]
+    worst = max(r if math.isfinite(r) else math.inf for r in ratios)
+    return row["reference_failed"] == 0 and worst <= 1.0 / REFERENCE_MARGIN, worst
 
 
 def measure(m) -> None:
@@ -62,9 +123,19 @@ def measure(m) -> None:
         v = rec.values
         row = {"scene": m.scene.name, "solver": spec.solver, "h_s": spec.setting,
                "instances": v["instances"], "failed": v["failed"], "rhs_calls": v.get("rhs_calls", -1),
-               **{f"{q}_{k}": v[f"{q}_{k}"] for q in ("error", "energy_error") for k in STATS}}
+               **{f"{q}_{k}": v[f"{q}_{k}"] for q in ("error", "energy_error") for k in STATS},
+               **{k: v[k] for k in _WEAK_KEYS}}
         m.res.add("ensemble", row)
         rows.append(row)
+        if row["reference"] != "modal":
+            from rk4h.validation.ensemble import REFERENCE_MARGIN
+
+            ok, worst = reference_check(row)
+            m.res.check(f"ensemble reference {spec.solver} h={spec.setting:g}", bool(ok),
+                        f"{m.scene.name}: ensemble {spec.solver} h={spec.setting:g}: the reference "
+                        f"({row['reference']}) disagrees with its confirmation by {worst:.3g} of the errors it "
+                        f"measures (limit {1 / REFERENCE_MARGIN:g}); {row['reference_failed']} instances without "
+                        f"a reference", measured=worst, expected=0.0, tolerance=1 / REFERENCE_MARGIN)
     if rows:
         from rk4h.validation.measure import FigureJob
 
@@ -96,7 +167,7 @@ def work_precision_figure(rows, path, title=""):
         ax.loglog(n, med, "o-", color=f"C{i}", label=f"{solver} median")
         ax.loglog(n, p95, "s--", color=f"C{i}", mfc="none", label=f"{solver} p95")
     ax.set_xlabel("right-hand-side calls per instance")
-    ax.set_ylabel("max_t |y - y_exact|_inf / max_t |y_exact|_inf")
+    ax.set_ylabel("max_t |y - y_ref|_inf / max_t |y_ref|_inf")
     ax.set_title(title)
     ax.legend(fontsize=8)
     fig.savefig(path, dpi=110)
@@ -112,9 +183,10 @@ def draw(out_dir, job, scene):
     path = Path(out_dir) / f"{job.scene}-ensemble-work-precision.png"
     solvers = work_precision_figure(rows, path, title=f"{job.scene}: ensemble work-precision")
     n = max(r["instances"] for r in rows)
+    ref = rows[0].get("reference", "modal")
+    truth = "its exact modal solution" if ref == "modal" else f"its batch reference ({ref})"
     caption = (f"{job.scene}: median and 95th percentile over {n} instances of each instance's error against "
-               f"its exact modal solution, against RHS calls per instance ({', '.join(solvers)}; one point per "
-               f"run.h)")
+               f"{truth}, against RHS calls per instance ({', '.join(solvers)}; one point per run.h)")
     return [(path, caption)]
 
 
@@ -128,14 +200,33 @@ _COLUMNS = (("scene", "", "str", "scene name"),
                f"|y_exact|_inf (each instance's exact modal solution)")
               for k, w in STAT_WORDS),
             *((f"energy_error_{k}", "1", "float", f"{w} over the instances of max_t |E - E0| / E0")
-              for k, w in STAT_WORDS))
+              for k, w in STAT_WORDS),
+            ("weak_error", "1", "float", "error of the ensemble mean: max_t |mean_b (y_b - y_ref_b)|_inf / max_t "
+             "mean_b |y_ref_b|_inf (the mean size of the instances, not the size of their mean; SciML's weak "
+             "l-infinity error so scaled)"),
+            ("weak_energy_error", "1", "float", "max_t |mean_b (E_b - E0_b)| / mean_b E0_b"),
+            ("reference", "", "category", "y_ref: `modal` (each instance's exact modal solution, a linear model) "
+             "or the batch reference's method and step"),
+            ("reference_h_s", "s", "float", "the batch reference's step (its confirmation runs at twice it); NaN "
+             "for `modal`"),
+            ("reference_failed", "1", "int", "instances whose reference run did not reach the end (left out; the "
+             "check then fails)"),
+            ("reference_bound", "1", "float", "max over the instances of max_t |y_ref - y_confirm|_inf / max_t "
+             "|y_ref|_inf (the batch reference against its confirmation at twice the step); 0 for `modal`"),
+            ("weak_reference_bound", "1", "float", "max over instances and times of |y_ref - y_confirm|_inf on "
+             "weak_error's scale; 0 for `modal`"))
+_WEAK_KEYS = ("weak_error", "weak_energy_error", "reference", "reference_h_s", "reference_failed",
+              "reference_bound", "weak_reference_bound")
 
 OUTPUT = Output(
     name="ensemble", rank=130, plan_rank=95, measure_rank=95,
-    when="never by default (needs an `[ensemble]` table and a linear model)",
-    what="the `[ensemble]` run as one batch per fixed-step solver and step: median, p95 and max of the error "
-         "and the energy error against each instance's exact modal solution, `ensemble.csv` and the ensemble "
-         "work-precision figure (error statistics against RHS calls)",
+    when="never by default (needs an `[ensemble]` table)",
+    what="the `[ensemble]` run as one batch per fixed-step solver and step: median, p95 and max of the "
+         "per-instance (strong) error and energy error, and the weak errors (of the ensemble mean), against "
+         "each instance's exact modal solution (a linear model) or a reference run as a batch too "
+         "(blanes-moan6 at a finer step, confirmed at twice that step; the check fails unless their "
+         "disagreement is 10x below the errors), `ensemble.csv` and the ensemble work-precision figure "
+         "(error statistics against RHS calls)",
     plan=plan, measure=measure, execute={"ensemble": execute}, draw={"ensemble_work_precision": draw},
     purposes={"ensemble": "one batch of every instance of [ensemble] at one solver and step: error statistics"},
     tables=(Table("ensemble", columns=_COLUMNS,
