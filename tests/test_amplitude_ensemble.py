@@ -91,9 +91,14 @@ def test_it_needs_an_ensemble_table():
     assert info.value.field == "run.outputs" and "\n" not in str(info.value)
 
 
-def test_the_error_ensemble_still_needs_a_linear_model():
+def test_the_stability_map_still_needs_a_linear_model():
+    # `ensemble` takes a nonlinear model (its batch reference); the map needs omega_max
     doc = copy.deepcopy(DOC)
     doc["run"]["outputs"] = ["amplitude_ensemble", "ensemble"]
+    assert scene_from_dict(copy.deepcopy(doc)).ensemble
+    doc["run"]["outputs"] = ["amplitude_ensemble", "ensemble", "stability_map"]
+    doc["ensemble"].update(map_h={"low": 0.01, "high": 0.1, "n": 3},
+                           **{"params.k": {"dist": "grid", "low": 40.0, "high": 42.0, "n": 2}})
     with pytest.raises(SceneError) as info:
         scene_from_dict(doc)
-    assert info.value.field == "run.outputs" and "`ensemble` needs a linear model" in str(info.value)
+    assert info.value.field == "run.outputs" and "`stability_map` needs a linear model" in str(info.value)

@@ -37,6 +37,9 @@ def test_a_small_ensemble_scene_through_run_all(tmp_path):
     assert set(zip(ens.solver, ens.h_s)) == {(s, h) for s in ("rk4", "stormer-verlet") for h in (0.02, 0.01)}
     assert (ens.instances == 40).all() and (ens.failed == 0).all()
     assert (ens.error_median <= ens.error_p95).all() and (ens.error_p95 <= ens.error_max).all()
+    # a linear model: each instance's exact modal solution, no batch reference and no bound
+    assert (ens.reference == "modal").all() and (ens.reference_bound == 0).all() and (ens.reference_h_s == 0).all()
+    assert np.isfinite(ens.weak_error).all() and np.isfinite(ens.weak_energy_error).all()
     rk4 = ens[ens.solver == "rk4"].set_index("h_s")
     # RK4 is fourth order: halving h divides the error by about 16 (the worst instance, omega h <= 1.2)
     assert 10 < rk4.error_max[0.02] / rk4.error_max[0.01] < 22

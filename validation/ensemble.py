@@ -295,29 +295,11 @@ def instance_errors(model, result, y0, params=None, built=None):
 
     if not model.linear:
         raise ValueError(f"`model` {model.name} is nonlinear: error_statistics needs an exact (modal) solution")
-    from rk4h.batch.api import _split_key
-
     ok = np.flatnonzero(result.status == 0)
     errs, eerrs = [], []
     built = {} if built is None else built  # parameter row -> model: one build (and eigensolve) per row
     for b in ok:
-        m = model
-        row = tuple(x for col in params.values()
-                    for x in np.asarray(np.asarray(col)[b], dtype=float).reshape(-1).tolist()) if params else ()
-        if row in built:
-            m = built[row]
-        elif params:
-            p = {k: (list(x) if isinstance(x, list) else x) for k, x in model.params().items()}
-            for key, col in params.items():
-                name, i = _split_key(key)
-                val = np.asarray(col)[b]
-                if i is not None:
-                    p[name][i] = float(val)
-                elif np.ndim(val):
-                    p[name] = [float(c) for c in val]
-                else:
-                    p[name] = float(val) if not isinstance(p[name], list) else [float(val)] * len(p[name])
-            m = built[row] = type(model)(**p)
+        m = instance_model(model, params, b, built)
         exact = modal_solution(m, y0[b])(result.t).T
         errs.append(np.max(np.abs(result.y[b] - exact)) / np.max(np.abs(exact)))
         e = m.energy(result.y[b].T)

@@ -91,7 +91,7 @@ def execute(scene, spec, quick):
             values[f"{q}_{k}"] = float("nan") if st[q] is None else st[q][k]
     values.update(weak_error=weak, weak_energy_error=weak_e,
                   reference=f"{REFERENCE_METHOD} h={h_ref / 2:.6g}" if batch_ref else "modal",
-                  reference_h_s=h_ref / 2, reference_failed=sums.reference_failed,
+                  reference_h_s=h_ref / 2 if batch_ref else 0.0, reference_failed=sums.reference_failed,
                   reference_bound=(float(np.max(sums.bound)) if sums.bound else float("nan")) if batch_ref else 0.0,
                   weak_reference_bound=weak_bound)
     return RunRecord(spec.key, values=values)
@@ -207,7 +207,7 @@ _COLUMNS = (("scene", "", "str", "scene name"),
             ("weak_energy_error", "1", "float", "max_t |mean_b (E_b - E0_b)| / mean_b E0_b"),
             ("reference", "", "category", "y_ref: `modal` (each instance's exact modal solution, a linear model) "
              "or the batch reference's method and step"),
-            ("reference_h_s", "s", "float", "the batch reference's step (its confirmation runs at twice it); NaN "
+            ("reference_h_s", "s", "float", "the batch reference's step (its confirmation runs at twice it); 0 "
              "for `modal`"),
             ("reference_failed", "1", "int", "instances whose reference run did not reach the end (left out; the "
              "check then fails)"),
