@@ -132,3 +132,11 @@ def test_rk4_strong_and_weak_errors_fall_at_order_4_on_the_nonlinear_scene(tmp_p
 def test_reference_refinement(h, order, omega, r):
     # r = ceil(1e3^(1/6) z^(1 - p/6)), at least 2; z = omega h, at most 1, and 1 when omega is unknown
     assert reference_refinement(h, order, omega) == r
+
+
+def test_the_budget_counts_the_batch_reference():
+    from rk4h.validation import budget
+
+    # RK4 at 0.02 and 0.01 s over 2 s (100 + 200 steps) and, per spec, the reference at 0.0025 s (800
+    # steps) with its confirmation at 0.005 s (400), for each of the 256 instances
+    assert budget.estimate(load_scene(SCENE)).steps == 256 * (100 + 200 + 2 * (800 + 400))
