@@ -26,6 +26,25 @@ def test_each_subcommand_has_its_own_help_with_examples(command, capsys):
     assert "examples:" in out
 
 
+@pytest.mark.parametrize("command", sorted(_COMMANDS))
+def test_subcommand_help_names_rk4h_commands_not_scripts(command, capsys):
+    """A wheel user has no validation/*.py: the help names rk4h commands, shows no reST
+    markup, and says what every positional argument is."""
+    import re
+
+    try:
+        main([command, "--help"])
+    except SystemExit:
+        pass
+    out = capsys.readouterr().out
+    assert "``" not in out
+    assert not re.search(r"(?<!python validation/)\b\w+\.py\b", out), out[:300]
+    positional = out.split("positional arguments:\n", 1)[1].split("\n\n", 1)[0] if "positional arguments:" in out else ""
+    for line in positional.splitlines():
+        if line.startswith("  ") and not line.startswith("   "):
+            assert len(line.split()) > 1, f"positional argument without a help text: {line.strip()}"
+
+
 def test_top_level_help_lists_every_subcommand(capsys):
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
