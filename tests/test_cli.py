@@ -63,9 +63,31 @@ def test_progress_off_a_terminal_prints_a_line_per_5_percent_or_10_s(monkeypatch
     bar = run_all.Progress(1065, stream=out)
     for i in range(1065):
         bar(f"spec {i}")
+    bar.close()  # the runner closes it; the last line comes then
     lines = out.getvalue().splitlines()
     assert 20 <= len(lines) <= 23, len(lines)
     assert lines[0].startswith("[1/1065]") and lines[-1].startswith("[1065/1065]")
+
+
+def test_progress_extended_by_confirmation_runs_still_prints_one_line_per_5_percent(monkeypatch):
+    """Confirmation runs extend the plan a few specs at a time at its end: each extension used to
+    complete the plan again and print a line (306 specs: [295/295], [302/302], [304/304], [306/306]
+    within 1 s). At most one line per 5 % or 10 s, then the last line on close."""
+    clock = iter(range(10**6))
+    monkeypatch.setattr(run_all.time, "perf_counter", lambda: next(clock) * 1e-3)  # 1 ms per call
+    out = io.StringIO()
+    bar = run_all.Progress(100, stream=out)
+    for i in range(100):
+        bar(f"spec {i}")
+    for _ in range(3):  # three rounds of two confirmation runs
+        bar.extend(2)
+        bar("confirmation")
+        bar("confirmation")
+    bar.close()
+    done = [int(line[1:].split("/")[0]) for line in out.getvalue().splitlines()]
+    assert done[0] == 1 and done[-1] == 106
+    gaps = [b - a for a, b in zip(done, done[1:])]
+    assert all(g >= 5 for g in gaps[:-1]), done  # 5 % of 100..106 specs; the closing line may be closer
 
 
 def test_progress_off_a_terminal_prints_every_10_s_when_specs_are_slow(monkeypatch):
