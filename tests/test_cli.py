@@ -26,6 +26,25 @@ def test_each_subcommand_has_its_own_help_with_examples(command, capsys):
     assert "examples:" in out
 
 
+@pytest.mark.parametrize("command", sorted(_COMMANDS))
+def test_subcommand_help_names_rk4h_commands_not_scripts(command, capsys):
+    """A wheel user has no validation/*.py: the help names rk4h commands, shows no reST
+    markup, and says what every positional argument is."""
+    import re
+
+    try:
+        main([command, "--help"])
+    except SystemExit:
+        pass
+    out = capsys.readouterr().out
+    assert "``" not in out
+    assert not re.search(r"(?<!python validation/)\b\w+\.py\b", out), out[:300]
+    positional = out.split("positional arguments:\n", 1)[1].split("\n\n", 1)[0] if "positional arguments:" in out else ""
+    for line in positional.splitlines():
+        if line.startswith("  ") and not line.startswith("   "):
+            assert len(line.split()) > 1, f"positional argument without a help text: {line.strip()}"
+
+
 def test_top_level_help_lists_every_subcommand(capsys):
     assert main(["--help"]) == 0
     out = capsys.readouterr().out
@@ -44,9 +63,31 @@ def test_progress_off_a_terminal_prints_a_line_per_5_percent_or_10_s(monkeypatch
     bar = run_all.Progress(1065, stream=out)
     for i in range(1065):
         bar(f"spec {i}")
+    bar.close()  # the runner closes it; the last line comes then
     lines = out.getvalue().splitlines()
     assert 20 <= len(lines) <= 23, len(lines)
     assert lines[0].startswith("[1/1065]") and lines[-1].startswith("[1065/1065]")
+
+
+def test_progress_extended_by_confirmation_runs_still_prints_one_line_per_5_percent(monkeypatch):
+    """Confirmation runs extend the plan a few specs at a time at its end: each extension used to
+    complete the plan again and print a line (306 specs: [295/295], [302/302], [304/304], [306/306]
+    within 1 s). At most one line per 5 % or 10 s, then the last line on close."""
+    clock = iter(range(10**6))
+    monkeypatch.setattr(run_all.time, "perf_counter", lambda: next(clock) * 1e-3)  # 1 ms per call
+    out = io.StringIO()
+    bar = run_all.Progress(100, stream=out)
+    for i in range(100):
+        bar(f"spec {i}")
+    for _ in range(3):  # three rounds of two confirmation runs
+        bar.extend(2)
+        bar("confirmation")
+        bar("confirmation")
+    bar.close()
+    done = [int(line[1:].split("/")[0]) for line in out.getvalue().splitlines()]
+    assert done[0] == 1 and done[-1] == 106
+    gaps = [b - a for a, b in zip(done, done[1:])]
+    assert all(g >= 5 for g in gaps[:-1]), done  # 5 % of 100..106 specs; the closing line may be closer
 
 
 def test_progress_off_a_terminal_prints_every_10_s_when_specs_are_slow(monkeypatch):

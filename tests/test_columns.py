@@ -204,3 +204,23 @@ def test_fresh_stability_run_writes_boolean_passed(tmp_path):
     assert row["passed"] is True and row["checked"] is True
     described = json.loads((tmp_path / "columns.json").read_text())["tables"]["stability"]["columns"]
     assert {c["name"]: c["dtype"] for c in described}["passed"] == "bool"
+
+
+def test_categorical_columns_of_the_committed_tables_hold_labels_not_numbers():
+    """A ``category`` column holds a few fixed labels; text that carries a measured number
+    (``computed to within 2.5e-14 per entry``) is free text (dtype ``str``)."""
+    import re
+
+    number = re.compile(r"\d[eE][-+]?\d|\d\.\d+\s")  # 2.5e-14, "1.5 per": a value, not a label
+    seen = 0
+    for name, cols in C.declared().items():
+        path = REPO / "reports" / f"{name}.csv"
+        if not path.exists():
+            continue
+        df = pd.read_csv(path, keep_default_na=False, dtype=str)
+        for col in cols:
+            if col.dtype == "category" and col.name in df:
+                seen += 1
+                bad = sorted({v for v in df[col.name] if number.search(v)})
+                assert not bad, f"{name}.{col.name} is declared category but holds free text: {bad[:3]}"
+    assert seen >= 20

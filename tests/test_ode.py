@@ -230,3 +230,40 @@ def test_a_typed_exact_solution_is_the_truth_of_a_scene():
     assert truth.kind == ode_truth.KIND_EXACT
     np.testing.assert_allclose(truth.y, [np.cos(2 * t), -2 * np.sin(2 * t)], rtol=0, atol=1e-15)
     assert truth.energy_drift < 1e-15
+
+
+def test_an_ode_scene_exports_its_trajectories_to_netcdf(tmp_path):
+    """``outputs = ["trajectory"]`` on a first-order ODE: the variables by name and the invariant,
+    read back through xarray (issue 28: it was refused as "does not apply to model 'ode'")."""
+    import contextlib
+    import io
+
+    import xarray as xr
+
+    from rk4h.validation.run_all import main as run_all
+
+    scene = tmp_path / "lv.toml"
+    scene.write_text("\n".join(['name = "lv-trajectory"', 'model = "ode"', "[params]",
+                                'variables = ["u", "v"]', 'equations = ["a*u - b*u*v", "-c*v + d*u*v"]',
+                                f"constants = {{ a = {A}, b = {B}, c = {C}, d = {D} }}",
+                                f'invariant = "{LV["invariant"]}"', "[initial]", "y = [1.0, 1.0]", "[run]",
+                                "t_end = 2.0", "h = [0.1, 0.05]", "tolerances = [1e-6]",
+                                'solvers = ["rk4", "dop853"]', 'outputs = ["state", "trajectory"]', ""]))
+    out = tmp_path / "out"
+    log = io.StringIO()
+    with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
+        rc = run_all(["--scene", str(scene), "--out", str(out), "--workers", "1", "--repeats", "1",
+                      "--no-figures"])
+    assert rc == 0, log.getvalue()
+    with xr.open_dataset(out / "trajectory-lv-trajectory.nc") as ds:
+        assert list(ds["component"].values) == ["u", "v"]
+        assert ds.sizes["run"] == 3 and ds.sizes["time"] >= 2
+        assert "invariant" in ds["energy"].attrs["long_name"] and "[q, v]" not in ds.attrs["units"]
+        rk4 = ds["solver"].values == "rk4"
+        y = ds["y"].values[rk4]  # (run, time, component)
+        np.testing.assert_array_equal(y[:, 0, :], 1.0)  # the initial state
+        assert np.isfinite(y).all() and not np.allclose(y[:, -1, :], 1.0)
+        energy = ds["energy"].values[rk4]
+        for run_y, run_e in zip(y, energy):  # energy is the invariant of the stored state
+            np.testing.assert_allclose(run_e, [lv_invariant(s) for s in run_y], rtol=1e-12)
+        assert abs(energy[:, 0] - 2.0).max() < 1e-12  # I(1, 1) = d + b = 2

@@ -28,3 +28,24 @@ def test_one_import_name():
     assert {name.split(".")[0] for name in CONFIG["packages"]} == {"rk4h"}
     assert CONFIG["package-dir"] == {"rk4h": "rk4core", "rk4h.references": "references",
                                      "rk4h.validation": "validation"}
+
+
+PROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
+
+
+def test_metadata_license_is_an_spdx_expression_with_its_file():
+    # setuptools deprecates the {text = ...} table and the license classifiers (removal announced
+    # for 2027-02-18): the build would then fail
+    assert isinstance(PROJECT["license"], str) and PROJECT["license"] == "MIT"
+    assert PROJECT["license-files"] == ["LICENSE"] and (REPO / "LICENSE").read_text().startswith("MIT License")
+    assert not [c for c in PROJECT["classifiers"] if c.startswith("License ::")]
+    requires = tomllib.loads((REPO / "pyproject.toml").read_text())["build-system"]["requires"]
+    assert "setuptools>=77" in requires  # the first setuptools that reads an SPDX `license`
+
+
+def test_metadata_names_authors_classifiers_and_one_version():
+    assert PROJECT["authors"] and PROJECT["classifiers"] and "version" in PROJECT
+    assert "dynamic" not in PROJECT or "version" not in PROJECT["dynamic"]
+    # no public address: no URL is made up, and the README says so
+    assert "urls" not in PROJECT
+    assert "no public address" in (REPO / "README.md").read_text()

@@ -99,3 +99,24 @@ def test_nothing_cites_files_outside_the_repository():
         hits += [f"{rel}:{n}" for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
                  if pattern.search(line)]
     assert not hits, hits
+
+
+def test_readme_python_lotka_volterra_is_the_shipped_scene():
+    """The README's Python form of the Lotka-Volterra scene builds the same study: run settings,
+    initial state, right-hand side and invariant (the study itself runs in the block test)."""
+    import numpy as np
+
+    from rk4h.validation.scenes import SCENE_DIR, load_scene
+
+    block = next(b for b in _blocks("python") if "ode_scene(" in b)
+    ns = {}
+    exec(block.split("res = study(scene)")[0], ns)  # noqa: S102 - the README's own code
+    mine, shipped = ns["scene"], load_scene(SCENE_DIR / "lotka_volterra.toml")
+    for field in ("name", "t_end", "h", "tolerances", "solvers", "initial_x"):
+        assert getattr(mine, field) == getattr(shipped, field), field
+    a, b = mine.build_model(), shipped.build_model()
+    assert a.first_order and b.first_order and a.coord_names == b.coord_names
+    rng = np.random.default_rng(0)
+    for y in rng.uniform(0.2, 5.0, size=(5, 2)):
+        np.testing.assert_allclose(a.rhs(0.0, y), b.rhs(0.0, y), rtol=1e-14)
+        np.testing.assert_allclose(a.energy(y[:, None]), b.energy(y[:, None]), rtol=1e-14)

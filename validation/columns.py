@@ -225,7 +225,8 @@ _TABLES = {
         "tolerance": _c("1", "float", "residual the coefficients' precision allows (0 for exact rationals)"),
         "holds": _c("", "bool", "every condition of order p holds"),
         "order": _c("1", "int", "the computed order"),
-        "precision": _c("", "category", "precision the order is judged at (exact, or a float precision)"),
+        "precision": _c("", "str", "precision the order is judged at: `exact`, or the coefficients' precision "
+                        "as text (its number is `coefficient_tol`)"),
         "coefficient_tol": _c("1", "float", "rk4h.methods.Tableau.coefficient_tol"),
         "stages": _c("1", "int", "stages of the tableau"),
         "partitioned": _c("", "bool", "a partitioned (position/velocity) tableau"),

@@ -1,4 +1,4 @@
-"""Compare the tables of two reports written by ``run_all.py``.
+"""Compare the tables of two reports written by rk4h run (python validation/run_all.py).
 
     python validation/compare_reports.py OLD_DIR NEW_DIR [--columns error_max,nfev] [--where solver=rk4]
 
@@ -73,8 +73,8 @@ exit status: 0 compared (differences are printed, not failures); 1 nothing was c
 def main(argv=None, *, prog=None) -> int:
     p = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0], epilog=_EXAMPLES,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("old")
-    p.add_argument("new")
+    p.add_argument("old", help="the first report's directory (e.g. reports)")
+    p.add_argument("new", help="the second report's directory, compared with the first")
     p.add_argument("--columns", default="", help="comma-separated columns to compare (default: all but timings)")
     p.add_argument("--where", default="", help="compare only rows with COLUMN=VALUE in the old table (e.g. solver=rk4)")
     args = p.parse_args(argv)

@@ -277,14 +277,18 @@ def _run_spec(scene, spec, quick):
 
 
 def _trajectory(model, t, run) -> dict:
-    """The run's times (s), states (2 n_dof, m) and energies (J, where the
-    model has an energy) when it covers the whole grid ``t``; else nothing."""
+    """The run's times (s), states (2 n_dof, m; a first-order ODE's
+    variables) and energies (J, where the model has an energy; a first-order
+    ODE's invariant) when it covers the whole grid ``t``; else nothing."""
     y = np.asarray(run.y, float)
     if y.ndim != 2 or y.shape[1] != t.shape[0]:
         return {}
     names = [str(n) for n in getattr(model, "coord_names", [])]
     out = {"trajectory_t": np.asarray(t, float), "trajectory_y": y}
-    if len(names) == model.n_dof:  # the state's components: q names, then their rates
+    if getattr(model, "first_order", False):  # a first-order ODE: y is its variables
+        if len(names) == y.shape[0]:
+            out["trajectory_names"] = np.array(names, dtype=str)
+    elif len(names) == model.n_dof:  # the state's components: q names, then their rates
         out["trajectory_names"] = np.array(names + [f"d{n}/dt" for n in names], dtype=str)
     try:
         out["trajectory_energy"] = np.asarray(model.energy(y), float).reshape(t.shape)

@@ -216,16 +216,19 @@ class Progress:
         elif self._due(el):
             self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s{eta} {msg}\n")
         else:
+            self._unprinted = (el, msg)
             return
+        self._unprinted = None
         self.stream.flush()
 
     #: Off a terminal (a log file, CI) the first line, then a line at most
-    #: every this fraction of the plan or this many seconds, and the last.
+    #: every this fraction of the plan or this many seconds, and the last
+    #: (written by :meth:`close`: confirmation runs may still extend the plan).
     LOG_FRACTION, LOG_SECONDS = 0.05, 10.0
 
     def _due(self, elapsed) -> bool:
         last_done, last_t = getattr(self, "_last", (0, 0.0))
-        if (self.done == 1 or self.done >= self.total or self.done - last_done >= self.LOG_FRACTION * self.total
+        if (self.done == 1 or self.done - last_done >= self.LOG_FRACTION * self.total
                 or elapsed - last_t >= self.LOG_SECONDS):
             self._last = (self.done, elapsed)
             return True
@@ -238,6 +241,11 @@ class Progress:
     def close(self):
         if self.tty:
             self.stream.write("\n")
+            self.stream.flush()
+        elif getattr(self, "_unprinted", None) is not None:  # the last unit, not yet written
+            el, msg = self._unprinted
+            self._unprinted = None
+            self.stream.write(f"[{self.done}/{self.total}] {el:.1f}s {msg}\n")
             self.stream.flush()
 
 

@@ -465,7 +465,7 @@ def _scene_from_dict(doc: dict, path) -> Scene:
                              f"degrees of freedom (every other output needs a dense eigensolve, above "
                              f"{MAX_DENSE_DOF}): give a [stability] table or outputs")
     if first_order and run.outputs is not None:
-        fits = default_outputs(model)
+        fits = default_outputs(model) + ["trajectory"]  # trajectory: any model's runs, never a default
         for i, o in enumerate(outputs):
             if o not in fits:
                 raise SceneError(path, f"run.outputs[{i}]", f"does not apply to model {s.model!r} (a first-order "
@@ -566,7 +566,7 @@ def default_outputs(model, *, stability: bool = False) -> list[str]:
       run's states);
     * a first-order ODE (model ``ode``): ``state``, ``convergence``,
       ``work_precision``, ``figures``, and ``energy`` when it has an
-      invariant.
+      invariant (``trajectory`` too when the scene lists it).
 
     Above :data:`MAX_DENSE_DOF` degrees of freedom only outputs that need no
     dense eigensolve apply (``stability``: the budget refuses the others), so

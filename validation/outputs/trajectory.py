@@ -12,6 +12,10 @@ engine: no C library), with dimensions ``run``, ``time``, ``component``:
   ``status``;
 * attributes ``scene``, ``units`` and the convention of ``setting``.
 
+For a first-order ODE (model ``ode``) ``y`` holds its variables (named by
+``component``, in the ODE's own units), ``energy`` its invariant ``I(y)``
+(NaN without one) and ``units`` says so.
+
 Runs that kept no trajectory (a failed run) hold NaN. The table
 ``trajectory.csv`` lists the runs and their file.
 """
@@ -24,6 +28,8 @@ from rk4h.validation.outputs import FileJob, Output, Table, _runs
 
 #: The state's and energy's units, written as attributes.
 UNITS = "time: s; y: [q, v] in the model's units (m, m/s; rad, rad/s); energy: J"
+#: The same for a first-order ODE (model ``ode``).
+UNITS_ODE = "time: s; y: the ODE's variables, in its own units; energy: the ODE's invariant I(y), in its units"
 
 
 def file_name(scene: str) -> str:
@@ -54,13 +60,16 @@ def measure(m) -> None:
                                  "file": name if t is not None else "", "n_times": n_times, "n_state": n_state,
                                  "status": rec.status or "failed"})
     if runs:
-        m.res.files.append(FileJob(m.scene.name, "trajectory", {"file": name, "runs": runs}))
+        first_order = bool(getattr(m.scene.build_model(), "first_order", False))
+        m.res.files.append(FileJob(m.scene.name, "trajectory", {"file": name, "runs": runs,
+                                                                "first_order": first_order}))
 
 
-def dataset(scene: str, runs: list, references=None):
+def dataset(scene: str, runs: list, references=None, first_order: bool = False):
     """The :class:`xarray.Dataset` of one scene's ``runs`` (see the module
     docstring); ``references`` the adaptive method names (default: the
-    registry's references)."""
+    registry's references); ``first_order`` a first-order ODE's runs (``y``
+    its variables, ``energy`` its invariant)."""
     import numpy as np
     import xarray as xr
 
@@ -81,8 +90,12 @@ def dataset(scene: str, runs: list, references=None):
     adaptive = np.array([r["solver"] in references for r in runs], bool)
     setting = np.array([r["setting"] for r in runs], float)
     ds = xr.Dataset(
-        {"y": (("run", "time", "component"), y, {"long_name": "state [q, v]", "units": "model units"}),
-         "energy": (("run", "time"), energy, {"long_name": "energy of the model", "units": "J"})},
+        {"y": (("run", "time", "component"), y,
+               {"long_name": "the ODE's variables" if first_order else "state [q, v]",
+                "units": "the ODE's units" if first_order else "model units"}),
+         "energy": (("run", "time"), energy,
+                    {"long_name": "invariant I(y) of the ODE" if first_order else "energy of the model",
+                     "units": "the invariant's units" if first_order else "J"})},
         coords={"time": ("time", t, {"units": "s"}),
                 **({"component": ("component", np.array(names, dtype=str))} if names else {}),
                 "run": ("run", np.arange(len(runs))),
@@ -91,7 +104,7 @@ def dataset(scene: str, runs: list, references=None):
                 "h": ("run", np.where(adaptive, math.nan, setting), {"units": "s"}),
                 "rtol": ("run", np.where(adaptive, setting, math.nan), {"units": "1"}),
                 "status": ("run", np.array([r["status"] for r in runs], dtype=str))},
-        attrs={"scene": scene, "units": UNITS,
+        attrs={"scene": scene, "units": UNITS_ODE if first_order else UNITS,
                "setting": "the step h (s) of a fixed-step method, the rtol of an adaptive reference",
                "source": "rk4 validation harness, output trajectory"})
     return ds
@@ -110,7 +123,7 @@ def write(out_dir, jobs) -> list:
     out = []
     for job in jobs:
         path = Path(out_dir) / job.data["file"]
-        ds = dataset(job.scene, job.data["runs"])
+        ds = dataset(job.scene, job.data["runs"], first_order=job.data.get("first_order", False))
         ds.to_netcdf(path, engine="scipy", format="NETCDF3_64BIT")
         out.append((path, f"{job.scene}: `{path.name}` holds the trajectories of {ds.sizes['run']} run(s), "
                           f"{ds.sizes['time']} times each (netCDF, read with xarray.open_dataset)."))
@@ -119,7 +132,7 @@ def write(out_dir, jobs) -> list:
 
 OUTPUT = Output(
     name="trajectory", rank=120, plan_rank=10, measure_rank=100,
-    when="never by default (it writes every run's states)",
+    when="never by default (it writes every run's states); any model that lists it, a first-order ODE included",
     what="every run's time, state and energy in `trajectory-<scene>.nc` (netCDF through xarray), listed in "
          "`trajectory.csv`",
     plan=_runs.plan, measure=measure, write=write,
