@@ -2,6 +2,8 @@
 one line for an unknown command, and progress that does not flood a log."""
 import io
 
+import sys
+
 import pytest
 
 from rk4h.validation import run_all
@@ -118,6 +120,39 @@ def test_a_missing_extra_is_one_line_naming_it(command, extra, monkeypatch, caps
     assert f"pip install 'rk4-validation-harness[{extra}]'" in err
 
 
+@pytest.mark.parametrize("command, extra", [("run", "references"), ("advise", "fast"), ("compare", "report")])
+def test_help_works_without_the_extras(command, extra, monkeypatch, capsys):
+    from rk4h.validation import extras
+
+    gone = set(extras.EXTRAS[extra])
+    monkeypatch.setattr(extras, "_importable", lambda m: m not in gone)
+    assert main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert f"usage: rk4h {command}" in out
+    assert out.rstrip().splitlines()[-1].startswith(f"rk4h {command}: needs the extra {extra} ")
+
+
+@pytest.mark.parametrize("command", ["run", "advise"])
+def test_help_without_extras_when_the_module_cannot_import(command, monkeypatch, capsys):
+    import importlib
+
+    from rk4h.validation import cli, extras
+
+    monkeypatch.setattr(extras, "_importable", lambda m: m != "numba")
+    module, real = cli._COMMANDS[command][0], importlib.import_module
+
+    def import_module(name, *args):
+        if name == module:
+            raise ModuleNotFoundError(f"No module named {name!r}")
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", import_module)
+    assert main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: rk4h {command} ...") and cli._COMMANDS[command][1] in out
+    assert "needs the extra" in out.rstrip().splitlines()[-1]
+
+
 def test_scheduler_needs_the_cluster_extra(monkeypatch, capsys):
     from rk4h.validation import extras
 
@@ -150,3 +185,11 @@ def test_rk4core_solves_without_any_extra():
             "print('ok')\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and proc.stdout.strip() == "ok", proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize("args, field", [(["--target", "2"], "--target"), (["--target", "x"], "--target"),
+                                         (["--energy-target", "1e-6"], "--energy-target")])
+def test_advise_errors_name_the_rk4h_command(args, field, capsys):
+    assert main(["advise", "thesis-2dof-case1", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"rk4h advise: {field}: ")

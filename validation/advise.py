@@ -735,7 +735,7 @@ def main(argv=None, *, prog="advise.py") -> int:
 
     _heyoka.own_process()  # this process is rk4h's: heyoka may come without sympy
     lack = extras.message("advise", prog)
-    if lack:
+    if lack and not extras.asks_help(argv):
         print(lack, file=sys.stderr)
         return 2
     parser = argparse.ArgumentParser(prog=prog, description=" ".join(__doc__.split("\n\n")[0].split()),
@@ -753,20 +753,21 @@ def main(argv=None, *, prog="advise.py") -> int:
                         help="run the programs and import the Python modules a scene not shipped with the "
                              "project names; read it first (default: refused; also RK4H_ALLOW_CODE=1)")
     args = parser.parse_args(argv)
+    args.prog = prog  # error lines start with the command as the user typed it
     from rk4h.validation.scenes import SceneError, load_scenes
 
     if args.energy_target is not None or args.periods is not None or args.horizon is not None:
         return _energy_main(args)
     if args.target is None:
-        print("advise: --target: required (or --energy-target with --periods or --horizon)", file=sys.stderr)
+        print(f"{args.prog}: --target: required (or --energy-target with --periods or --horizon)", file=sys.stderr)
         return 2
     try:
         target = float(args.target)
     except ValueError:
-        print(f"advise: --target: must be a number, got {args.target!r}", file=sys.stderr)
+        print(f"{args.prog}: --target: must be a number, got {args.target!r}", file=sys.stderr)
         return 2
     if not (math.isfinite(target) and 0 < target < 1):
-        print(f"advise: --target: must lie in (0, 1), got {args.target!r}", file=sys.stderr)
+        print(f"{args.prog}: --target: must lie in (0, 1), got {args.target!r}", file=sys.stderr)
         return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
@@ -790,15 +791,16 @@ def _energy_main(args) -> int:
         except (TypeError, ValueError):
             x = math.nan
         if not (math.isfinite(x) and lo < x < hi):
-            print(f"advise: {flag}: must be {what}, got {text!r}", file=sys.stderr)
+            print(f"{args.prog}: {flag}: must be {what}, got {text!r}", file=sys.stderr)
             return None
         return x
 
     if args.energy_target is None or (args.periods is None and args.horizon is None):
-        print("advise: --energy-target: needs --periods N or --horizon T (and the other way round)", file=sys.stderr)
+        print(f"{args.prog}: --energy-target: needs --periods N or --horizon T (and the other way round)",
+              file=sys.stderr)
         return 2
     if args.target is not None:
-        print("advise: --target: not with --energy-target (one question per call)", file=sys.stderr)
+        print(f"{args.prog}: --target: not with --energy-target (one question per call)", file=sys.stderr)
         return 2
     args.energy_target = number("--energy-target", args.energy_target, 0, 1, "a number in (0, 1)")
     if args.energy_target is None:
@@ -821,7 +823,7 @@ def _energy_main(args) -> int:
     try:
         return advise_energy.run_cli(scenes[0], args, time.perf_counter())
     except ValueError as e:  # a model without an oscillating mode: no horizon in periods
-        print(f"advise: {e}", file=sys.stderr)
+        print(f"{args.prog}: {e}", file=sys.stderr)
         return 2
 
 

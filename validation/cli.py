@@ -74,12 +74,33 @@ def main(argv=None) -> int:
     from rk4h.validation import extras
 
     lack = extras.message(argv[0], f"rk4h {argv[0]}")
+    if lack and {"-h", "--help"} & set(argv[1:]):
+        return _help_without_extras(argv[0], module, lack)
     if lack:  # before the module is imported: it may need what is missing
         print(lack, file=sys.stderr)
         return 2
     import importlib
 
     return importlib.import_module(module).main(argv[1:], prog=f"rk4h {argv[0]}")
+
+
+def _help_without_extras(command: str, module: str, lack: str) -> int:
+    """``rk4h COMMAND --help`` where COMMAND's extras are missing: its full
+    help when its module imports without them, else its one-line summary;
+    then the line naming the missing extras. Exit 0 (help was asked for)."""
+    import importlib
+
+    try:
+        mod = importlib.import_module(module)
+    except ImportError:
+        print(f"usage: rk4h {command} ...\n\n{_COMMANDS[command][1]}\n")
+    else:
+        try:
+            mod.main(["--help"], prog=f"rk4h {command}")
+        except SystemExit:
+            pass
+    print(lack)
+    return 0
 
 
 def entry() -> None:

@@ -50,3 +50,9 @@ def message(command: str, prog: str) -> str | None:
     mods = ", ".join(m for x in lack for m in EXTRAS[x] if not _importable(m))
     return (f"{prog}: needs the extra{'s' if len(lack) > 1 else ''} {', '.join(lack)} (missing: {mods}): "
             f"pip install 'rk4-validation-harness[{','.join(lack)}]'")
+
+
+def asks_help(argv) -> bool:
+    """Whether a command line asks for help (``-h`` or ``--help``): help is
+    printed whatever extras are missing."""
+    return argv is not None and bool({"-h", "--help"} & set(argv))

@@ -310,7 +310,7 @@ def main(argv=None, *, restore_signals=True, prog="run_all.py") -> int:
     lack = extras.message("run", prog)
     if lack is None and argv is not None and "--scheduler" in argv:
         lack = extras.message("cluster", prog)
-    if lack:
+    if lack and not extras.asks_help(argv):
         print(lack, file=sys.stderr)
         return 2
     interrupt.reset()
