@@ -44,6 +44,7 @@ import rk4h.fast as fast
 
 from rk4h.fast import solve as _fast_solve
 from rk4h.fast.solve import solve_checked
+from rk4h.fast.statecheck import state_checker
 from rk4h.validate import check_output_times
 from rk4h.models.base import Model
 from rk4h.solver import _DBL_MAX
@@ -189,13 +190,17 @@ def _forget(model) -> None:
                 pass
 
 
+_UNSET = object()
+
+
 class _Short:
     """What a repeated ``run_fixed`` of one model object needs (see above)."""
 
-    __slots__ = ("snapshot", "n_state", "n_dof", "w", "preps", "states", "plans")
+    __slots__ = ("snapshot", "n_state", "n_dof", "w", "preps", "states", "plans", "accepts")
 
     def __init__(self, model, w):
         self.snapshot = _snapshot(model)
+        self.accepts = _UNSET  # the compiled state test (rk4h.fast.statecheck), made on the first new state
         self.n_dof = model.n_dof
         self.n_state = 2 * model.n_dof
         self.w = w
@@ -306,17 +311,30 @@ def run_fixed_short(tab, model, y0, t_eval, h: float) -> SolverRun | None:
 def _new_state(rec, model, y):
     """The growth bounds of a new initial state ``y`` (a copy) of ``rec``'s
     model, as :func:`run_fixed` computes them, or None when ``y`` is not
-    finite or not a state of the model (the general path refuses it)."""
+    finite or not a state of the model (the general path refuses it).
+
+    Whether ``y`` is a state of the model: the compiled test of
+    :func:`rk4h.fast.statecheck.state_checker` (a few us) where the model has
+    one and it accepts; else :meth:`Model.check_state`'s numpy test."""
     n = rec.n_dof
     a = np.abs(y)
     aq, av = float(a[:n].max()), float(a[n:].max())
     if not (math.isfinite(aq) and math.isfinite(av)):
         return None
-    try:
-        if model._state_problem_once(y) is not None:
+    accepts = rec.accepts
+    if accepts is _UNSET:
+        try:
+            accepts = state_checker(model)
+        except Exception:  # noqa: BLE001 - no compiled test: the numpy check decides
+            accepts = None
+        rec.accepts = accepts
+    # the compiled test only ever accepts a state the numpy check accepts; else the numpy check decides
+    if accepts is None or not accepts(y):
+        try:
+            if model._state_problem_once(y) is not None:
+                return None
+        except Exception:  # noqa: BLE001 - the general path says what is wrong
             return None
-    except Exception:  # noqa: BLE001 - the general path says what is wrong
-        return None
     s_q, s_v = scales_from(aq, av, rec.w)
     if not (math.isfinite(s_q) and math.isfinite(s_v)):
         return None
