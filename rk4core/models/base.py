@@ -181,7 +181,10 @@ def _snapshot(model):
         attrs = held.__dict__
         names = tuple(name for name in attrs if name not in OBJECT_CACHES)
         values = tuple(attrs[name] for name in names)
-        owners.append((attrs, names, values))
+        if held is not model or type(model).__setattr__ is not Model.__setattr__ \
+                or type(model).__delattr__ is not Model.__delattr__:
+            # the model's own rebinding goes through Model.__setattr__, which voids the record
+            owners.append((attrs, names, values))
         for value in values:
             if isinstance(value, np.ndarray):
                 arrays.append((value, value.dtype, value.shape, value.tobytes()))
@@ -252,7 +255,9 @@ def model_current(model) -> bool:
     change detection that every per-object cache shares (the fixed-step
     short path, the fingerprint and so the constants of
     :func:`model_constants`, the compiled kernels). It costs a comparison of
-    the model's attributes (identity) and arrays (bytes)."""
+    the model's arrays (bytes) and plain lists and dicts; an attribute
+    rebound on the model (``Model.__setattr__``) voids the record at once, one
+    rebound in a model it holds is found by identity."""
     d = getattr(model, "__dict__", None)
     if d is None:
         return False
@@ -656,6 +661,20 @@ class Model:
             while len(states) > _STATES_MAXSIZE:
                 states.popitem(last=False)
         return problem
+
+    # -- change detection (model_current) ------------------------------------
+    def __setattr__(self, name, value):
+        # rebinding an attribute voids the change record: the next model_current
+        # drops every per-object cache (a new attribute, or a cache, does not)
+        d = self.__dict__
+        if name in d and name not in OBJECT_CACHES:
+            d.pop(_WATCH, None)
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name):
+        if name not in OBJECT_CACHES:
+            self.__dict__.pop(_WATCH, None)
+        object.__delattr__(self, name)
 
     # -- numpy evaluation ---------------------------------------------------
     @property
