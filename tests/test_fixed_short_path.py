@@ -302,3 +302,24 @@ def test_a_copied_model_changed_after_the_copy_is_noticed():
                                                           "alpha": 0.25}), y0, t, 0.01)
     _same(integrate("rk4", twin, y0, t, 0.01), expected)
     _same(integrate("rk4", model, y0, t, 0.01), integrate("rk4", _chain(3, alpha=0.25), y0, t, 0.01))
+
+
+def test_a_rebinding_inside_a_held_model_is_noticed():
+    """An attribute rebound on a model a Defined model holds (its
+    definition) is found by identity; one rebound on the model itself voids
+    its change record at once (``Model.__setattr__``)."""
+    from rk4h.models.base import model_current
+
+    model = rk4h.make_model("triangle", example_parameters("triangle"))
+    y0, t = _state(model), np.array([0.0, 0.1])
+    first = integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)
+    assert model_current(model)
+    model.definition.k = model.definition.k * 2.0  # rebound, not changed in place
+    assert not model_current(model)  # noticed, every per-object cache dropped
+    assert model_current(model)  # and recorded as it now is
+    changed = integrate("rk4", model, y0, t, 0.01)
+    assert not np.array_equal(changed.y, first.y)
+    _same(integrate("rk4", model, y0, t, 0.01), changed)
+    model.mass = model.mass  # a rebinding on the model itself, even to the same array
+    assert not model_current(model)
