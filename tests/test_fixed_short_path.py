@@ -323,3 +323,24 @@ def test_a_rebinding_inside_a_held_model_is_noticed():
     _same(integrate("rk4", model, y0, t, 0.01), changed)
     model.mass = model.mass  # a rebinding on the model itself, even to the same array
     assert not model_current(model)
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy", "copy"])
+def test_a_model_that_ran_every_path_pickles_and_copies(how):
+    """Per-object caches (compiled loops, the compiled state test, the change
+    record) are not part of a model's state: a model that ran the general
+    and short paths (with a new ``y0``) and CVODE pickles and copies, and the
+    copy gives the same numbers."""
+    import copy
+    import pickle
+
+    model = _chain(3, alpha=0.25)
+    y0, t = _state(model), np.array([0.0, 0.1])
+    first = integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, 1.1 * y0, t, 0.01)
+    integrate("cvode-adams", model, y0, t, 1e-8)
+    twin = {"pickle": lambda m: pickle.loads(pickle.dumps(m)), "deepcopy": copy.deepcopy,
+            "copy": copy.copy}[how](model)
+    assert not any(k.startswith("_fixed") or k.startswith("_rk4h") for k in twin.__dict__)
+    _same(integrate("rk4", twin, y0, t, 0.01), first)
+    _same(integrate("rk4", twin, 1.1 * y0, t, 0.01), integrate("rk4", model, 1.1 * y0, t, 0.01))

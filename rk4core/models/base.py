@@ -676,6 +676,11 @@ class Model:
             self.__dict__.pop(_WATCH, None)
         object.__delattr__(self, name)
 
+    def __getstate__(self):
+        # pickle and copy take the model's attributes, never its per-object caches
+        # (compiled loops, closures, the change record): the copy works them out again
+        return {k: v for k, v in self.__dict__.items() if k not in OBJECT_CACHES}
+
     # -- numpy evaluation ---------------------------------------------------
     @property
     def n_state(self) -> int:
