@@ -20,7 +20,12 @@ figure is a median (microseconds) of wall-clock times of whole calls.
     kept (an estimate of the behaviour before issue 29, measured in this run).
 ``new y0``
     ``rk4 warm`` with another initial state each call (an ensemble): the
-    state is checked (one force and energy evaluation) on each.
+    state is checked on each, by the compiled test of
+    ``rk4h.fast.statecheck`` (the numpy check only where it does not accept).
+``numpy check``
+    ``new y0`` with the compiled test switched off on the model's record:
+    each new state checked by ``Model.state_problem`` (one numpy force and
+    energy evaluation), as before that test (measured in this run).
 ``fixed``
     ``rk4 warm - loop``, printed with its ratio to ``loop`` (target of
     issue 29: at most 50 us).
@@ -133,7 +138,14 @@ def main(argv=None) -> int:
     t_cold = median_us(lambda: integrate("rk4", fput, y0, T, H), calls, before=forget)
     fresh = iter([y0 * (1.0 + 1e-3 * i) for i in range(1, calls + 1)])
     t_new = median_us(lambda: integrate("rk4", fput, next(fresh), T, H), calls)
-    print(f"rk4   loop {t_loop:9.1f}  warm {t_warm:9.1f}  cold {t_cold:9.1f}  new y0 {t_new:9.1f}")
+    integrate("rk4", fput, y0, T, H)
+    fput.__dict__["_fixed_short"].accepts = None  # the numpy check of each new state
+    fresh = iter([y0 * (1.0 - 1e-3 * i) for i in range(1, calls + 1)])
+    t_numpy = median_us(lambda: integrate("rk4", fput, next(fresh), T, H), calls)
+    fput.__dict__.pop("_fixed_short")
+    integrate("rk4", fput, y0, T, H)
+    print(f"rk4   loop {t_loop:9.1f}  warm {t_warm:9.1f}  cold {t_cold:9.1f}  new y0 {t_new:9.1f}  "
+          f"(numpy check {t_numpy:9.1f})")
     # The process's CPU clock: less inflated than the wall clock when other processes share the cores.
     p_loop = median_us(loop, calls, clock=time.process_time)
     p_warm = median_us(lambda: integrate("rk4", fput, y0, T, H), calls, clock=time.process_time)

@@ -234,3 +234,113 @@ def test_a_change_inside_a_wrapped_model_drops_the_record():
     model.definition.mass[0] *= 2.0
     integrate("rk4", model, y0, t, 0.01)
     assert model.__dict__[fixed._RECORD] is not record
+
+
+@pytest.mark.parametrize("solver, setting", [("rk4", 0.01), ("cvode-adams", 1e-8), ("dop853", 1e-8)])
+def test_every_cached_path_sees_a_model_changed_in_place(solver, setting):
+    """One change detection (``rk4h.models.base.model_current``) serves every
+    per-object cache: after an in-place change between two calls, the short
+    path, the fingerprint, the kept constants (Gershgorin bound, modes,
+    CVODE's Jacobian), the compiled kernels and the kept state checks all
+    give what a new model with the new parameters gives."""
+    from rk4h.models.base import model_fingerprint
+
+    def build(k):
+        return rk4h.make_model("chain", {"masses": [1.0, 1.1, 1.2], "springs": k})
+
+    springs = [1.0, 1.05, 1.1, 1.15]
+    model = build(springs)
+    y0, t = model.state([0.01, -0.02, 0.015]), np.array([0.0, 0.05, 0.3])
+    for _ in range(2):  # the second call answers from every cache
+        first = integrate(solver, model, y0, t, setting)
+    old_print, old_modes = model_fingerprint(model), model.modes()[0]
+    model.k[1] *= 3.0  # in place, between two calls
+    new = build(list(model.k))
+    changed = integrate(solver, model, y0, t, setting)
+    expected = integrate(solver, new, y0, t, setting)
+    np.testing.assert_array_equal(changed.y, expected.y)
+    assert (changed.nfev, changed.n_steps, changed.status, changed.message) == \
+           (expected.nfev, expected.n_steps, expected.status, expected.message)
+    assert not np.array_equal(changed.y, first.y)
+    assert model_fingerprint(model) == model_fingerprint(new) != old_print
+    np.testing.assert_array_equal(model.modes()[0], new.modes()[0])
+    assert not np.array_equal(model.modes()[0], old_modes)
+    # a state accepted before is refused once the change makes its energy overflow, on every path
+    model.k[0] = 1e300
+    big = model.state([1e5, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"`y0` must be a state of chain") as known:
+        integrate(solver, model, big, t, setting)
+    with pytest.raises(ValueError) as fresh:
+        integrate(solver, build(list(model.k)), big, t, setting)
+    assert str(known.value) == str(fresh.value)
+
+
+def test_a_changed_model_refuses_a_state_its_short_path_accepted_before():
+    model = rk4h.make_model("chain", {"masses": [1.0, 1.1], "springs": [1.0, 1.0, 1.0], "alpha": 0.25})
+    t = np.array([0.0, 0.05])
+    y_big = model.state([1e5, 0.0])
+    integrate("rk4", model, model.state([0.01, 0.0]), t, 0.01)
+    integrate("rk4", model, y_big, t, 0.01)  # accepted on the short path (compiled state test)
+    integrate("rk4", model, y_big, t, 0.01)  # and kept
+    model.k[0] = 1e300  # k r^2 / 2 overflows at r = 1e5
+    with pytest.raises(ValueError, match=r"its energy is not finite"):
+        integrate("rk4", model, y_big, t, 0.01)
+
+
+def test_a_copied_model_changed_after_the_copy_is_noticed():
+    """``copy.copy`` shares the change record in the copy's attributes: the
+    copy is checked against its own attributes, not the original's."""
+    import copy
+
+    model = _chain(3, alpha=0.25)
+    y0, t = _state(model), np.array([0.0, 0.05, 0.3])
+    integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)
+    twin = copy.copy(model)
+    twin.k = model.k * 2.0  # rebound on the copy only
+    expected = integrate("rk4", rk4h.make_model("chain", {"masses": list(model.mass), "springs": list(twin.k),
+                                                          "alpha": 0.25}), y0, t, 0.01)
+    _same(integrate("rk4", twin, y0, t, 0.01), expected)
+    _same(integrate("rk4", model, y0, t, 0.01), integrate("rk4", _chain(3, alpha=0.25), y0, t, 0.01))
+
+
+def test_a_rebinding_inside_a_held_model_is_noticed():
+    """An attribute rebound on a model a Defined model holds (its
+    definition) is found by identity; one rebound on the model itself voids
+    its change record at once (``Model.__setattr__``)."""
+    from rk4h.models.base import model_current
+
+    model = rk4h.make_model("triangle", example_parameters("triangle"))
+    y0, t = _state(model), np.array([0.0, 0.1])
+    first = integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, y0, t, 0.01)
+    assert model_current(model)
+    model.definition.k = model.definition.k * 2.0  # rebound, not changed in place
+    assert not model_current(model)  # noticed, every per-object cache dropped
+    assert model_current(model)  # and recorded as it now is
+    changed = integrate("rk4", model, y0, t, 0.01)
+    assert not np.array_equal(changed.y, first.y)
+    _same(integrate("rk4", model, y0, t, 0.01), changed)
+    model.mass = model.mass  # a rebinding on the model itself, even to the same array
+    assert not model_current(model)
+
+
+@pytest.mark.parametrize("how", ["pickle", "deepcopy", "copy"])
+def test_a_model_that_ran_every_path_pickles_and_copies(how):
+    """Per-object caches (compiled loops, the compiled state test, the change
+    record) are not part of a model's state: a model that ran the general
+    and short paths (with a new ``y0``) and CVODE pickles and copies, and the
+    copy gives the same numbers."""
+    import copy
+    import pickle
+
+    model = _chain(3, alpha=0.25)
+    y0, t = _state(model), np.array([0.0, 0.1])
+    first = integrate("rk4", model, y0, t, 0.01)
+    integrate("rk4", model, 1.1 * y0, t, 0.01)
+    integrate("cvode-adams", model, y0, t, 1e-8)
+    twin = {"pickle": lambda m: pickle.loads(pickle.dumps(m)), "deepcopy": copy.deepcopy,
+            "copy": copy.copy}[how](model)
+    assert not any(k.startswith("_fixed") or k.startswith("_rk4h") for k in twin.__dict__)
+    _same(integrate("rk4", twin, y0, t, 0.01), first)
+    _same(integrate("rk4", twin, 1.1 * y0, t, 0.01), integrate("rk4", model, 1.1 * y0, t, 0.01))

@@ -34,7 +34,6 @@ same result bit for bit, without checking again what was checked before;
 from __future__ import annotations
 
 import math
-import operator
 import time
 
 import numpy as np
@@ -44,8 +43,9 @@ import rk4h.fast as fast
 
 from rk4h.fast import solve as _fast_solve
 from rk4h.fast.solve import solve_checked
+from rk4h.fast.statecheck import state_checker
 from rk4h.validate import check_output_times
-from rk4h.models.base import Model
+from rk4h.models.base import model_current, register_object_cache
 from rk4h.solver import _DBL_MAX
 
 from .base import SolverRun, Status
@@ -119,14 +119,13 @@ def run_fixed(method, model, y0: np.ndarray, t_eval: np.ndarray, h: float) -> So
 # path) goes the general way, with its checks and messages.
 #
 # Models are not changed after construction (their compiled kernel and constants are kept per
-# object). A user who does change one anyway, in place or by rebinding an attribute, is noticed:
-# the record keeps each attribute of the model (and of a model it wraps) by identity and each
-# array's bytes; a difference drops every per-object cache and the call runs the general path on
-# the model as it now is.
+# object). A user who does change one anyway, in place or by rebinding an attribute, is noticed by
+# the model's one change detection (rk4h.models.base.model_current, shared with its fingerprint and
+# constants): it drops every per-object cache, this record included, and the call runs the general
+# path on the model as it now is.
 
 _RECORD = "_fixed_short"
-#: The per-object caches of a model dropped when it is found changed.
-_OBJECT_CACHES = ("_fast_force_kernel", "_fast_prepared", "_references_rhs", _RECORD)
+register_object_cache(_RECORD)  # dropped with the model's other per-object caches when it changes
 #: Most initial states and output plans one record keeps (then it starts again).
 _KEEP = 16
 #: Largest initial state (components) and output plan (times) a record keeps: larger ones are worked
@@ -134,68 +133,16 @@ _KEEP = 16
 _KEEP_SIZE = 4096
 
 
-def _snapshot(model):
-    """``(owners, arrays, containers)``: for ``model`` and each model held in
-    one of its attributes, its attribute dictionary with the names and
-    values of its attributes; every array attribute with its dtype, shape
-    and bytes; every plain list or dict with a copy."""
-    owners, arrays, containers = [], [], []
-    attrs_of = [model.__dict__] + [v.__dict__ for v in model.__dict__.values() if isinstance(v, Model)]
-    for attrs in attrs_of:
-        names = tuple(name for name in attrs if name not in _OBJECT_CACHES)
-        values = tuple(attrs[name] for name in names)
-        owners.append((attrs, names, values))
-        for value in values:
-            if isinstance(value, np.ndarray):
-                arrays.append((value, value.dtype.str, value.shape, value.tobytes()))
-            elif type(value) in (list, dict):
-                try:
-                    copy = type(value)(value)
-                    if bool(copy == value):
-                        containers.append((value, copy))
-                except Exception:  # noqa: BLE001 - items without a plain ==: kept by identity only
-                    pass
-    return owners, arrays, containers
-
-
-def _unchanged(snapshot) -> bool:
-    owners, arrays, containers = snapshot
-    for attrs, names, values in owners:
-        if not all(map(operator.is_, map(attrs.get, names), values)):
-            return False
-    for value, dtype, shape, data in arrays:
-        if value.dtype.str != dtype or value.shape != shape or value.tobytes() != data:
-            return False
-    for value, copy in containers:
-        if value != copy:
-            return False
-    return True
-
-
-def _forget(model) -> None:
-    """Drop every per-object cache of ``model`` (and of a model it wraps),
-    and its fingerprint: its kernel, constants and checks are worked out
-    again from its attributes as they now are."""
-    from rk4h.models import base as models_base
-
-    for obj in [model] + [v for v in model.__dict__.values() if isinstance(v, Model)]:
-        for key in _OBJECT_CACHES:
-            obj.__dict__.pop(key, None)
-        fingerprints = getattr(models_base, "_FINGERPRINTS", None)
-        if fingerprints is not None:
-            try:
-                fingerprints.pop(obj, None)
-            except TypeError:
-                pass
+_UNSET = object()
 
 
 class _Short:
     """What a repeated ``run_fixed`` of one model object needs (see above)."""
 
-    __slots__ = ("snapshot", "n_state", "n_dof", "w", "preps", "states", "plans")
+    __slots__ = ("n_state", "n_dof", "w", "preps", "states", "plans", "accepts")
 
     def __init__(self, model, w):
-        self.snapshot = _snapshot(model)
+        self.accepts = _UNSET  # the compiled state test (rk4h.fast.statecheck), made on the first new state
         self.n_dof = model.n_dof
         self.n_state = 2 * model.n_dof
         self.w = w
@@ -252,8 +199,7 @@ def run_fixed_short(tab, model, y0, t_eval, h: float) -> SolverRun | None:
     rec = d.get(_RECORD) if d is not None else None
     if rec is None:
         return None
-    if not _unchanged(rec.snapshot):
-        _forget(model)
+    if not model_current(model):  # changed: every per-object cache, this record included, was dropped
         return None
     entry = rec.preps.get(id(tab))
     if entry is None or entry[0] is not tab:
@@ -306,17 +252,30 @@ def run_fixed_short(tab, model, y0, t_eval, h: float) -> SolverRun | None:
 def _new_state(rec, model, y):
     """The growth bounds of a new initial state ``y`` (a copy) of ``rec``'s
     model, as :func:`run_fixed` computes them, or None when ``y`` is not
-    finite or not a state of the model (the general path refuses it)."""
+    finite or not a state of the model (the general path refuses it).
+
+    Whether ``y`` is a state of the model: the compiled test of
+    :func:`rk4h.fast.statecheck.state_checker` (a few us) where the model has
+    one and it accepts; else :meth:`Model.check_state`'s numpy test."""
     n = rec.n_dof
     a = np.abs(y)
     aq, av = float(a[:n].max()), float(a[n:].max())
     if not (math.isfinite(aq) and math.isfinite(av)):
         return None
-    try:
-        if model._state_problem_once(y) is not None:
+    accepts = rec.accepts
+    if accepts is _UNSET:
+        try:
+            accepts = state_checker(model)
+        except Exception:  # noqa: BLE001 - no compiled test: the numpy check decides
+            accepts = None
+        rec.accepts = accepts
+    # the compiled test only ever accepts a state the numpy check accepts; else the numpy check decides
+    if accepts is None or not accepts(y):
+        try:
+            if model._state_problem_once(y) is not None:
+                return None
+        except Exception:  # noqa: BLE001 - the general path says what is wrong
             return None
-    except Exception:  # noqa: BLE001 - the general path says what is wrong
-        return None
     s_q, s_v = scales_from(aq, av, rec.w)
     if not (math.isfinite(s_q) and math.isfinite(s_v)):
         return None

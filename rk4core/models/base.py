@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import json
 import math
+import operator
 import threading
-import weakref
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -32,7 +32,7 @@ import numpy as np
 
 __all__ = ["Model", "Defined", "Drawing", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses",
            "check_normal_positive", "model_constants", "model_fingerprint", "CONSTANTS_MAXSIZE",
-           "clear_constants"]
+           "clear_constants", "model_current", "OBJECT_CACHES", "register_object_cache"]
 
 #: Smallest mass (kg, or kg m^2) a model accepts. Anything smaller is not a
 #: physical mass but an underflow: at 5e-324 (the smallest subnormal) the
@@ -147,7 +147,125 @@ _STATE_MAX_SIZE = 4096
 
 _CONSTANTS: OrderedDict = OrderedDict()
 _CONSTANTS_LOCK = threading.Lock()
-_FINGERPRINTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+#: The per-object caches a model may keep in its ``__dict__`` (each worked out
+#: from its attributes: its compiled kernel, prepared loops, compiled
+#: right-hand side, the fixed-step short path's record, a lambdified
+#: expression) and the change record itself (:func:`model_current`). They are
+#: dropped together when the model is found changed; a module adding such a
+#: cache adds its name here (:func:`register_object_cache`).
+OBJECT_CACHES = {"_fast_force_kernel", "_fast_prepared", "_references_rhs", "_fixed_short", "_V_above_fn",
+                 "_rk4h_watch"}
+_WATCH = "_rk4h_watch"
+_UNSET = object()
+
+
+def register_object_cache(name: str) -> None:
+    """Declare ``name`` a per-object cache of models (see :data:`OBJECT_CACHES`)."""
+    OBJECT_CACHES.add(name)
+
+
+def _held_models(model) -> list:
+    """``model`` and each model held in one of its attributes (a
+    :class:`Defined` model's definition)."""
+    return [model] + [v for v in model.__dict__.values() if isinstance(v, Model)]
+
+
+def _snapshot(model):
+    """``(owners, arrays, containers)``: for ``model`` and each model it
+    holds, its attribute dictionary with the names and values of its
+    attributes (caches excepted); every array attribute with its dtype,
+    shape and bytes; every plain list or dict with a copy."""
+    owners, arrays, containers = [], [], []
+    for held in _held_models(model):
+        attrs = held.__dict__
+        names = tuple(name for name in attrs if name not in OBJECT_CACHES)
+        values = tuple(attrs[name] for name in names)
+        if held is not model or type(model).__setattr__ is not Model.__setattr__ \
+                or type(model).__delattr__ is not Model.__delattr__:
+            # the model's own rebinding goes through Model.__setattr__, which voids the record
+            owners.append((attrs, names, values))
+        for value in values:
+            if isinstance(value, np.ndarray):
+                arrays.append((value, value.dtype, value.shape, value.tobytes()))
+            elif type(value) in (list, dict):
+                try:
+                    copy = type(value)(value)
+                    if bool(copy == value):
+                        containers.append((value, copy))
+                except Exception:  # noqa: BLE001 - items without a plain ==: kept by identity only
+                    pass
+    return owners, arrays, containers
+
+
+def _unchanged(snapshot) -> bool:
+    owners, arrays, containers = snapshot
+    is_ = operator.is_
+    for attrs, names, values in owners:
+        if not all(map(is_, map(attrs.get, names), values)):
+            return False
+    for value, dtype, shape, data in arrays:
+        if value.shape != shape or (value.dtype is not dtype and value.dtype != dtype) or value.tobytes() != data:
+            return False
+    for value, copy in containers:
+        if value != copy:
+            return False
+    return True
+
+
+class _Watch:
+    """What a model object's per-object caches were worked out from (a
+    snapshot of its attributes) and its fingerprint."""
+
+    __slots__ = ("attrs", "snapshot", "fingerprint", "key")
+
+    def __init__(self, model):
+        self.attrs = model.__dict__  # a copy of the model (copy.copy) shares this record, not this dictionary
+        self.snapshot = _snapshot(model)
+        self.fingerprint = _UNSET
+        self.key = None  # (class, fingerprint): the key of its constants
+
+
+def _watch(model):
+    """``model``'s :class:`_Watch`, made anew -- every per-object cache of
+    ``model`` and of the models it holds dropped first -- when there is none
+    or the model changed since it was made; None for an object without a
+    ``__dict__``."""
+    d = getattr(model, "__dict__", None)
+    if d is None:
+        return None
+    w = d.get(_WATCH)
+    if w is not None and w.attrs is d and _unchanged(w.snapshot):  # attrs: not a copy's record
+        return w
+    for held in _held_models(model):
+        for key in OBJECT_CACHES:
+            held.__dict__.pop(key, None)
+    w = d[_WATCH] = _Watch(model)
+    return w
+
+
+def model_current(model) -> bool:
+    """True when ``model`` is as it was when its per-object caches and its
+    fingerprint were worked out. Else (changed in place or an attribute
+    rebound, in it or in a model it holds; or never seen) every such cache
+    is dropped, the model is recorded as it now is, and False is returned:
+    its kernel, constants and checks are then worked out again.
+
+    Models are not meant to change after construction; this is the one
+    change detection that every per-object cache shares (the fixed-step
+    short path, the fingerprint and so the constants of
+    :func:`model_constants`, the compiled kernels). It costs a comparison of
+    the model's arrays (bytes) and plain lists and dicts; an attribute
+    rebound on the model (``Model.__setattr__``) voids the record at once, one
+    rebound in a model it holds is found by identity."""
+    d = getattr(model, "__dict__", None)
+    if d is None:
+        return False
+    w = d.get(_WATCH)
+    if w is not None and w.attrs is d and _unchanged(w.snapshot):
+        return True
+    _watch(model)
+    return False
 
 
 def _plain(value):
@@ -165,24 +283,26 @@ def model_fingerprint(model) -> str | None:
     :meth:`Model.params` as canonical JSON (floats written exactly), or None
     when ``params()`` fails (such a model's constants are not cached).
 
-    Worked out once per model object (kept while the object lives, in a
-    weak-key map): a model is not changed after construction (its compiled
-    kernel is kept on it too). Two objects built with equal parameters have
+    Worked out once per model object and kept on it while it is unchanged
+    (:func:`model_current`: a model changed in place gets the fingerprint
+    of its new parameters). Two objects built with equal parameters have
     equal fingerprints and so share their constants."""
-    try:
-        return _FINGERPRINTS[model]
-    except (KeyError, TypeError):  # TypeError: an unhashable or not weakly referable model
-        pass
+    return _fingerprint(model, _watch(model))
+
+
+def _fingerprint(model, w) -> str | None:
+    """:func:`model_fingerprint` of ``model`` whose watch (checked now) is ``w``."""
+    if w is not None and w.fingerprint is not _UNSET:
+        return w.fingerprint
     try:
         cls = type(model)
         text = json.dumps({"class": f"{cls.__module__}.{cls.__qualname__}", "name": model.name,
                            "params": model.params()}, sort_keys=True, default=_plain)
     except Exception:  # noqa: BLE001 - no parameters, no cache: the caller computes
         return None
-    try:
-        _FINGERPRINTS[model] = text
-    except TypeError:
-        pass
+    if w is not None:
+        w.fingerprint = text
+        w.key = (type(model), text)
     return text
 
 
@@ -196,11 +316,17 @@ def model_constants(model) -> dict | None:
     :data:`CONSTANTS_MAXSIZE` models and :data:`CONSTANTS_MAX_BYTES` of
     arrays are kept, least recently used dropped.
     Entries are written by :meth:`Model.constant`; arrays kept there are
-    read-only or copied on the way out."""
-    text = model_fingerprint(model)
-    if text is None:
-        return None
-    key = (type(model), text)
+    read-only or copied on the way out.
+
+    Checks first that ``model`` is unchanged (:func:`model_current`): a
+    model changed in place gets the constants of its new parameters."""
+    w = _watch(model)
+    key = w.key if w is not None else None
+    if key is None:
+        text = _fingerprint(model, w)
+        if text is None:
+            return None
+        key = (type(model), text)
     with _CONSTANTS_LOCK:
         record = _CONSTANTS.get(key)
         if record is None:
@@ -535,6 +661,25 @@ class Model:
             while len(states) > _STATES_MAXSIZE:
                 states.popitem(last=False)
         return problem
+
+    # -- change detection (model_current) ------------------------------------
+    def __setattr__(self, name, value):
+        # rebinding an attribute voids the change record: the next model_current
+        # drops every per-object cache (a new attribute, or a cache, does not)
+        d = self.__dict__
+        if name in d and name not in OBJECT_CACHES:
+            d.pop(_WATCH, None)
+        object.__setattr__(self, name, value)
+
+    def __delattr__(self, name):
+        if name not in OBJECT_CACHES:
+            self.__dict__.pop(_WATCH, None)
+        object.__delattr__(self, name)
+
+    def __getstate__(self):
+        # pickle and copy take the model's attributes, never its per-object caches
+        # (compiled loops, closures, the change record): the copy works them out again
+        return {k: v for k, v in self.__dict__.items() if k not in OBJECT_CACHES}
 
     # -- numpy evaluation ---------------------------------------------------
     @property
