@@ -225,6 +225,19 @@ def test_a_reference_runs_on_its_adapter_whatever_its_name():
     assert got.ok and np.array_equal(got.y, want.y) and got.nfev == want.nfev
 
 
+def test_a_renamed_reference_keeps_its_adapters_rules():
+    """What a reference needs is read from its adapter, not its name: heyoka
+    under another name still refuses a first-order ODE."""
+    import dataclasses
+
+    from rk4h.references.registry import BUILTIN
+    from rk4h.references.solvers import mechanical_only
+
+    renamed = dataclasses.replace(BUILTIN["heyoka"], name="my-taylor")
+    assert mechanical_only(BUILTIN["heyoka"]) and mechanical_only(renamed)
+    assert not mechanical_only(dataclasses.replace(BUILTIN["dop853"], name="my-taylor"))
+
+
 def test_every_method_declares_what_its_nfev_counts():
     """The cost unit is data: a Taylor method's cost is steps x order, the
     others' their nfev; CVODE's nfev includes its Jacobian's difference
