@@ -99,3 +99,22 @@ def test_nothing_cites_files_outside_the_repository():
         hits += [f"{rel}:{n}" for n, line in enumerate(path.read_text(errors="replace").splitlines(), 1)
                  if pattern.search(line)]
     assert not hits, hits
+
+
+def test_readme_own_scene_command_runs(tmp_path, monkeypatch, capsys):
+    """The tour's 'your own scene': the README's TOML saved under the name its
+    command gives, and that command run (in process, its --out in tmp_path)."""
+    from rk4h.validation.run_all import main
+
+    cmds = [c for b in _blocks("") for c in b.splitlines()
+            if c.startswith("python validation/run_all.py --scene ") and c.split()[3].endswith(".toml")]
+    assert cmds, "the README shows no command running its own scene"
+    python, script, *argv = cmds[0].split()
+    scene_file = argv[argv.index("--scene") + 1]
+    full = [b for b in _blocks("toml") if "name = " in b]
+    (tmp_path / scene_file).write_text(full[0], encoding="utf-8")
+    argv[argv.index("--out") + 1] = str(tmp_path / "out")
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 0, capsys.readouterr().err[-2000:]
+    index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
+    assert tomllib.loads(full[0])["name"] in index
