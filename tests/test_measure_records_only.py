@@ -52,3 +52,29 @@ def test_the_recorded_modal_numbers_are_used(recorded):
     modal = [records[s.key] for s in specs if s.purpose == "modal"]
     assert modal and all(r.values["linear"] is False for r in modal)
     assert math.isfinite(res.omega_max)
+
+
+def test_no_eigensolve_for_a_scene_without_the_trust_table(monkeypatch):
+    """Only the work_precision output's trust table uses the fastest mode:
+    a scene without it records none, and its truth run solves no eigenproblem
+    (a large model's dense eigensolve would cost more than its runs)."""
+    from rk4h.models.base import Model
+
+    solved = []
+    compute = Model._compute_modes
+
+    def counted(self):
+        solved.append(self)
+        return compute(self)
+
+    monkeypatch.setattr(Model, "_compute_modes", counted)
+    doc = {**DOC, "run": {**DOC["run"], "outputs": ["state"]}}
+    scene = scene_from_dict(doc, "records-only.toml")
+    execute.clear_problems()
+    truth = [s for s in plan.plan(scene, figures=False) if s.purpose == "truth"]
+    assert truth
+    for s in truth:
+        rec = execute.execute(scene, s)
+        assert rec.status == "ok", rec.message
+        assert math.isnan(rec.values["omega_max"])
+    assert not solved

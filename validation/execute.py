@@ -218,8 +218,8 @@ def _truth_spec(scene, spec, quick):
     t = grid(scene, model, spec)
     truth, reason = _truth_or_reason(model, y0, t)
     # the fastest mode (rad/s, NaN without modes): the trust table's stability cap, recorded so that
-    # the measurement builds no model
-    omega_max = fastest_omega(model)
+    # the measurement builds no model; an eigensolve, so only for the output whose table uses it
+    omega_max = fastest_omega(model) if "work_precision" in scene.outputs else math.nan
     if reason:
         return RunRecord(spec.key, status="failed", message=reason,
                          values={"truth_kind": truth.kind if truth is not None else "", "scale": math.nan,
