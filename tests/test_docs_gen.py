@@ -60,3 +60,29 @@ def test_python_m_check_on_the_repository():
     r = subprocess.run([sys.executable, "-m", "rk4h.validation.docs_gen", "--check"], cwd=REPO, env=env,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("flag, name", [("--markdown", "scene-reference.md"), ("--json-schema", "scene.schema.json")])
+def test_the_schema_command_prints_what_docs_gen_writes(fresh, capsys, flag, name):
+    from rk4h.validation import scene_schema
+
+    assert scene_schema.main([flag]) == 0
+    assert capsys.readouterr().out == fresh[name]
+
+
+@pytest.mark.parametrize("argv, status", [(["--help"], 0), (["--bogus"], 2)])
+def test_both_mains_return_argparse_status(capsys, argv, status):
+    """docs_gen and scene_schema read their arguments through one parse
+    (rk4h.validation.commandline): --help and bad arguments are a returned
+    status, never a raised SystemExit."""
+    from rk4h.validation import commandline, scene_schema
+
+    assert docs_gen.main(argv) == status
+    assert scene_schema.main(argv) == status
+    import argparse
+
+    got = commandline.parse(argparse.ArgumentParser(prog="x"), argv)
+    assert got == status
+    assert isinstance(commandline.parse(argparse.ArgumentParser(prog="x"), []), argparse.Namespace)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and (status == 0 or "unrecognized arguments: --bogus" in err)

@@ -159,6 +159,23 @@ def test_float32_is_float32():
     assert 1e-9 < err < 1e-4  # float32 round-off: far above float64's, far below the signal
 
 
+@pytest.mark.parametrize("method", METHODS, ids=_name)
+def test_jax_and_numba_print_one_step_text(method):
+    """The jax step and the numba loop inline the same printed step
+    (rk4h.fast.codegen.step_lines), so the two backends cannot drift apart."""
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4h.batch import _jax
+    from rk4h.fast import codegen
+
+    tab = rk4h.methods.get_method(method)
+    kern = chain([1.0, 2.0]).force_kernel()
+    lines = codegen.step_lines(codegen._Plan(tab), kern, 2 * kern.n_dof)
+    assert any(line.startswith("    n3 = y3 + ") for line in lines)
+    assert "\n".join(lines) in _jax.step_source(tab, kern)
+    # the numba loop: the same lines inside its function body (four spaces more)
+    assert "\n".join("    " + line for line in lines) in codegen.source(tab, kern)
+
+
 @pytest.mark.parametrize("kwargs, field", [
     ({"params": {"mass": np.ones(2)}}, "`params` key 'mass'"),
     ({"params": {"masses[1]": np.ones(3)}}, "length B = 2"),

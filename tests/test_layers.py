@@ -101,3 +101,73 @@ def test_no_import_crosses_a_layer_upwards(module):
 def test_no_two_modules_import_each_other():
     pairs = [(a, b) for a, b in itertools.combinations(sorted(GRAPH), 2) if b in GRAPH[a] and a in GRAPH[b]]
     assert not pairs, pairs
+
+
+def _cycle(graph) -> list[str]:
+    """One import cycle of ``graph`` (any length), or [] when it has none."""
+    state, stack = {}, []
+
+    def visit(v):
+        state[v] = "open"
+        stack.append(v)
+        for w in sorted(graph.get(v, ())):
+            if state.get(w) == "open":
+                return stack[stack.index(w):] + [w]
+            if w not in state:
+                found = visit(w)
+                if found:
+                    return found
+        state[v] = "done"
+        stack.pop()
+        return []
+
+    for v in sorted(graph):
+        if v not in state:
+            found = visit(v)
+            if found:
+                return found
+    return []
+
+
+def test_the_cycle_search_finds_a_long_cycle():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": set()}) == []
+
+
+def test_no_import_cycle_of_any_length():
+    """No circle, not only no pair: a -> b -> c -> a is refused too."""
+    assert not _cycle(GRAPH), " -> ".join(_cycle(GRAPH))
+
+
+FIGURES = PACKAGES["validation"] + ".figures"
+
+
+def test_no_private_name_of_the_figures_package_is_used_outside_its_module():
+    """The figure modules (style kit, scene figures, measurement figures)
+    talk through public names: no ``from ...figures.style import _x`` and no
+    ``F._x`` / ``kit._x`` on an imported figures module, in any module."""
+    mods = _modules()
+    hits = []
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), str(path))
+        aliases = {}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                for t in _targets(name, path, node, mods):
+                    if not (t == FIGURES or t.startswith(FIGURES + ".")) or t == name:
+                        continue
+                    for a in node.names:
+                        if a.name.startswith("_") and not a.name.startswith("__"):
+                            hits.append(f"{path.name}:{node.lineno} imports {a.name}")
+                        if t.endswith("." + a.name) or (t == FIGURES and a.name == "figures"):
+                            aliases[a.asname or a.name] = t
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.startswith(FIGURES) and a.asname:
+                        aliases[a.asname] = a.name
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases
+                    and aliases[node.value.id] != name and node.attr.startswith("_")
+                    and not node.attr.startswith("__")):
+                hits.append(f"{path.name}:{node.lineno} uses {node.value.id}.{node.attr}")
+    assert not hits, hits

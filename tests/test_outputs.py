@@ -185,3 +185,18 @@ def test_no_trajectory_is_kept_unless_asked():
     scene = next(s for s in load_scene_points(REPO / "validation/scenes/thesis_2dof_case1.toml"))
     assert "trajectory" not in scene.outputs
     assert all("trajectory" not in s.keep for s in plan.plan(scene) if s.purpose == "run")
+
+
+def test_the_wave_packet_spec_names_the_method_that_integrates_it():
+    """The packet is integrated by RK4 (rk4h.references.wavepacket, the
+    registry's UNDER_TEST) whatever the scene lists first: its spec, so its
+    record and its row, name that method, not another."""
+    from rk4h.references.registry import UNDER_TEST
+    from rk4h.validation.scenes import scene_from_dict
+
+    doc = {"name": "lattice", "model": "chain", "params": {"masses": 1.0, "springs": 1.0, "n": 4},
+           "initial": {"x": [0.01, 0.0, 0.0, 0.0]},
+           "run": {"t_end": 1.0, "h": [0.1], "tolerances": [1e-6], "solvers": ["stormer-verlet", "dop853"],
+                   "outputs": ["dispersion"]}}
+    packets = [s for s in plan.plan(scene_from_dict(doc, "lattice.toml"), figures=False) if s.purpose == "packet"]
+    assert packets and {s.solver for s in packets} == {UNDER_TEST}

@@ -120,3 +120,22 @@ def test_readme_python_lotka_volterra_is_the_shipped_scene():
     for y in rng.uniform(0.2, 5.0, size=(5, 2)):
         np.testing.assert_allclose(a.rhs(0.0, y), b.rhs(0.0, y), rtol=1e-14)
         np.testing.assert_allclose(a.energy(y[:, None]), b.energy(y[:, None]), rtol=1e-14)
+
+
+def test_readme_own_scene_command_runs(tmp_path, monkeypatch, capsys):
+    """The tour's 'your own scene': the README's TOML saved under the name its
+    command gives, and that command run (in process, its --out in tmp_path)."""
+    from rk4h.validation.run_all import main
+
+    cmds = [c for b in _blocks("") for c in b.splitlines()
+            if c.startswith("python validation/run_all.py --scene ") and c.split()[3].endswith(".toml")]
+    assert cmds, "the README shows no command running its own scene"
+    python, script, *argv = cmds[0].split()
+    scene_file = argv[argv.index("--scene") + 1]
+    full = [b for b in _blocks("toml") if "name = " in b]
+    (tmp_path / scene_file).write_text(full[0], encoding="utf-8")
+    argv[argv.index("--out") + 1] = str(tmp_path / "out")
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 0, capsys.readouterr().err[-2000:]
+    index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
+    assert tomllib.loads(full[0])["name"] in index

@@ -225,6 +225,34 @@ def test_a_reference_runs_on_its_adapter_whatever_its_name():
     assert got.ok and np.array_equal(got.y, want.y) and got.nfev == want.nfev
 
 
+def test_an_unknown_method_name_is_an_error_naming_the_known_ones():
+    """No fall-through to some default solver: an unknown name is refused,
+    by integrate and by a scene, with the registry's names."""
+    from rk4h.references.registry import BUILTIN
+    from rk4h.validation.scenes import SceneError, scene_from_dict
+
+    model = make_model("chain", {"masses": [1.0], "springs": [1.0, 1.0]})
+    with pytest.raises(ValueError, match="`solver` must be one of") as info:
+        integrate("radau", model, model.state([0.01]), np.linspace(0.0, 1.0, 3), 1e-6)
+    assert "'radau'" in str(info.value) and all(repr(n) in str(info.value) for n in BUILTIN)
+    with pytest.raises(SceneError, match="run.solvers") as info:
+        scene_from_dict(_doc({}, ["rk4", "radau"]))
+    assert "radau" in str(info.value)
+
+
+def test_a_renamed_reference_keeps_its_adapters_rules():
+    """What a reference needs is read from its adapter, not its name: heyoka
+    under another name still refuses a first-order ODE."""
+    import dataclasses
+
+    from rk4h.references.registry import BUILTIN
+    from rk4h.references.solvers import mechanical_only
+
+    renamed = dataclasses.replace(BUILTIN["heyoka"], name="my-taylor")
+    assert mechanical_only(BUILTIN["heyoka"]) and mechanical_only(renamed)
+    assert not mechanical_only(dataclasses.replace(BUILTIN["dop853"], name="my-taylor"))
+
+
 def test_every_method_declares_what_its_nfev_counts():
     """The cost unit is data: a Taylor method's cost is steps x order, the
     others' their nfev; CVODE's nfev includes its Jacobian's difference

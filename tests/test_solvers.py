@@ -39,6 +39,14 @@ ALL = {**LINEAR, **NONLINEAR}
 TIGHTEST = {"dop853": 1e-13, "cvode-adams": 1e-14, "cvode-bdf": 1e-14, "heyoka": 1e-14}
 
 
+def tightest(solver: str) -> float:
+    """:data:`TIGHTEST`, or for a reference added to the registry since, the
+    harness' own floor for it (``rk4h.validation.confirm.rtol_floor``)."""
+    from rk4h.validation.confirm import rtol_floor
+
+    return TIGHTEST.get(solver) or rtol_floor(solver)
+
+
 def scene(name):
     model_name, params, x0, v0 = ALL[name]
     model = rk4h.make_model(model_name, params)
@@ -91,7 +99,7 @@ def test_heyoka_system_matches_model_rhs(name):
 def test_adaptive_tightest_matches_exact(name, solver):
     model, y0 = scene(name)
     t = np.linspace(0.0, 3.0, 61)
-    run = integrate(solver, model, y0, t, TIGHTEST[solver])
+    run = integrate(solver, model, y0, t, tightest(solver))
     assert run.status is Status.OK, run.message
     assert rel_error(model, run.y, modal_solution(model, y0)(t)) < 1e-9
 
@@ -130,7 +138,7 @@ def test_adaptive_tightest_matches_real128(name, solver, truth_dir):
     t = np.linspace(0.0, 2.0, 41)
     truth = reference_solution(model, y0, t, path=truth_dir)
     assert truth.ok and truth.kind == "heyoka-real128"
-    run = integrate(solver, model, y0, t, TIGHTEST[solver])
+    run = integrate(solver, model, y0, t, tightest(solver))
     assert run.status is Status.OK, run.message
     assert rel_error(model, run.y, truth.y) < 1e-10
 

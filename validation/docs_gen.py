@@ -25,11 +25,12 @@ beside it and a rename, and only when its content differs.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
 from pathlib import Path
+
+from .commandline import parse
 
 __all__ = ["DOCS", "DOCS_DIR", "documents", "stale", "write", "main"]
 
@@ -44,9 +45,9 @@ def _scene_reference() -> str:
 
 
 def _scene_schema_json() -> str:
-    from rk4h.validation.scene_schema import json_schema
+    from rk4h.validation.scene_schema import json_schema_text
 
-    return json.dumps(json_schema(), indent=2) + "\n"
+    return json_schema_text()
 
 
 def _columns() -> str:
@@ -121,10 +122,9 @@ def main(argv=None, *, prog="python -m rk4h.validation.docs_gen") -> int:
                                 epilog=f"documents: {', '.join(DOCS)}")
     p.add_argument("--check", action="store_true", help="write nothing; exit 1 naming each stale document")
     p.add_argument("--out", metavar="DIR", help="write into DIR (an existing directory) instead of docs/")
-    try:
-        args = p.parse_args(sys.argv[1:] if argv is None else argv)
-    except SystemExit as e:
-        return int(e.code or 0)
+    args = parse(p, argv)
+    if isinstance(args, int):
+        return args
     directory = DOCS_DIR if args.out is None else Path(args.out)
     if not directory.is_dir():
         print(f"{prog}: --out: must be an existing directory (got {str(directory)!r})", file=sys.stderr)

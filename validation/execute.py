@@ -212,15 +212,20 @@ def _integrate(scene, spec, model, y0, t, h):
 
 
 def _truth_spec(scene, spec, quick):
+    from .trust import fastest_omega
+
     model, y0 = problem(scene)
     t = grid(scene, model, spec)
     truth, reason = _truth_or_reason(model, y0, t)
+    # the fastest mode (rad/s, NaN without modes): the trust table's stability cap, recorded so that
+    # the measurement builds no model; an eigensolve, so only for the output whose table uses it
+    omega_max = fastest_omega(model) if "work_precision" in scene.outputs else math.nan
     if reason:
         return RunRecord(spec.key, status="failed", message=reason,
                          values={"truth_kind": truth.kind if truth is not None else "", "scale": math.nan,
-                                 "no_truth": reason})
+                                 "no_truth": reason, "omega_max": omega_max})
     y = np.asarray(truth.y, float)
-    values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y)))}
+    values = {"truth_kind": truth.kind, "scale": float(np.max(np.abs(y))), "omega_max": omega_max}
     if "agreement_rel" in truth.extra:  # any ODE: two references that agree (rk4h.references.ode_truth)
         values |= {"agreement_rel": float(truth.extra["agreement_rel"]), "truth_note": _first_line(truth.message)}
     arrays = {}
@@ -434,7 +439,7 @@ def _modal_spec(scene, spec, quick):
     E_motion = energy_scale(model, float(np.asarray(model.energy(y0))))
     frac = modal_energies(model, np.asarray(run.y, float), omega, phi) / E_motion
     return RunRecord(spec.key, status=_status(run), message=_first_line(run.message),
-                     arrays={"t": t, "fraction": frac, "omega": omega})
+                     values={"linear": bool(model.linear)}, arrays={"t": t, "fraction": frac, "omega": omega})
 
 
 def _modes_spec(scene, spec, quick):

@@ -17,7 +17,6 @@ import numpy as np
 
 
 from . import energy_time, metrics, trust
-from .execute import problem
 from .plan import ORDER_TOL, TARGETS, RunSpec, under_test
 
 __all__ = ["Check", "FigureJob", "SceneTables", "measure", "ENERGY_RTOL", "ENERGY_ROUNDOFF_PER_STEP",
@@ -68,6 +67,8 @@ class SceneTables:
     findings: list = field(default_factory=list)
     figures: list = field(default_factory=list)
     truth_kind: str = ""
+    #: the model's fastest mode (rad/s; NaN: none), from the scene's truth record
+    omega_max: float = math.nan
     seconds: float = 0.0
     drawn: list = field(default_factory=list)
     #: files other than tables and figures (rk4h.validation.outputs.FileJob)
@@ -98,6 +99,7 @@ def measure(scene, specs: list[RunSpec], records: dict, *, quick=False, figures=
         rec = records[s.key]
         if s.grid == "scene":
             res.truth_kind = rec.values.get("truth_kind", "")
+            res.omega_max = float(rec.values.get("omega_max", math.nan))
             if rec.values.get("truth_note"):  # the truth is two references that agree: say how well
                 res.findings.append(f"{scene.name}: the reference is {rec.values['truth_note']}; errors below "
                                     f"that agreement are measured against dop853 alone")
@@ -247,7 +249,7 @@ def _cheapest(scene, res, confirm_specs=(), records=None):
                                 f"ended {c['status']}; no verdict rests on it.")
     res.tables.setdefault("cheapest", [])
     res.tables["cheapest"] += trust.trust_rows(
-        scene.name, rows, method, scene.t_end, trust.stable_step(method, trust.fastest_omega(problem(scene)[0])),
+        scene.name, rows, method, scene.t_end, trust.stable_step(method, res.omega_max),
         TARGETS,
         setting_name=lambda sv: scene.method(sv).setting_name,
         confirmations=confirmations, output_dt=scene.output_dt)
@@ -435,12 +437,17 @@ def recurrence_applies(model, n_modes: int) -> bool:
     (modes of its linearization exchange energy) with at least two modes
     followed. A linear model's modes keep their energy; one mode has no one
     to share it with."""
-    return (not bool(model.linear)) and n_modes >= 2
+    return _recurrence(bool(model.linear), n_modes)
+
+
+def _recurrence(linear: bool, n_modes: int) -> bool:
+    """:func:`recurrence_applies` from the model's recorded linearity."""
+    return (not linear) and n_modes >= 2
 
 
 def _modal(scene, specs, records, res, draw):
     series, t_all, omega_all = {}, None, None
-    model = problem(scene)[0]
+    linear = True  # no run recorded: no recurrence is claimed
     for s in specs:
         rec = records[s.key]
         if "fraction" not in rec.arrays:
@@ -448,6 +455,7 @@ def _modal(scene, specs, records, res, draw):
             continue
         t, frac, omega = rec.arrays["t"], rec.arrays["fraction"], rec.arrays["omega"]
         t_all, omega_all = t, omega
+        linear = bool(rec.values.get("linear", True))
         label = f"{s.solver} {scene.method(s.solver).setting_name}={s.setting:g}"
         series[label] = frac
         for j in range(frac.shape[0]):
@@ -462,7 +470,7 @@ def _modal(scene, specs, records, res, draw):
             elif i_min < f.size - 1 and np.isfinite(f[i_min:]).any():
                 i_ret = i_min + int(np.nanargmax(f[i_min:]))
                 row.update(fraction_peak=float(f[i_ret]), t_peak=float(t[i_ret]))
-                if recurrence_applies(model, frac.shape[0]):
+                if _recurrence(linear, frac.shape[0]):
                     res.findings.append(
                         f"{scene.name}: {label}: mode 1 holds {f[0]:.1%} of the energy at t = 0, falls to "
                         f"{f[i_min]:.1%} at t = {t[i_min]:.4g} s and returns to {f[i_ret]:.1%} at "
@@ -473,7 +481,7 @@ def _modal(scene, specs, records, res, draw):
     if draw and series:
         res.figures.append(FigureJob(scene.name, "modal_energy", {
             "t": t_all, "series": series, "omega": omega_all,
-            "recurrence": recurrence_applies(model, len(omega_all))}))
+            "recurrence": _recurrence(linear, len(omega_all))}))
 
 
 def _linearization(scene, specs, records, res):

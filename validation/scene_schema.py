@@ -777,6 +777,11 @@ def reference_markdown() -> str:
     return "\n".join(parts)
 
 
+def json_schema_text() -> str:
+    """:func:`json_schema` as the text of ``docs/scene.schema.json`` (indent 2, a final newline)."""
+    return json.dumps(json_schema(), indent=2) + "\n"
+
+
 def main(argv=None, *, prog="python -m rk4h.validation.scene_schema") -> int:
     """Print the scene reference (``--markdown``) or the JSON Schema
     (``--json-schema``); returns the exit status."""
@@ -790,14 +795,12 @@ def main(argv=None, *, prog="python -m rk4h.validation.scene_schema") -> int:
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--markdown", action="store_true", help="the reference as Markdown")
     what.add_argument("--json-schema", action="store_true", help="the JSON Schema")
-    try:
-        args = p.parse_args(sys.argv[1:] if argv is None else argv)
-    except SystemExit as e:
-        return int(e.code or 0)
-    if args.markdown:
-        sys.stdout.write(reference_markdown())
-    else:
-        sys.stdout.write(json.dumps(json_schema(), indent=2) + "\n")
+    from .commandline import parse
+
+    args = parse(p, argv)
+    if isinstance(args, int):
+        return args
+    sys.stdout.write(reference_markdown() if args.markdown else json_schema_text())
     return 0
 
 

@@ -119,8 +119,9 @@ def as_model(model, y0):
     return check_model(model)
 
 
-#: Solvers that need a mechanical model (a potential: heyoka's equations,
-#: an external program's problem file), not a first-order ODE.
+#: Reference adapters that need a mechanical model (a potential: heyoka's
+#: equations), not a first-order ODE; read from a method's ``adapter``, so a
+#: reference renamed in the registry keeps the rule.
 MECHANICAL_ONLY = ("heyoka",)
 
 
@@ -129,7 +130,7 @@ def mechanical_only(method) -> bool:
     mechanical model: heyoka (equations from the force), a command method
     (the problem file holds masses and springs), a partitioned tableau (it
     integrates ``q' = v`` and uses only the acceleration half of ``fun``)."""
-    return method.name in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
+    return (method.adapter or method.name) in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
 
 
 def _check_inputs(model, y0, t_eval, atol, max_steps):

@@ -1,8 +1,8 @@
 """The jax backend of :func:`rk4h.ensemble`.
 
 One step is printed from the method's tableau and the force kernel's
-straight-line code (:meth:`ForceKernel.scalar_lines`, the text the numba
-loops inline), with the arithmetic of :mod:`rk4h.fast.codegen`: products
+straight-line code (:meth:`ForceKernel.scalar_lines`) by
+:func:`rk4h.fast.codegen.step_lines`, the text the numba loops inline: products
 ``h a_ij`` and ``h b_i`` formed once, stage sums left to right over the
 nonzero coefficients, a partitioned stage's velocity and position in the
 order the tableau gives, a first-same-as-last method's last force carried
@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 from jax import lax
 
-from ..fast.codegen import _combination, _force, _Plan
+from ..fast.codegen import _force, _Plan, step_lines
 
 jax.config.update("jax_enable_x64", True)
 
@@ -56,30 +56,7 @@ def step_source(tab, kern) -> str:
     if plan.fsal:
         i0 = plan.fsal[0]
         L += [f"    k{i0}_{nq + p} = kc[{p}]" for p in range(nq)]
-    for i in range(plan.ns):
-        force = ["    " + line for line in _force(kern, [f"s{p}" for p in range(nq)])]
-        force += [f"    k{i}_{nq + p} = _Fo{p} / m{p}" for p in range(nq)]
-        if plan.v_first[i]:
-            for p in range(nq):
-                L.append(f"    s{nq + p} = {_combination(f'y{nq + p}', plan.v_terms(i, lambda j: f'k{j}_{nq + p}'))}")
-            L += [f"    k{i}_{p} = s{nq + p}" for p in range(nq)]
-            if plan.evaluate[i]:
-                for p in range(nq):
-                    L.append(f"    s{p} = {_combination(f'y{p}', plan.q_terms(i, lambda j: f'k{j}_{p}'))}")
-                L += force
-        else:
-            for p in range(nq):
-                L.append(f"    s{p} = {_combination(f'y{p}', plan.q_terms(i, lambda j: f'k{j}_{p}'))}")
-            if plan.evaluate[i]:
-                L += force
-            for p in range(nq):
-                terms = plan.v_terms(i, lambda j: f"k{j}_{nq + p}", diagonal=True)
-                L.append(f"    s{nq + p} = {_combination(f'y{nq + p}', terms)}")
-            L += [f"    k{i}_{p} = s{nq + p}" for p in range(nq)]
-    for p in range(dim):
-        half, bh = ("q", plan.b) if p < nq else ("v", plan.b_v)
-        terms = [(f"h{half}b_{i}", f"k{i}_{p}") for i in range(plan.ns) if bh[i] != 0.0]
-        L.append(f"    n{p} = {_combination(f'y{p}', terms)}")
+    L += step_lines(plan, kern, dim)
     new = ", ".join(f"n{p}" for p in range(dim))
     if plan.fsal:
         i1 = plan.fsal[1]

@@ -277,11 +277,16 @@ def source(tab: Tableau, kern) -> str:
     return "\n".join(L)
 
 
-def _loop(plan: _Plan, kern, dim):
-    """Lines of the step loop (indented from 0); each evaluated stage runs the
-    force kernel's straight-line code."""
+def step_lines(plan: _Plan, kern, dim) -> list:
+    """Lines of one step, indented by four spaces: the stages ``s*`` and
+    slopes ``k{i}_*`` from the state ``y0 .. y{dim-1}``, masses ``m*`` and the
+    products of :meth:`_Plan.products`, then the new state ``n0 ..
+    n{dim-1}``; each evaluated stage runs the force kernel's straight-line
+    code. The numba loops (:func:`source`) and the jax backend
+    (``rk4h.batch._jax``) print their step from this one text, so the two
+    dialects do the same arithmetic in the same order."""
     ns, nq = plan.ns, dim // 2
-    L = ["for i in range(n):"]
+    L = []
     for i in range(ns):
         L.append(f"    # stage {i}")
         force = ["    " + line for line in _force(kern, [f"s{p}" for p in range(nq)])]
@@ -309,6 +314,14 @@ def _loop(plan: _Plan, kern, dim):
         half, bh = ("q", plan.b) if p < nq else ("v", plan.b_v)
         terms = [(f"h{half}b_{i}", f"k{i}_{p}") for i in range(ns) if bh[i] != 0.0]
         L.append(f"    n{p} = {_combination(f'y{p}', terms)}")
+    return L
+
+
+def _loop(plan: _Plan, kern, dim):
+    """Lines of the step loop (indented from 0): :func:`step_lines`, the
+    instability test and the output points."""
+    nq = dim // 2
+    L = ["for i in range(n):"] + step_lines(plan, kern, dim)
     # The instability test of rk4h.solve: NOT(|y_p| <= b_p) for some p
     # (also true for inf and NaN, b_p being finite); while `pending`, the
     # first non-zero state sets the bounds.
