@@ -7,3 +7,21 @@ it explicitly."""
 import os
 
 os.environ.setdefault("RK4H_WORKERS", "1")
+
+#: Test modules holding the suite's longest tests (a fresh quick run, the process-level safety tests,
+#: exact-arithmetic data checks, numba compiles; listed by hand from the times that
+#: benchmarks/suite_durations.py prints). They are collected first, whole and in this order, so that under
+#: pytest-xdist's work stealing (which hands each worker a contiguous share of the collection and steals
+#: from the end of a share) they start at once on the first worker while the other runs the short tests,
+#: and the run ends on short tests that both workers share out. test_verdict and test_reports_committed
+#: stay adjacent: they share one quick run (tests/_quick_run.py), made once per session.
+LONG_FIRST = ("test_verdict.py", "test_reports_committed.py", "test_startup.py", "test_kill.py",
+              "test_output_safety.py", "test_dask.py", "test_runner.py", "test_benchmarks.py",
+              "test_network_compiled.py", "test_fixed_cost_cache.py", "test_advise.py", "test_ensemble.py",
+              "test_scene_facts.py", "test_captions_tables.py", "test_trust.py", "test_stability_units.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Move the modules in ``LONG_FIRST`` to the front (a stable sort: every module's own order is kept)."""
+    rank = {name: i for i, name in enumerate(LONG_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))

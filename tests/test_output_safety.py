@@ -389,10 +389,28 @@ def unprivileged():
     shutil.rmtree(base)
 
 
-def _as_user(unprivileged, code, warm_up=()):
+@pytest.fixture(scope="module")
+def user_home():
+    """A home directory for the runs as the unprivileged user (matplotlib's and the tool's caches), made by
+    this module and shared by its tests, so that the compiled loops its first warm-up run stores there are
+    not compiled again by the next test's."""
+    import shutil
+    import tempfile
+
+    home = Path(tempfile.mkdtemp(prefix="rk4h-unprivileged-home-"))
+    home.chmod(0o755)
+    yield home
+    for d, dirs, _ in os.walk(home):
+        for name in dirs:
+            os.chmod(os.path.join(d, name), 0o755)
+    shutil.rmtree(home)
+
+
+def _as_user(unprivileged, code, warm_up=(), home=None):
     uid, gid, base = unprivileged
-    home = base / "home"  # for matplotlib's and the tool's caches
-    home.mkdir(exist_ok=True)
+    if home is None:
+        home = base / "home"  # for matplotlib's and the tool's caches
+        home.mkdir(exist_ok=True)
     os.chown(home, uid, gid)
     env = {**os.environ, "MPLBACKEND": "Agg", "HOME": str(home), "MPLCONFIGDIR": str(home / ".mpl"),
            "XDG_CACHE_HOME": str(home / ".cache")}
@@ -412,7 +430,7 @@ def _chown_tree(d: Path, uid, gid):
 
 
 @pytest.mark.parametrize("what", ["directory", "file"])
-def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged, capsys, what):
+def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged, user_home, capsys, what):
     """The hostile-test case: a report in R, then ``mkdir R/private; chmod 000
     R/private`` and a rerun. Before: the walk skipped private/, the rerun
     replaced R, lost the previous report and said "R left unchanged"."""
@@ -430,7 +448,7 @@ def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged,
     private.chmod(0)
     before, listing = _tree(out), _listing(base)
     r = _as_user(unprivileged, f"sys.exit(main({[str(a) for a in _run_args(scene, out)]!r}))",
-                 warm_up=_run_args(scene, base / "warm"))
+                 warm_up=_run_args(scene, base / "warm"), home=user_home)
     private.chmod(0o700)
     assert r.returncode == 3, r.stderr
     err = r.stderr.strip()

@@ -224,19 +224,14 @@ def _quick_scenes():
 
 @pytest.fixture(scope="module")
 def quick_cheapest(tmp_path_factory):
-    out = tmp_path_factory.mktemp("verdict") / "q"
+    # the session's one fresh quick run of these scenes, shared with test_reports_committed (tests/_quick_run.py)
+    from _quick_run import shared_quick_run
+
+    run = shared_quick_run(tmp_path_factory)
     names = _quick_scenes()
-    # in process: these tests read cheapest.csv, not the process
-    import contextlib
-    import io
-
-    from rk4h.validation import run_all
-
-    log = io.StringIO()
-    with contextlib.redirect_stdout(log), contextlib.redirect_stderr(log):
-        rc = run_all.main(["--quick", *(a for n in names for a in ("--scene", n)), "--out", str(out),
-                           "--repeats", "1", "--no-figures", "--workers", "1"])
-    assert rc in (0, 1) and (out / "cheapest.csv").exists(), log.getvalue()[-2000:]
+    assert sorted(run["names"]) == sorted(names)
+    out = run["out"]
+    assert run["returncode"] in (0, 1) and (out / "cheapest.csv").exists(), run["stdout"][-2000:]
     return pd.read_csv(out / "cheapest.csv"), names
 
 
