@@ -668,9 +668,14 @@ def test_sigint_in_the_first_milliseconds_is_one_line(tmp_path, scene):
     dies by the signal (-2), prints "init_import_site", prints a bare
     "KeyboardInterrupt" (exit 1) while it compiles the script, or a traceback
     at "line 0" of the script (its frame made, no line of it run yet); such
-    draws are not counted, and most draws must land in our code."""
+    draws are not counted, and at least 4 draws must land in our code (on a
+    loaded machine, where the start-up takes longer, up to 3 later draws are
+    made to reach 4)."""
     landed = 0
-    for delay in (0.05, 0.1, 0.15, 0.2, 0.3, 0.45, 0.6):
+    # 7 draws always; on a loaded machine (start-up past 0.3 s) later draws until 4 have landed
+    for i, delay in enumerate((0.05, 0.1, 0.15, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.25)):
+        if i >= 7 and landed >= 4:
+            break
         p = subprocess.Popen([sys.executable, "validation/run_all.py", *map(str, _run_args(scene, tmp_path / "o"))],
                              cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         time.sleep(delay)
