@@ -1,0 +1,180 @@
+"""Where a cold start's extra CPU goes: numba compiles, truths, the rest.
+
+    python benchmarks/bench_cold.py [--scene NAME ... | --quick] [--rounds N] [--keep DIR]
+
+Runs ``run_all.py ARGS --workers 1`` twice in one fresh, empty ``RK4H_CACHE``
+(cold, then warm: the second run finds what the first one wrote), each in a
+child process of this script that records, in that process:
+
+* every numba compile (numba's ``numba:compile`` event, which fires only when
+  a function is compiled, not when it is loaded from numba's cache): the
+  function's name and the CPU seconds (``time.process_time``) of each
+  outermost compile (functions compiled inside another's compile are counted,
+  their time is in the outer one's);
+* every reference truth computed (not read from a cache): its kind, where it
+  came from (``computed``, ``shipped`` package data, ``disk``) and the CPU
+  seconds of the computation.
+
+It prints both ledgers and the split of ``CPU(cold) - CPU(warm)`` into numba
+compiles, truths and the rest (imports, loaders, noise). CPU seconds are
+``getrusage(RUSAGE_CHILDREN)`` of the child (user + system), the load
+average beside them: on a shared machine compare the CPU seconds, not the
+wall times. ``--workers 1`` (the default) keeps every compile in the one
+process that records it; with ``--workers 2`` the ledger sees only the parent
+process (the split is then of the parent's share) but the CPU seconds count
+every worker. The loops compiled with ``cache=True`` inside the package
+(:mod:`rk4h.fast._kernels`, the DOP853 loop) are cached next to the
+package, not under ``RK4H_CACHE``: a fresh ``RK4H_CACHE`` does not recompile
+them (a fresh install does, once).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _load() -> str:
+    return " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
+
+
+def _child(ledger_path: str, argv: list[str]) -> int:
+    """In the child: record numba compiles and computed truths around ``run_all.main(argv)``."""
+    from numba.core import event
+
+    ledger = {"numba": [], "truths": []}
+    depth = [0]
+    starts = []
+
+    class _Compiles(event.Listener):
+        def on_start(self, ev):
+            depth[0] += 1
+            starts.append(time.process_time())
+
+        def on_end(self, ev):
+            depth[0] -= 1
+            cpu = time.process_time() - starts.pop()
+            disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            name = getattr(getattr(disp, "py_func", None), "__qualname__", "?")
+            module = getattr(getattr(disp, "py_func", None), "__module__", "?")
+            ledger["numba"].append({"name": f"{module}.{name}", "cpu": cpu, "outer": depth[0] == 0})
+
+    event.register("numba:compile", _Compiles())
+
+    from rk4h.references import truth as T
+
+    def _timed(fn, label):
+        def wrapper(*args, **kwargs):
+            t0 = time.process_time()
+            out = fn(*args, **kwargs)
+            ledger["truths"].append({"kind": label, "cpu": time.process_time() - t0,
+                                     "model": getattr(args[0], "name", "?")})
+            return out
+        return wrapper
+
+    T._real128 = _timed(T._real128, "heyoka-real128")
+    T._exact_modal = _timed(T._exact_modal, "exact-modal")
+    shipped = getattr(T, "_shipped_hit", None)
+    if shipped is not None:
+        def counted(*args, **kwargs):
+            t0 = time.process_time()
+            out = shipped(*args, **kwargs)
+            if out is not None:
+                ledger["truths"].append({"kind": "shipped", "cpu": time.process_time() - t0,
+                                         "model": getattr(args[0], "name", "?")})
+            return out
+        T._shipped_hit = counted
+
+    sys.argv = ["run_all.py", *argv]
+    from rk4h.validation import run_all
+
+    try:
+        rc = run_all.main(argv)
+    finally:
+        Path(ledger_path).write_text(json.dumps(ledger))
+    return rc
+
+
+def measure(args: list[str], cache: Path, workers: int = 1) -> dict:
+    """One child run of ``run_all.py args --workers N`` on ``RK4H_CACHE=cache``."""
+    env = {k: v for k, v in os.environ.items() if k != "RK4H_WORKERS"}
+    env["RK4H_CACHE"] = str(cache)
+    env.setdefault("MPLBACKEND", "Agg")
+    with tempfile.TemporaryDirectory(prefix="rk4h-cold-") as tmp:
+        ledger = Path(tmp) / "ledger.json"
+        load0 = _load()
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        t0 = time.perf_counter()
+        r = subprocess.run([sys.executable, __file__, "--child", str(ledger), "--",
+                            *args, "--workers", str(workers), "--out", str(Path(tmp) / "r")],
+                           cwd=REPO, capture_output=True, text=True, env=env)
+        wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        led = json.loads(ledger.read_text()) if ledger.exists() else {"numba": [], "truths": []}
+    if r.returncode != 0:
+        sys.stderr.write(r.stderr[-3000:])
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall": wall, "cpu": cpu, "rc": r.returncode, "load": (load0, _load()), **led}
+
+
+def _summary(name: str, m: dict) -> dict:
+    outer = [c for c in m["numba"] if c["outer"]]
+    computed = [t for t in m["truths"] if t["kind"] != "shipped"]
+    shipped = [t for t in m["truths"] if t["kind"] == "shipped"]
+    s = {"cpu": m["cpu"], "numba_n": len(outer), "numba_all": len(m["numba"]),
+         "numba_cpu": sum(c["cpu"] for c in outer), "truth_n": len(computed),
+         "truth_cpu": sum(t["cpu"] for t in computed), "shipped_n": len(shipped),
+         "shipped_cpu": sum(t["cpu"] for t in shipped)}
+    print(f"{name}: {m['wall']:.1f} s wall, {m['cpu']:.1f} s CPU, exit {m['rc']}, load {m['load'][0]} -> "
+          f"{m['load'][1]}; numba: {s['numba_n']} outermost compiles ({s['numba_all']} functions), "
+          f"{s['numba_cpu']:.1f} s CPU; truths computed: {s['truth_n']}, {s['truth_cpu']:.1f} s CPU; "
+          f"truths from package data: {s['shipped_n']}, {s['shipped_cpu']:.2f} s CPU", flush=True)
+    return s
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--child"]:
+        return _child(argv[1], argv[3:])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", action="append", default=None, help="a scene to run (repeatable)")
+    ap.add_argument("--quick", action="store_true", help="the --quick scenes (the default)")
+    ap.add_argument("--rounds", type=int, default=1, help="cold + warm pairs, each in a fresh cache (default 1)")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="workers of the runs (default 1; with more, the compiles and truths of the worker "
+                         "processes are not in the ledger, only in the CPU seconds)")
+    ap.add_argument("--verbose", action="store_true", help="list every compile and truth of the cold run")
+    a = ap.parse_args(argv)
+    case = [x for s in a.scene or [] for x in ("--scene", s)] or ["--quick"]
+    print(f"python benchmarks/bench_cold.py {' '.join(argv)} on "
+          f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, {os.cpu_count()} CPUs; "
+          f"run_all.py {' '.join(case)} --workers {a.workers}")
+    for _ in range(a.rounds):
+        with tempfile.TemporaryDirectory(prefix="rk4h-cold-cache-") as cache:
+            cold = measure(case, Path(cache), a.workers)
+            warm = measure(case, Path(cache), a.workers)
+        c, w = _summary("cold", cold), _summary("warm", warm)
+        if a.verbose:
+            for x in sorted((x for x in cold["numba"] if x["outer"]), key=lambda x: -x["cpu"]):
+                print(f"  compile {x['cpu']:7.2f} s  {x['name']}")
+            for x in sorted(cold["truths"], key=lambda x: -x["cpu"]):
+                print(f"  truth   {x['cpu']:7.2f} s  {x['kind']}  {x['model']}")
+        extra = c["cpu"] - w["cpu"]
+        dn = c["numba_cpu"] - w["numba_cpu"]
+        dt = c["truth_cpu"] + c["shipped_cpu"] - w["truth_cpu"] - w["shipped_cpu"]
+        print(f"cold / warm = {c['cpu'] / w['cpu']:.2f} (CPU); extra {extra:.1f} s CPU = numba compiles "
+              f"{dn:.1f} s + truths {dt:.1f} s + the rest {extra - dn - dt:.1f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
