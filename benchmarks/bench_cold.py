@@ -1,16 +1,18 @@
 """Where a cold start's extra CPU goes: numba compiles, truths, the rest.
 
-    python benchmarks/bench_cold.py [--scene NAME ... | --quick] [--rounds N] [--keep DIR]
+    python benchmarks/bench_cold.py [--scene NAME ... | --quick] [--workers N] [--rounds N]
+                                    [--no-shipped] [--verbose]
 
 Runs ``run_all.py ARGS --workers 1`` twice in one fresh, empty ``RK4H_CACHE``
 (cold, then warm: the second run finds what the first one wrote), each in a
 child process of this script that records, in that process:
 
 * every numba compile (numba's ``numba:compile`` event, which fires only when
-  a function is compiled, not when it is loaded from numba's cache): the
-  function's name and the CPU seconds (``time.process_time``) of each
-  outermost compile (functions compiled inside another's compile are counted,
-  their time is in the outer one's);
+  a function is compiled, not when it is loaded from numba's cache), in the
+  run's process and in every worker process it starts (a ``sitecustomize``
+  on ``PYTHONPATH``): the function's name, the process and the CPU seconds
+  (``time.process_time``) of each outermost compile (functions compiled
+  inside another's compile are counted, their time is in the outer one's);
 * every reference truth computed (not read from a cache): its kind, where it
   came from (``computed``, ``shipped`` package data, ``disk``) and the CPU
   seconds of the computation.
@@ -19,10 +21,8 @@ It prints both ledgers and the split of ``CPU(cold) - CPU(warm)`` into numba
 compiles, truths and the rest (imports, loaders, noise). CPU seconds are
 ``getrusage(RUSAGE_CHILDREN)`` of the child (user + system), the load
 average beside them: on a shared machine compare the CPU seconds, not the
-wall times. ``--workers 1`` (the default) keeps every compile in the one
-process that records it; with ``--workers 2`` the ledger sees only the parent
-process (the split is then of the parent's share) but the CPU seconds count
-every worker. The loops compiled with ``cache=True`` inside the package
+wall times. The truths are recorded in the run's own process only: with
+``--workers 2`` those the workers compute are in "the rest". The loops compiled with ``cache=True`` inside the package
 (:mod:`rk4h.fast._kernels`, the DOP853 loop) are cached next to the
 package, not under ``RK4H_CACHE``: a fresh ``RK4H_CACHE`` does not recompile
 them (a fresh install does, once).
@@ -47,30 +47,45 @@ def _load() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3]) if Path("/proc/loadavg").exists() else "?"
 
 
-def _child(ledger_path: str, argv: list[str]) -> int:
-    """In the child: record numba compiles and computed truths around ``run_all.main(argv)``."""
-    from numba.core import event
+#: Installed as ``sitecustomize`` (through ``PYTHONPATH``) in the measured run
+#: and in every worker process it starts: one JSON line per numba compile.
+_SITE = """
+import json, os, time
+_path = os.environ.get("RK4H_BENCH_COMPILES")
+if _path:
+    try:
+        from numba.core import event as _event
+    except ImportError:
+        _event = None
+    if _event is not None:
+        _stack = []
 
-    ledger = {"numba": [], "truths": []}
-    depth = [0]
-    starts = []
+        class _Compiles(_event.Listener):
+            def on_start(self, ev):
+                _stack.append(time.process_time())
 
-    class _Compiles(event.Listener):
-        def on_start(self, ev):
-            depth[0] += 1
-            starts.append(time.process_time())
+            def on_end(self, ev):
+                cpu = time.process_time() - _stack.pop()
+                fn = getattr(ev.data.get("dispatcher") if isinstance(ev.data, dict) else None, "py_func", None)
+                line = json.dumps({"name": f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', '?')}",
+                                   "cpu": cpu, "outer": not _stack, "pid": os.getpid()})
+                with open(_path, "a") as f:
+                    f.write(line + "\\n")
 
-        def on_end(self, ev):
-            depth[0] -= 1
-            cpu = time.process_time() - starts.pop()
-            disp = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
-            name = getattr(getattr(disp, "py_func", None), "__qualname__", "?")
-            module = getattr(getattr(disp, "py_func", None), "__module__", "?")
-            ledger["numba"].append({"name": f"{module}.{name}", "cpu": cpu, "outer": depth[0] == 0})
+        _event.register("numba:compile", _Compiles())
+"""
 
-    event.register("numba:compile", _Compiles())
+
+def _child(ledger_path: str, argv: list[str], no_shipped: bool = False) -> int:
+    """In the child: record computed truths around ``run_all.main(argv)``
+    (``no_shipped``: as if the package shipped no truths); the compiles are
+    recorded by :data:`_SITE` in every process."""
+    ledger = {"truths": []}
 
     from rk4h.references import truth as T
+
+    if no_shipped:
+        T.SHIPPED_DIR = Path(ledger_path).with_name("no-shipped-truths")
 
     def _timed(fn, label):
         def wrapper(*args, **kwargs):
@@ -104,22 +119,29 @@ def _child(ledger_path: str, argv: list[str]) -> int:
     return rc
 
 
-def measure(args: list[str], cache: Path, workers: int = 1) -> dict:
+def measure(args: list[str], cache: Path, workers: int = 1, no_shipped: bool = False) -> dict:
     """One child run of ``run_all.py args --workers N`` on ``RK4H_CACHE=cache``."""
     env = {k: v for k, v in os.environ.items() if k != "RK4H_WORKERS"}
     env["RK4H_CACHE"] = str(cache)
     env.setdefault("MPLBACKEND", "Agg")
     with tempfile.TemporaryDirectory(prefix="rk4h-cold-") as tmp:
         ledger = Path(tmp) / "ledger.json"
+        site = Path(tmp) / "site"
+        site.mkdir()
+        (site / "sitecustomize.py").write_text(_SITE)
+        compiles = Path(tmp) / "compiles.jsonl"
+        env["PYTHONPATH"] = os.pathsep.join([str(site), *filter(None, [env.get("PYTHONPATH")])])
+        env["RK4H_BENCH_COMPILES"] = str(compiles)
         load0 = _load()
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, __file__, "--child", str(ledger), "--",
+        r = subprocess.run([sys.executable, __file__, "--child", str(ledger), *(["--no-shipped"] if no_shipped else []), "--",
                             *args, "--workers", str(workers), "--out", str(Path(tmp) / "r")],
                            cwd=REPO, capture_output=True, text=True, env=env)
         wall = time.perf_counter() - t0
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        led = json.loads(ledger.read_text()) if ledger.exists() else {"numba": [], "truths": []}
+        led = json.loads(ledger.read_text()) if ledger.exists() else {"truths": []}
+        led["numba"] = [json.loads(ln) for ln in compiles.read_text().splitlines()] if compiles.exists() else []
     if r.returncode != 0:
         sys.stderr.write(r.stderr[-3000:])
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -128,6 +150,8 @@ def measure(args: list[str], cache: Path, workers: int = 1) -> dict:
 
 def _summary(name: str, m: dict) -> dict:
     outer = [c for c in m["numba"] if c["outer"]]
+    names = [c["name"] for c in outer]
+    twice = len(names) - len(set(names))
     computed = [t for t in m["truths"] if t["kind"] != "shipped"]
     shipped = [t for t in m["truths"] if t["kind"] == "shipped"]
     s = {"cpu": m["cpu"], "numba_n": len(outer), "numba_all": len(m["numba"]),
@@ -135,7 +159,8 @@ def _summary(name: str, m: dict) -> dict:
          "truth_cpu": sum(t["cpu"] for t in computed), "shipped_n": len(shipped),
          "shipped_cpu": sum(t["cpu"] for t in shipped)}
     print(f"{name}: {m['wall']:.1f} s wall, {m['cpu']:.1f} s CPU, exit {m['rc']}, load {m['load'][0]} -> "
-          f"{m['load'][1]}; numba: {s['numba_n']} outermost compiles ({s['numba_all']} functions), "
+          f"{m['load'][1]}; numba: {s['numba_n']} outermost compiles ({s['numba_all']} functions; "
+          f"{len({c['pid'] for c in outer})} processes; {twice} compiles of a name compiled before), "
           f"{s['numba_cpu']:.1f} s CPU; truths computed: {s['truth_n']}, {s['truth_cpu']:.1f} s CPU; "
           f"truths from package data: {s['shipped_n']}, {s['shipped_cpu']:.2f} s CPU", flush=True)
     return s
@@ -144,7 +169,9 @@ def _summary(name: str, m: dict) -> dict:
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["--child"]:
-        return _child(argv[1], argv[3:])
+        rest = argv[2:]
+        no_shipped = rest[:1] == ["--no-shipped"]
+        return _child(argv[1], rest[1 + no_shipped:], no_shipped)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", action="append", default=None, help="a scene to run (repeatable)")
     ap.add_argument("--quick", action="store_true", help="the --quick scenes (the default)")
@@ -152,6 +179,9 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=1,
                     help="workers of the runs (default 1; with more, the compiles and truths of the worker "
                          "processes are not in the ledger, only in the CPU seconds)")
+    ap.add_argument("--no-shipped", action="store_true",
+                    help="ignore the truths shipped with the package (the cold start before they shipped; "
+                         "with --workers 1 only: worker processes would still read them)")
     ap.add_argument("--verbose", action="store_true", help="list every compile and truth of the cold run")
     a = ap.parse_args(argv)
     case = [x for s in a.scene or [] for x in ("--scene", s)] or ["--quick"]
@@ -160,12 +190,12 @@ def main(argv=None) -> int:
           f"run_all.py {' '.join(case)} --workers {a.workers}")
     for _ in range(a.rounds):
         with tempfile.TemporaryDirectory(prefix="rk4h-cold-cache-") as cache:
-            cold = measure(case, Path(cache), a.workers)
-            warm = measure(case, Path(cache), a.workers)
+            cold = measure(case, Path(cache), a.workers, a.no_shipped)
+            warm = measure(case, Path(cache), a.workers, a.no_shipped)
         c, w = _summary("cold", cold), _summary("warm", warm)
         if a.verbose:
             for x in sorted((x for x in cold["numba"] if x["outer"]), key=lambda x: -x["cpu"]):
-                print(f"  compile {x['cpu']:7.2f} s  {x['name']}")
+                print(f"  compile {x['cpu']:7.2f} s  {x['name']}  (process {x['pid']})")
             for x in sorted(cold["truths"], key=lambda x: -x["cpu"]):
                 print(f"  truth   {x['cpu']:7.2f} s  {x['kind']}  {x['model']}")
         extra = c["cpu"] - w["cpu"]

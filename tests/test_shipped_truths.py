@@ -1,6 +1,7 @@
 """The quadruple-precision truths shipped as package data (issue 29, cold start):
 read only under their exact cache key and after their SHA-256 verifies, equal bit
 for bit to a fresh computation, and never trusted when tampered with."""
+import functools
 import json
 import os
 import shutil
@@ -45,10 +46,15 @@ def _assert_same(a, b):
     assert a.energy_drift == b.energy_drift
 
 
-def _problems(smallest=None):
+@functools.lru_cache(maxsize=1)
+def _all_problems():
     from rk4h.validation.ship_truths import shipped_problems
 
-    probs = shipped_problems()
+    return tuple(shipped_problems())
+
+
+def _problems(smallest=None):
+    probs = list(_all_problems())
     if smallest:
         # the cheapest few, one per model kind
         probs = sorted(probs, key=lambda p: len(p[5]))

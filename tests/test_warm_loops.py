@@ -72,3 +72,24 @@ def test_warm_one_compiles_cvodes_read_only_signature():
     model, _ = problem(scene)
     sigs = model_module(force_kernel(model)).rhs_permuted.signatures
     assert any(getattr(sig[3], "mutable", True) is False for sig in sigs), sigs
+
+
+def test_a_sweeps_batched_runs_are_left_to_their_batch(monkeypatch):
+    """The sweep points' untimed runs that the engine batches
+    (rk4h.validation.sweep_batch.group) run the batch's loop: not handed out.
+    (The shipped sweeps are below the batch threshold: lowered here.)"""
+    from rk4h.validation import sweep_batch
+    from rk4h.validation.scenes import load_scene_points
+    from rk4h.validation.sweep_batch import group
+    from rk4h.validation.warm import _batched_keys
+
+    monkeypatch.setattr(sweep_batch, "BATCH_MIN_STEPS", 0)
+
+    points = load_scene_points(SCENES / "sweep_planar4_amplitude.toml")
+    jobs = plan_all(points, quick=False, figures=True)
+    batched = _batched_keys(jobs)
+    grouped = {s.key for sc, g in group([j for j in jobs if j[1].purpose in ("order", "figure", "modal")])
+               if sc is None for _, s in g.jobs}
+    assert batched and batched == grouped
+    keys = {s.key for _, s in jobs}
+    assert batched < keys

@@ -55,13 +55,33 @@ def _loop_key(scene, solver):
     return None
 
 
+def _batched_keys(jobs) -> set:
+    """Keys of the specs of ``jobs`` the engine runs as one batch of a sweep's
+    points (:func:`rk4h.validation.sweep_batch.group`, the engine's grouping of
+    the untimed specs), whose loop is the batch's, compiled where it runs."""
+    try:
+        from .sweep_batch import BATCH_PURPOSES, group
+
+        untimed = [(scene, spec) for scene, spec in jobs
+                   if getattr(spec, "purpose", "") in BATCH_PURPOSES and not getattr(spec, "timed", False)]
+        if not untimed:
+            return set()
+        alone = {spec.key for scene, spec in group(untimed) if scene is not None}
+        return {spec.key for _, spec in untimed} - alone
+    except Exception:  # noqa: BLE001 - an estimate of what to prepare: prepare everything
+        return set()
+
+
 def loop_jobs(jobs) -> list:
     """``(scene, solver)`` pairs, one per distinct compiled loop the plan's
     ``jobs`` (``(scene, spec)`` pairs) will run."""
     seen, out = {}, []
+    batched = _batched_keys(jobs)
     for scene, spec in jobs:
         solver = getattr(spec, "solver", "")
         if getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
+            continue
+        if getattr(spec, "key", None) in batched:  # runs in a sweep's batch loop, not this one
             continue
         try:
             key = _loop_key(scene, solver)
