@@ -55,6 +55,24 @@ the entry (``os.replace``) and the directory fsync'ed, so concurrent runs at
 worst compute the same truth twice and a crash leaves the old entry or the new
 one, never half of one.
 
+Shipped truths
+--------------
+The quadruple-precision truths of the shipped scenes also ship with the
+package, in ``shipped_truths/`` next to this module: one entry per truth,
+the same ``<key>.npz`` format as the disk cache, and ``MANIFEST.json`` naming
+each entry's key, file and SHA-256 (and the cache format, the library
+versions and the scenes that made them). A real128 truth is read from there
+only when its key -- computed here exactly as for the disk cache, so the
+model's parameters and definition, ``y0``, ``t_eval``, the tolerance and the
+heyoka, numpy and scipy versions all match -- is in the manifest, the file's
+SHA-256 equals the manifest's, and the entry passes every check of a disk
+entry (its own checksums, key, format, kind, shapes, times); anything else is
+computed as without it, with one line when an entry was there but failed.
+mpmath is not in the key: no truth uses it (it gives the exact coefficients of
+:mod:`rk4h.geometric`). An edited model, another heyoka, numpy or scipy, or
+other output times change the key: the shipped entry is then simply not
+used. ``python -m rk4h.validation.ship_truths`` regenerates the folder.
+
 A run that fails (non-finite state, heyoka's error outcomes, the step cap
 :data:`MAX_STEPS`) is reported in ``status``/``message``, with NaN from the
 first output time not reached (heyoka's shortened output is padded to the
@@ -99,6 +117,11 @@ MAX_STEPS = 1_000_000
 _FORMAT = 3  # bump when the cached content or its meaning changes (2: checksums, definition in the key;
 #             3: energy_drift relative to the energy of the motion)
 _ARRAYS = ("t", "y", "y_lo")
+#: Truths shipped with the package for the shipped scenes (see "Shipped truths"
+#: in the module docstring); written by ``python -m rk4h.validation.ship_truths``.
+SHIPPED_DIR = Path(__file__).resolve().parent / "shipped_truths"
+SHIPPED_MANIFEST = "MANIFEST.json"
+_SHIPPED: dict = {}
 _MEMORY: dict[str, "Truth"] = {}
 _ENERGY_CFUNC: dict[str, object] = {}
 _DEFINITION: dict[type, str | None] = {}
@@ -138,7 +161,7 @@ class Truth:
         Time the computation took when it was done (not when read from cache).
     status : Status
     message : str
-    source : {"computed", "memory", "disk"}
+    source : {"computed", "memory", "disk", "shipped"}
     key : str
         The cache key.
     """
@@ -332,6 +355,10 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
         hit = _MEMORY.get(key)
         if hit is not None:
             return _relabel(hit, "memory")
+        hit = _shipped_hit(key, t, 2 * model.n_dof, kind) if kind == "heyoka-real128" else None
+        if hit is not None:
+            _MEMORY[key] = hit
+            return _relabel(hit, "shipped")
         directory = _usable_dir(path) if definition_hash(model) is not None else None
         if directory is not None:
             file = directory / f"{key}.npz"
@@ -352,6 +379,53 @@ def reference_solution(model, y0, t_eval, *, kind: str = "auto", tol: float = TO
                 _say(f"truth cache: {file} was corrupt ({corrupt}); recomputed"
                      + ("" if written else " (could not rewrite it)"))
     return truth
+
+
+def shipped_manifest(directory=None) -> dict:
+    """The verified-looking entries of the shipped truths' manifest:
+    ``{key: (file name, sha256 hex)}``, read once per process and directory
+    (default :data:`SHIPPED_DIR`). A manifest that is missing, unreadable, of
+    another cache format or malformed gives ``{}`` (every truth computed)."""
+    directory = Path(SHIPPED_DIR if directory is None else directory)
+    got = _SHIPPED.get(str(directory))
+    if got is None:
+        got = {}
+        try:
+            manifest = json.loads((directory / SHIPPED_MANIFEST).read_text(encoding="utf-8"))
+            if manifest.get("format") == _FORMAT:
+                for key, entry in manifest["entries"].items():
+                    name, digest = str(entry["file"]), str(entry["sha256"])
+                    if name == Path(name).name and not name.startswith(".") and len(digest) == 64:
+                        got[str(key)] = (name, digest)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            got = {}
+        _SHIPPED[str(directory)] = got
+    return got
+
+
+def _shipped_hit(key: str, t: np.ndarray, n_state: int, kind: str) -> Truth | None:
+    """The shipped truth for ``key``, or None: no entry for this exact key, or
+    an entry whose file fails its manifest SHA-256 or any check of
+    :func:`_parse` (then one line says so and the truth is computed)."""
+    entry = shipped_manifest().get(key)
+    if entry is None:
+        return None
+    file = Path(SHIPPED_DIR) / entry[0]
+    try:
+        data = file.read_bytes()
+    except OSError as e:
+        reason = e.strerror or type(e).__name__
+    else:
+        if hashlib.sha256(data).hexdigest() != entry[1]:
+            reason = "its SHA-256 differs from the manifest's"
+        else:
+            truth, reason = _parse(data, key, t, n_state, kind)
+            if truth is not None:
+                return truth
+    if (str(file), reason) not in _WARNED:
+        _WARNED.add((str(file), reason))
+        _say(f"shipped truth {file} not used ({reason}); computed instead")
+    return None
 
 
 def _usable_dir(path) -> Path | None:
@@ -538,6 +612,19 @@ def _load(file: Path, key: str, t: np.ndarray, n_state: int, kind: str):
         data = _read_private(file)
         if data is None:
             return None, None
+    except _Corrupt as e:
+        return None, str(e)
+    except Exception as e:  # noqa: BLE001 - any unreadable entry is a miss
+        text = " ".join(str(e).split())[:200]
+        return None, f"{type(e).__name__}: {text}" if text else type(e).__name__
+    return _parse(data, key, t, n_state, kind)
+
+
+def _parse(data: bytes, key: str, t: np.ndarray, n_state: int, kind: str):
+    """``(truth, None)`` when the entry bytes ``data`` hold a verified truth for
+    ``key`` (checksums, format, key, kind, shapes, times), else ``(None,
+    reason)``. Never raises, never unpickles."""
+    try:
         with np.load(io.BytesIO(data), allow_pickle=False) as z:
             names = set(z.files)
             need = {"t", "y", "meta", "sums"} | ({"y_lo"} if kind == "heyoka-real128" else set())

@@ -21,9 +21,15 @@ import time
 
 __all__ = ["loop_jobs", "warm_one", "warm_pools"]
 
-#: Purposes whose runs call a solver of the registry (the loops prepared here).
-_SOLVER_PURPOSES = ("run", "confirm")
+#: Purposes whose runs call a solver of the registry (the loops prepared here):
+#: a convergence sweep's ``order`` runs and the figures' ``figure`` run call
+#: the same fixed-step loops as ``run`` (a method some scene uses only in its
+#: sweep was left to every worker that met it first).
+_SOLVER_PURPOSES = ("run", "confirm", "order", "figure")
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
+#: The references that call the compiled right-hand side on a read-only state
+#: (scikit-sundae hands CVODE's state over read-only: a second numba signature).
+_READONLY_STATE = ("cvode-adams", "cvode-bdf")
 
 
 def _loop_key(scene, solver):
@@ -49,21 +55,47 @@ def _loop_key(scene, solver):
     return None
 
 
+def _batched_keys(jobs) -> set:
+    """Keys of the specs of ``jobs`` the engine runs as one batch of a sweep's
+    points (:func:`rk4h.validation.sweep_batch.group`, the engine's grouping of
+    the untimed specs), whose loop is the batch's, compiled where it runs."""
+    try:
+        from .sweep_batch import BATCH_PURPOSES, group
+
+        untimed = [(scene, spec) for scene, spec in jobs
+                   if getattr(spec, "purpose", "") in BATCH_PURPOSES and not getattr(spec, "timed", False)]
+        if not untimed:
+            return set()
+        alone = {spec.key for scene, spec in group(untimed) if scene is not None}
+        return {spec.key for _, spec in untimed} - alone
+    except Exception:  # noqa: BLE001 - an estimate of what to prepare: prepare everything
+        return set()
+
+
 def loop_jobs(jobs) -> list:
     """``(scene, solver)`` pairs, one per distinct compiled loop the plan's
     ``jobs`` (``(scene, spec)`` pairs) will run."""
-    seen, out = set(), []
+    seen, out = {}, []
+    batched = _batched_keys(jobs)
     for scene, spec in jobs:
         solver = getattr(spec, "solver", "")
         if getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
+            continue
+        if getattr(spec, "key", None) in batched:  # runs in a sweep's batch loop, not this one
             continue
         try:
             key = _loop_key(scene, solver)
         except Exception:  # noqa: BLE001 - the run itself will report it
             continue
-        if key is not None and key not in seen:
-            seen.add(key)
+        if key is None:
+            continue
+        if key not in seen:
+            seen[key] = len(out)
             out.append((scene, solver))
+        elif key[0] == "rhs" and solver in _READONLY_STATE and out[seen[key]][1] not in _READONLY_STATE:
+            # one job per module: CVODE's job compiles both signatures of its right-hand side
+            # (two jobs on one module, in two workers, would race on numba's index file)
+            out[seen[key]] = (scene, solver)
     return out
 
 
@@ -86,9 +118,23 @@ def warm_one(scene, solver) -> float:
             rhs = compiled_rhs(model)
             if rhs is not None:
                 rhs.checked(y0)  # compiles rhs_permuted, the one entry point of the references
+                if method.name in _READONLY_STATE:
+                    _warm_readonly(rhs, y0)
     except Exception:  # noqa: BLE001 - best effort: the run compiles it again and reports
         pass
     return time.perf_counter() - start
+
+
+def _warm_readonly(rhs, y0) -> None:
+    """Compile ``rhs``'s entry point for a read-only state, the form CVODE's
+    callback calls (the computed values are discarded)."""
+    import numpy as np
+
+    z = np.array(y0, dtype=float)
+    z.flags.writeable = False
+    n = z.shape[0]
+    perm = np.arange(n, dtype=np.int64)
+    rhs._perm(rhs.fp, rhs.ip, rhs.mass, z, np.zeros(n), perm, np.zeros((3, n)), np.zeros_like(rhs.w))
 
 
 def warm_pools(pools, jobs) -> int:
