@@ -227,7 +227,8 @@ def test_the_shipped_folder_is_package_data():
     from pathlib import Path
 
     conf = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml").read_text())
-    data = conf["tool"]["setuptools"]["package-data"]["rk4h.references"]
-    assert "shipped_truths/*.npz" in data and "shipped_truths/MANIFEST.json" in data
+    assert "rk4h.references.shipped_truths" in conf["tool"]["setuptools"]["packages"]
+    data = conf["tool"]["setuptools"]["package-data"]["rk4h.references.shipped_truths"]
+    assert "*.npz" in data and "MANIFEST.json" in data
     assert SHIPPED.parent == Path(T.__file__).resolve().parent
     assert os.path.basename(SHIPPED) == "shipped_truths"
