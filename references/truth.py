@@ -391,13 +391,14 @@ def shipped_manifest(directory=None) -> dict:
     if got is None:
         got = {}
         try:
-            manifest = json.loads((directory / SHIPPED_MANIFEST).read_text(encoding="utf-8"))
+            text = _read_regular(directory / SHIPPED_MANIFEST, _SHIPPED_MANIFEST_CAP)
+            manifest = json.loads(text.decode("utf-8")) if text is not None else {}
             if manifest.get("format") == _FORMAT:
                 for key, entry in manifest["entries"].items():
                     name, digest = str(entry["file"]), str(entry["sha256"])
                     if name == Path(name).name and not name.startswith(".") and len(digest) == 64:
                         got[str(key)] = (name, digest)
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, _Corrupt):
             got = {}
         _SHIPPED[str(directory)] = got
     return got
@@ -411,8 +412,15 @@ def _shipped_hit(key: str, t: np.ndarray, n_state: int, kind: str) -> Truth | No
     if entry is None:
         return None
     file = Path(SHIPPED_DIR) / entry[0]
+    # every array is float64 of at most (n_state + 1) x m values (t, y, y_lo);
+    # the rest (metadata, zip headers) is far below the 1 MiB margin
+    cap = 8 * t.shape[0] * (1 + 2 * n_state) + 2**20
     try:
-        data = file.read_bytes()
+        data = _read_regular(file, cap)
+        if data is None:
+            raise _Corrupt("it is missing")
+    except _Corrupt as e:
+        reason = str(e)
     except OSError as e:
         reason = e.strerror or type(e).__name__
     else:
@@ -426,6 +434,35 @@ def _shipped_hit(key: str, t: np.ndarray, n_state: int, kind: str) -> Truth | No
         _WARNED.add((str(file), reason))
         _say(f"shipped truth {file} not used ({reason}); computed instead")
     return None
+
+
+_SHIPPED_MANIFEST_CAP = 16 * 2**20  # bytes; the manifest of the shipped scenes is ~13 kB
+
+
+def _read_regular(file: Path, cap: int) -> bytes | None:
+    """The bytes of ``file`` if it is a regular file (a symbolic link is not
+    followed, a FIFO does not block) of at most ``cap`` bytes; None if it does
+    not exist. Raises _Corrupt (or OSError) otherwise. Unlike
+    :func:`_read_private` the owner is not checked: package data belongs to
+    whoever installed the package, and its content is verified by SHA-256."""
+    try:
+        fd = os.open(file, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        if os.path.islink(file):
+            raise _Corrupt("it is a symbolic link") from None
+        raise
+    with os.fdopen(fd, "rb") as f:
+        st = os.fstat(f.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise _Corrupt("it is not a regular file")
+        if st.st_size > cap:
+            raise _Corrupt(f"it has {st.st_size} bytes, more than the {cap} it can need")
+        data = f.read(cap + 1)
+    if len(data) > cap:
+        raise _Corrupt(f"it grew past {cap} bytes while read")
+    return data
 
 
 def _usable_dir(path) -> Path | None:

@@ -232,3 +232,82 @@ def test_the_shipped_folder_is_package_data():
     assert "*.npz" in data and "MANIFEST.json" in data
     assert SHIPPED.parent == Path(T.__file__).resolve().parent
     assert os.path.basename(SHIPPED) == "shipped_truths"
+
+
+# -- the shipped folder is read like any file it did not write: regular files, a size cap ------
+def _solve_in_thread(prob, cache_dir, unblock):
+    """``_solve`` with a deadline: a read that blocks (a FIFO) fails the test
+    instead of hanging it (``unblock`` then releases the reader)."""
+    import threading
+
+    out = {}
+    th = threading.Thread(target=lambda: out.update(r=_solve(prob, cache_dir)), daemon=True)
+    th.start()
+    th.join(60)
+    if th.is_alive():
+        unblock()
+        th.join(10)
+        pytest.fail("reading the shipped folder blocked on a FIFO")
+    return out["r"]
+
+
+def _release_fifo(path):
+    def unblock():
+        fd = os.open(path, os.O_WRONLY | os.O_NONBLOCK)
+        os.close(fd)
+    return unblock
+
+
+def test_a_symlinked_entry_is_not_followed(own_shipped, tmp_path):
+    folder, prob = own_shipped
+    _, _, file = _entry(folder)
+    elsewhere = tmp_path / "elsewhere.npz"
+    shutil.move(file, elsewhere)
+    os.symlink(elsewhere, file)
+    got, said = _solve(prob, tmp_path / "c")
+    assert got.source == "computed"
+    assert any("symbolic link" in s and str(file) in s for s in said), said
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_fifo_entry_or_manifest_does_not_block(own_shipped, tmp_path):
+    folder, prob = own_shipped
+    _, _, file = _entry(folder)
+    file.unlink()
+    os.mkfifo(file)
+    got, said = _solve_in_thread(prob, tmp_path / "c", _release_fifo(file))
+    assert got.source == "computed"
+    assert any("not a regular file" in s for s in said), said
+    manifest = folder / T.SHIPPED_MANIFEST
+    manifest.unlink()
+    os.mkfifo(manifest)
+    T._SHIPPED.clear()
+    got, said = _solve_in_thread(prob, tmp_path / "d", _release_fifo(manifest))
+    assert got.source == "computed" and not said
+
+
+def test_an_oversized_entry_is_not_read(own_shipped, tmp_path):
+    """A file far larger than the truth can be (its SHA-256 in the manifest
+    matching) is refused by its size, before it is read into memory."""
+    import hashlib
+
+    folder, prob = own_shipped
+    manifest, key, file = _entry(folder)
+    big = b"\0" * (8 * 2**20)
+    file.write_bytes(big)
+    manifest["entries"][key]["sha256"] = hashlib.sha256(big).hexdigest()
+    (folder / T.SHIPPED_MANIFEST).write_text(json.dumps(manifest))
+    T._SHIPPED.clear()
+    got, said = _solve(prob, tmp_path / "c")
+    assert got.source == "computed"
+    assert any("bytes, more than" in s for s in said), said
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000, '{"format": 3, "entries": [1]}', "[]", "\xff"],
+                         ids=["deep", "entries-list", "list", "not-utf8"])
+def test_a_malformed_manifest_means_no_shipped_entry(own_shipped, tmp_path, text):
+    folder, prob = own_shipped
+    (folder / T.SHIPPED_MANIFEST).write_bytes(text.encode("latin-1"))
+    T._SHIPPED.clear()
+    got, said = _solve(prob, tmp_path / "c")
+    assert got.source == "computed" and not said
