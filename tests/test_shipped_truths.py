@@ -311,3 +311,36 @@ def test_a_malformed_manifest_means_no_shipped_entry(own_shipped, tmp_path, text
     T._SHIPPED.clear()
     got, said = _solve(prob, tmp_path / "c")
     assert got.source == "computed" and not said
+
+
+# -- ship_truths removes only the files its previous manifest names and that are unchanged ----
+def _rewrite_with_other_problem(folder):
+    from rk4h.validation.ship_truths import write_shipped
+
+    said = []
+    write_shipped([_small_problem(t_end=0.6)], folder, say=said.append)
+    return said
+
+
+def test_ship_truths_removes_its_own_stale_entry(own_shipped):
+    folder, prob = own_shipped
+    _, key, file = _entry(folder)
+    _rewrite_with_other_problem(folder)
+    assert not file.exists()
+    assert key not in json.loads((folder / T.SHIPPED_MANIFEST).read_text())["entries"]
+
+
+def test_ship_truths_never_removes_a_file_its_manifest_did_not_write(own_shipped):
+    """The old manifest (not verified by anything) names a file of the user's,
+    and its own entry was changed after it was written: both are left."""
+    folder, prob = own_shipped
+    manifest, key, file = _entry(folder)
+    precious = folder / "precious.npz"
+    precious.write_bytes(b"the user's")
+    manifest["entries"]["0" * 64] = {"file": "precious.npz", "sha256": "0" * 64}
+    (folder / T.SHIPPED_MANIFEST).write_text(json.dumps(manifest))
+    file.write_bytes(file.read_bytes() + b"edited")
+    said = _rewrite_with_other_problem(folder)
+    assert precious.read_bytes() == b"the user's"
+    assert file.exists()
+    assert any("SHA-256 differs" in s and str(file) in s for s in said), said

@@ -10,7 +10,9 @@ folder): one ``<key>.npz`` per truth, in the disk cache's format and under its
 key (:func:`rk4h.references.truth.reference_solution`), and
 ``MANIFEST.json`` with each entry's key, file, SHA-256, scene and grid, the
 cache format and the library versions in the key. Files of the previous
-manifest that the new one does not name are removed (nothing else is).
+manifest that the new one does not name are removed when they still are
+what it recorded (named ``<key>.npz``, a regular file, the same SHA-256);
+nothing else is.
 
 ``--check`` computes nothing: it lists the truths the plans ask for that the
 manifest lacks (a stale folder after a model, a scene or a library changed)
@@ -70,12 +72,7 @@ def write_shipped(problems, directory, *, say=print) -> dict:
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     manifest_file = directory / T.SHIPPED_MANIFEST
-    old = {}
-    if manifest_file.exists():
-        try:
-            old = json.loads(manifest_file.read_text(encoding="utf-8")).get("entries", {})
-        except ValueError:
-            old = {}
+    old = _old_entries(manifest_file)
     entries = {}
     for key, scene, grid_name, model, y0, t in problems:
         t0 = time.process_time()
@@ -96,19 +93,57 @@ def write_shipped(problems, directory, *, say=print) -> dict:
             f"{len(data)} bytes")
     manifest = {"format": T._FORMAT, "generator": "python -m rk4h.validation.ship_truths",
                 "versions": T._versions(), "tol": T.TOL_REAL128, "entries": dict(sorted(entries.items()))}
-    tmp = manifest_file.with_name(f".{manifest_file.name}.tmp")
-    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    tmp = manifest_file.with_name(f".{manifest_file.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(json.dumps(manifest, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, manifest_file)
-    for key, entry in old.items():  # only files the previous manifest named (this tool wrote them)
-        name = str(entry.get("file", "")) if isinstance(entry, dict) else ""
-        if key not in entries and name == Path(name).name and name.endswith(".npz") and name not in \
-                {e["file"] for e in entries.values()}:
-            try:
-                (directory / name).unlink()
-            except FileNotFoundError:
-                pass
+    for key, (name, digest) in old.items():
+        if key not in entries:
+            _remove_if_written(directory / name, digest, say)
     T._SHIPPED.pop(str(directory), None)
     return manifest
+
+
+def _old_entries(manifest_file: Path) -> dict:
+    """``{key: (file name, sha256)}`` of the previous manifest, only entries
+    whose file is named ``<key>.npz`` for a 64-hex-digit key (the names this
+    tool gives); ``{}`` when there is no readable manifest."""
+    from rk4h.references import truth as T
+
+    try:
+        text = T._read_regular(manifest_file, T._SHIPPED_MANIFEST_CAP)
+        entries = json.loads(text.decode("utf-8")).get("entries", {}) if text is not None else {}
+        out = {}
+        for key, entry in entries.items():
+            name, digest = str(entry["file"]), str(entry["sha256"])
+            if len(key) == 64 and set(key) <= set("0123456789abcdef") and name == f"{key}.npz":
+                out[key] = (name, digest)
+        return out
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, T._Corrupt):
+        return {}
+
+
+def _remove_if_written(file: Path, digest: str, say) -> None:
+    """Remove ``file`` only if it still is what the previous manifest
+    recorded: a regular file (not a link) whose SHA-256 is ``digest``;
+    anything else is left, with one line."""
+    from rk4h.references import truth as T
+
+    try:
+        data = T._read_regular(file, 2**30)
+    except (OSError, T._Corrupt) as e:
+        say(f"  left {file}: {e}")
+        return
+    if data is None:
+        return
+    if hashlib.sha256(data).hexdigest() != digest:
+        say(f"  left {file}: not the file the previous manifest names (its SHA-256 differs)")
+        return
+    try:
+        file.unlink()
+    except FileNotFoundError:
+        pass
 
 
 def main(argv=None) -> int:
