@@ -58,13 +58,20 @@ def test_no_command_is_bad_input(capsys):
     assert "usage: rk4h" in capsys.readouterr().err
 
 
-def test_progress_off_a_terminal_prints_a_line_per_5_percent_or_10_s(monkeypatch):
+def _progress(monkeypatch, n):
+    """A progress bar of ``n`` specs written to a string (off a terminal), on a clock of 1 ms per call,
+    after every spec has reported."""
     clock = iter(range(10**6))
     monkeypatch.setattr(run_all.time, "perf_counter", lambda: next(clock) * 1e-3)  # 1 ms per call
     out = io.StringIO()
-    bar = run_all.Progress(1065, stream=out)
-    for i in range(1065):
+    bar = run_all.Progress(n, stream=out)
+    for i in range(n):
         bar(f"spec {i}")
+    return out, bar
+
+
+def test_progress_off_a_terminal_prints_a_line_per_5_percent_or_10_s(monkeypatch):
+    out, bar = _progress(monkeypatch, 1065)
     bar.close()  # the runner closes it; the last line comes then
     lines = out.getvalue().splitlines()
     assert 20 <= len(lines) <= 23, len(lines)
@@ -75,12 +82,7 @@ def test_progress_extended_by_confirmation_runs_still_prints_one_line_per_5_perc
     """Confirmation runs extend the plan a few specs at a time at its end: each extension used to
     complete the plan again and print a line (306 specs: [295/295], [302/302], [304/304], [306/306]
     within 1 s). At most one line per 5 % or 10 s, then the last line on close."""
-    clock = iter(range(10**6))
-    monkeypatch.setattr(run_all.time, "perf_counter", lambda: next(clock) * 1e-3)  # 1 ms per call
-    out = io.StringIO()
-    bar = run_all.Progress(100, stream=out)
-    for i in range(100):
-        bar(f"spec {i}")
+    out, bar = _progress(monkeypatch, 100)
     for _ in range(3):  # three rounds of two confirmation runs
         bar.extend(2)
         bar("confirmation")

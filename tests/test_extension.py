@@ -13,34 +13,15 @@ import pytest
 from rk4h.models import MODELS, register_model
 from rk4h.validation import outputs, tables
 from rk4h.validation.run_all import main
+from test_model_declarations import MORSE_FILE
 
 REPO = Path(__file__).resolve().parent.parent
 
-#: The new model, one file: a particle in a Morse well V = D (1 - exp(-a x))^2.
-MODEL_FILE = '''
-"""A particle in a Morse well."""
-from rk4h import Defined, PotentialModel
-from rk4h.models import Param
+#: The new model, one file: a particle in a Morse well V = D (1 - exp(-a x))^2 (test_model_declarations' file
+#: under its own name, so that both tests can register it).
+MODEL_FILE = MORSE_FILE.replace('name = "morse-test"', 'name = "morse-extension"')
+assert MODEL_FILE != MORSE_FILE
 
-
-class Morse(Defined):
-    name = "morse-extension"
-    summary = "A particle in a Morse well V = D (1 - exp(-a x))^2."
-    parameters = (
-        Param("m", "normal", "kg", "the particle's mass", 1.0),
-        Param("D", "normal", "J", "depth of the well", 2.0),
-        Param("a", "normal", "1/m", "inverse width of the well", 1.5, default=1.0),
-    )
-
-    def __init__(self, m, D, a=1.0):
-        self.m, self.D, self.a = float(m), float(D), float(a)
-        self._adopt(lambda: PotentialModel(["x"], [self.m], "D*(1 - exp(-a*x))^2", {"D": self.D, "a": self.a}),
-                    "D")
-        self.coord_names = ["x"]
-
-    def params(self):
-        return {"m": self.m, "D": self.D, "a": self.a}
-'''
 
 #: The scene: the new model, the new method (the 3/8 rule, one table) and the new output.
 SCENE = '''
