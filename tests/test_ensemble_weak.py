@@ -140,3 +140,18 @@ def test_the_budget_counts_the_batch_reference():
     # RK4 at 0.02 and 0.01 s over 2 s (100 + 200 steps) and, per spec, the reference at 0.0025 s (800
     # steps) with its confirmation at 0.005 s (400), for each of the 256 instances
     assert budget.estimate(load_scene(SCENE)).steps == 256 * (100 + 200 + 2 * (800 + 400))
+
+
+@pytest.mark.parametrize("column", ["error_median", "error_p95", "error_max", "reference_bound", "weak_error",
+                                    "weak_reference_bound"])
+def test_a_nan_in_the_reference_check_fails_it(column):
+    """Every NaN in the numbers the reference check compares fails it (a NaN
+    error statistic other than the first used to drop out of ``min``)."""
+    from rk4h.validation.outputs.ensemble import reference_check
+
+    row = {"error_median": 1e-3, "error_p95": 2e-3, "error_max": 3e-3, "reference_bound": 1e-6,
+           "weak_error": 1e-4, "weak_reference_bound": 1e-7, "reference_failed": 0}
+    assert reference_check(row)[0]
+    row[column] = float("nan")
+    ok, worst = reference_check(row)
+    assert not ok and worst == float("inf")

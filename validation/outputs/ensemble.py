@@ -108,7 +108,9 @@ def reference_check(row):
 
     from rk4h.validation.ensemble import REFERENCE_MARGIN
 
-    strong = min(row[f"error_{k}"] for k in STATS)
+    stats = [row[f"error_{k}"] for k in STATS]
+    # min() skips a NaN that is not first (NaN < x is False): any NaN statistic is no error measured
+    strong = min(stats) if all(math.isfinite(x) for x in stats) else math.nan
     ratios = [row["reference_bound"] / strong if strong > 0 else math.inf,
               row["weak_reference_bound"] / row["weak_error"] if row["weak_error"] > 0 else math.inf]
     worst = max(r if math.isfinite(r) else math.inf for r in ratios)
