@@ -278,6 +278,44 @@ def test_every_cached_path_sees_a_model_changed_in_place(solver, setting):
     assert str(known.value) == str(fresh.value)
 
 
+@pytest.mark.parametrize("entry", ["ensemble", "solve_model"])
+@pytest.mark.parametrize("change", ["in place", "rebinding"])
+def test_the_compiled_entry_points_see_a_changed_model(entry, change):
+    """``rk4h.ensemble`` and ``rk4h.fast.solve_model`` take the model's kept
+    compiled kernel without a state check first: after a change between two
+    calls they too give what a new model with the new parameters gives (they
+    used to run the old kernel)."""
+    import rk4h.fast
+
+    def build():
+        return rk4h.make_model("chain", {"masses": [1.0, 2.0, 0.5], "springs": [1.0, 3.0, 2.0, 1.0],
+                                         "alpha": 0.25, "beta": 1.5})
+
+    def change_it(m):
+        if change == "in place":
+            m.k[1] = 30.0
+        else:
+            m.beta = 5.0
+
+    y0 = np.array([[0.1, 0.0, -0.1, 0.0, 0.0, 0.0], [0.05, 0.02, 0.0, 0.0, 0.1, 0.0]])
+    t = np.linspace(0.0, 1.0, 11)
+    if entry == "ensemble":
+        def run(m):
+            return rk4h.ensemble(m, y0, (0.0, 1.0), h=0.01, t_eval=t, backend="numba").y
+    else:
+        def run(m):
+            return rk4h.fast.solve_model(m, (0.0, 1.0), y0[0], h=0.01, t_eval=t).y
+    model = build()
+    first = run(model)
+    run(model)  # the second call answers from the kept kernel
+    change_it(model)
+    new = build()
+    change_it(new)
+    got, expected = run(model), run(new)
+    assert not np.array_equal(expected, first)
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_a_changed_model_refuses_a_state_its_short_path_accepted_before():
     model = rk4h.make_model("chain", {"masses": [1.0, 1.1], "springs": [1.0, 1.0, 1.0], "alpha": 0.25})
     t = np.array([0.0, 0.05])

@@ -47,7 +47,10 @@ def force_kernel(model):
     derives the kernel runs on the generic path."""
     cached = model.__dict__.get("_fast_force_kernel", False) if hasattr(model, "__dict__") else None
     if cached is not False and cached is not None:
-        return cached
+        from rk4h.models.base import model_current
+
+        if model_current(model):  # else changed: it dropped this kernel with the other per-object caches
+            return cached
     try:
         kern = model.force_kernel()
     except AttributeError:
@@ -64,7 +67,7 @@ def force_kernel(model):
         fn = vars(c)[attr] if c is not None else None
         if fn is not None and not getattr(fn, "__qualname__", "").startswith(c.__qualname__ + "."):
             return None
-    model.__dict__["_fast_force_kernel"] = kern  # built once per model object (models are not mutated)
+    model.__dict__["_fast_force_kernel"] = kern  # once per model object while it is unchanged (model_current)
     return kern
 
 
