@@ -35,10 +35,11 @@ def test_subcommand_help_names_rk4h_commands_not_scripts(command, capsys):
     import re
 
     try:
-        main([command, "--help"])
-    except SystemExit:
-        pass
+        rc = main([command, "--help"])
+    except SystemExit as e:
+        rc = e.code
     out = capsys.readouterr().out
+    assert rc in (0, None) and f"usage: rk4h {command}" in out, out[:300]  # else every check below holds on ""
     assert "``" not in out
     assert not re.search(r"(?<!python validation/)\b\w+\.py\b", out), out[:300]
     positional = out.split("positional arguments:\n", 1)[1].split("\n\n", 1)[0] if "positional arguments:" in out else ""
