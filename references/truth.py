@@ -38,7 +38,9 @@ directory and the reason; the run goes on.
 The key is a SHA-256 of: the cache format :data:`_FORMAT`; the model's name,
 parameters and *definition* (:func:`definition_hash`: the source code of every
 class in the model's MRO and of their modules, and of the code that builds
-heyoka's equations), so an edited force never reuses a stale truth; the heyoka,
+heyoka's equations), so an edited force never reuses a stale truth; the code
+that computes the truth (:func:`method_hash`), so neither does an edited
+integration or modal solution; the heyoka,
 numpy and scipy versions; ``y0`` and ``t_eval`` (exact binary values), the kind,
 the tolerance and the step cap.
 
@@ -276,6 +278,27 @@ def definition_hash(model) -> str | None:
     return out
 
 
+@functools.lru_cache(maxsize=1)
+def method_hash() -> str:
+    """SHA-256 (hex) of the code that computes a truth from a model (part of
+    its key): :func:`_real128`, :func:`_exact_modal`, :func:`_energy_cfunc`,
+    :func:`_drift` and the modules they run (the Taylor driver
+    :mod:`rk4h.references.solvers.taylor`, its tolerances and scales
+    :mod:`rk4h.references.solvers.tolerances`, the modal solution
+    :mod:`rk4h.references.exact`, the rest energy :mod:`rk4h.energy`). An
+    edit to any of them keys every truth anew: a cached or shipped entry
+    computed by other code is never read as this code's result."""
+    from rk4h import energy
+
+    from . import exact
+    from .solvers import taylor, tolerances
+
+    h = hashlib.sha256()
+    for obj in (_real128, _exact_modal, _energy_cfunc, _drift, taylor, tolerances, exact, energy):
+        h.update(_source(obj).encode())
+    return h.hexdigest()
+
+
 def _versions() -> dict:
     """The versions of the libraries a truth depends on (part of its key),
     read once per process (``importlib.metadata`` scans the installed
@@ -292,7 +315,7 @@ def _versions_once() -> tuple:
 def _key(model, y0, t_eval, kind, tol, max_steps=MAX_STEPS) -> str:
     h = hashlib.sha256()
     h.update(json.dumps({"format": _FORMAT, "model": model_key(model), "definition": definition_hash(model),
-                         "versions": _versions(), "kind": kind,
+                         "method": method_hash(), "versions": _versions(), "kind": kind,
                          "tol": None if tol is None else float(tol).hex(),
                          "max_steps": None if tol is None else int(max_steps),
                          "y0": [float(v).hex() for v in y0]}, sort_keys=True).encode())

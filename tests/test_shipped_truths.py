@@ -344,3 +344,26 @@ def test_ship_truths_never_removes_a_file_its_manifest_did_not_write(own_shipped
     assert precious.read_bytes() == b"the user's"
     assert file.exists()
     assert any("SHA-256 differs" in s and str(file) in s for s in said), said
+
+
+@pytest.mark.parametrize("edited", ["_real128", "_exact_modal", "taylor", "exact"])
+def test_an_edit_to_the_code_computing_truths_keys_them_anew(own_shipped, tmp_path, monkeypatch, edited):
+    """A shipped (or cached) entry computed by other truth code is never read:
+    the key holds the source of the code that computes a truth."""
+    folder, prob = own_shipped
+    real_source = T._source
+
+    def edited_source(obj):
+        text = real_source(obj)
+        name = getattr(obj, "__name__", "")
+        return text + "\n# edited" if name == edited or name.endswith("." + edited) else text
+
+    T.method_hash.cache_clear()
+    monkeypatch.setattr(T, "_source", edited_source)
+    try:
+        key = T._key(*prob[3:], "heyoka-real128", T.TOL_REAL128)
+        assert key != prob[0]
+        got, said = _solve(prob, tmp_path / "c")
+        assert got.source == "computed" and got.key == key and not said
+    finally:
+        T.method_hash.cache_clear()
