@@ -157,6 +157,12 @@ class Method:
     rtol_floor : float or None
         The tightest ``rtol`` the harness runs it at (confirmation runs);
         None: the harness' default (100 machine epsilons).
+    native_steps : bool
+        A reference whose steps run in compiled code, no Python call per
+        step (heyoka's Taylor integrator, compiled once per process); the
+        other references step through Python (scipy's DOP853, CVODE calling
+        a Python right-hand side). Read by the workers' cost estimate
+        (:mod:`rk4h.validation.workers`).
     """
 
     name: str
@@ -177,6 +183,7 @@ class Method:
     long_rtol: float | None = None
     advisor_rtols: tuple | None = None
     rtol_floor: float | None = None
+    native_steps: bool = False
 
     @property
     def adaptive(self) -> bool:
@@ -270,7 +277,7 @@ _REFERENCE_DATA = {
     # heyoka's Taylor method in double precision runs down to 10 eps (scipy
     # raises DOP853's rtol below 100 eps to 100 eps; CVODE's is taken the same)
     "heyoka": dict(adapter="heyoka", cost_unit=CostUnit.TAYLOR_STEPS, roles=frozenset({"cost"}), long_rtol=1e-12,
-                   advisor_rtols=(1e-4, 1e-10), rtol_floor=10 * 2.0 ** -52),
+                   advisor_rtols=(1e-4, 1e-10), rtol_floor=10 * 2.0 ** -52, native_steps=True),
 }
 #: The method whose trust the harness measures first (the thesis' RK4): the
 #: one the state figures, the modal-energy runs, the wave packets and the

@@ -1,0 +1,44 @@
+"""Behaviour comes from registry data, never from a method's name: the
+workers' cost estimate reads ``Method.native_steps`` (heyoka's compiled Taylor
+steps), not the name ``"heyoka"``."""
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from rk4h.references import registry
+from rk4h.validation import plan, workers
+from rk4h.validation.scenes import scene_from_dict
+
+DOC = {"name": "dispatch", "model": "chain",
+       "params": {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0]},
+       "initial": {"x": [0.5, 0.0]},
+       "run": {"t_end": 20.0, "h": [0.1], "tolerances": [1e-6], "solvers": ["rk4", "dop853", "heyoka"],
+               "outputs": ["state"]}}
+
+
+def _run_seconds(scene, solver):
+    seconds = workers.spec_seconds_function()
+    specs = [s for s in plan.plan(scene, figures=False) if s.purpose == "run" and s.solver == solver]
+    assert specs
+    return [seconds(scene, s) for s in specs]
+
+
+def test_the_registry_says_which_reference_steps_natively():
+    assert [n for n, m in registry.BUILTIN.items() if m.native_steps] == ["heyoka"]
+    assert all(m.kind is registry.Kind.REFERENCE for m in registry.BUILTIN.values() if m.native_steps)
+
+
+@pytest.mark.parametrize("solver", ["dop853", "heyoka"])
+def test_step_cost_follows_native_steps_not_the_name(solver, monkeypatch):
+    scene = scene_from_dict(DOC, "dispatch.toml")
+    before = _run_seconds(scene, solver)
+    method = registry.BUILTIN[solver]
+    monkeypatch.setitem(registry.BUILTIN, solver, dataclasses.replace(method, native_steps=not method.native_steps))
+    after = _run_seconds(scene, solver)
+    # a Python-stepped reference costs about 1e-4 s a step, a compiled one about 1e-6 s
+    if method.native_steps:
+        assert all(a > b for a, b in zip(after, before))
+    else:
+        assert all(a < b for a, b in zip(after, before))
