@@ -147,7 +147,9 @@ class Method:
         What ``nfev`` of its runs counts.
     roles : frozenset of str
         Where the harness uses it as a comparison: ``"cost"`` (a reference
-        of the stability study's cost sweeps).
+        of the stability study's cost sweeps), ``"banded"`` (the large-N
+        study's reference, run with a banded linear solver:
+        :func:`rk4h.validation.stability.large_n.cvode_band_cost`).
     long_rtol : float or None
         ``rtol`` of its run as a long-horizon reference of the stability
         study; None: not one.
@@ -273,7 +275,7 @@ _REFERENCE_DATA = {
     "dop853": dict(adapter="dop853", cost_unit=CostUnit.RHS, roles=frozenset({"cost"})),
     "cvode-adams": dict(adapter="cvode-adams", implicit=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ),
     "cvode-bdf": dict(adapter="cvode-bdf", implicit=True, stiff=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ,
-                      roles=frozenset({"cost"}), long_rtol=1e-10),
+                      roles=frozenset({"cost", "banded"}), long_rtol=1e-10),
     # heyoka's Taylor method in double precision runs down to 10 eps (scipy
     # raises DOP853's rtol below 100 eps to 100 eps; CVODE's is taken the same)
     "heyoka": dict(adapter="heyoka", cost_unit=CostUnit.TAYLOR_STEPS, roles=frozenset({"cost"}), long_rtol=1e-12,

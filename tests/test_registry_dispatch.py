@@ -42,3 +42,18 @@ def test_step_cost_follows_native_steps_not_the_name(solver, monkeypatch):
         assert all(a > b for a, b in zip(after, before))
     else:
         assert all(a < b for a, b in zip(after, before))
+
+
+def test_the_large_n_reference_is_the_method_with_role_banded(monkeypatch):
+    """The large-N study's estimate names its banded reference from the
+    registry's role ``"banded"`` (CVODE-BDF), not a written name."""
+    from rk4h.validation.stability import estimate, studies
+
+    assert registry.with_role("banded") == ("cvode-bdf",)
+    p = {"method": "rk4", "n_values": [10, 20]}
+    assert set(estimate._large_n(None, p, False, None)) == {"rk4", "cvode-bdf"}
+    for name in ("cvode-bdf", "cvode-adams"):  # move the role: the estimate follows it
+        m = registry.BUILTIN[name]
+        monkeypatch.setitem(registry.BUILTIN, name, dataclasses.replace(m, roles=m.roles ^ {"banded"}))
+    assert studies.banded_reference() == "cvode-adams"
+    assert set(estimate._large_n(None, p, False, None)) == {"rk4", "cvode-adams"}
