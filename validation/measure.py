@@ -506,9 +506,10 @@ def _state_figure(scene, specs, records, res):
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             from .execute import recorded_modal
+            from .figures.look import recorded_look
 
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
-                                                               "title": title,
+                                                               "title": title, "look": recorded_look(rec),
                                                                "thesis": getattr(scene, "thesis_figures", ""),
                                                                "modal": recorded_modal(rec)}))
         return
