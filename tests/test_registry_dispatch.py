@@ -57,3 +57,33 @@ def test_the_large_n_reference_is_the_method_with_role_banded(monkeypatch):
         monkeypatch.setitem(registry.BUILTIN, name, dataclasses.replace(m, roles=m.roles ^ {"banded"}))
     assert studies.banded_reference() == "cvode-adams"
     assert set(estimate._large_n(None, p, False, None)) == {"rk4", "cvode-adams"}
+
+
+def _renamed(monkeypatch, name, new):
+    """A built-in reference under another name, its adapter kept (what a
+    registry entry renamed keeps)."""
+    m = dataclasses.replace(registry.BUILTIN[name], name=new)
+    monkeypatch.setitem(registry.BUILTIN, new, m)
+    return m
+
+
+def test_warm_loops_follow_the_adapter_not_the_name(monkeypatch):
+    from pathlib import Path
+
+    from rk4h.validation.scenes import load_scene
+    from rk4h.validation.warm import _loop_key
+
+    scene = load_scene(Path(__file__).resolve().parent.parent / "validation" / "scenes" / "thesis_2dof_case1.toml")
+    _renamed(monkeypatch, "cvode-bdf", "bdf-renamed")
+    assert _loop_key(scene, "cvode-bdf") is not None
+    assert _loop_key(scene, "bdf-renamed") == _loop_key(scene, "cvode-bdf")
+
+
+def test_the_advisor_runs_a_compiled_loop_by_adapter(monkeypatch):
+    from rk4h.validation import advise
+
+    scene = scene_from_dict(DOC, "dispatch.toml")
+    method = _renamed(monkeypatch, "dop853", "dop-renamed")
+    prob = advise._Problem(scene)
+    prob.run(method, 1e-6)
+    assert prob.implementation.get("dop-renamed") == "compiled"
