@@ -1,10 +1,13 @@
 """Behaviour comes from registry data, never from a method's name: the
 workers' cost estimate reads ``Method.native_steps`` (heyoka's compiled Taylor
-steps), not the name ``"heyoka"``."""
+steps), not the name ``"heyoka"``; the large-N study's reference is the
+method with role ``"banded"``; compiled loops are chosen by ``adapter``; the
+stiffness cost search's default method is the registry's ``UNDER_TEST``."""
 from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from rk4h.references import registry
@@ -87,3 +90,16 @@ def test_the_advisor_runs_a_compiled_loop_by_adapter(monkeypatch):
     prob = advise._Problem(scene)
     prob.run(method, 1e-6)
     assert prob.implementation.get("dop-renamed") == "compiled"
+
+
+@pytest.mark.parametrize("under_test", ["rk4", "euler"])
+def test_the_cost_search_steps_the_registrys_method_under_test(under_test, monkeypatch):
+    """``cost_at_target`` without ``fixed`` steps the registry's method under
+    test with a fixed step, whatever its name."""
+    from rk4h.validation.stability import stiffness
+
+    monkeypatch.setattr(registry, "UNDER_TEST", under_test)
+    model = scene_from_dict(DOC, "dispatch.toml").build_model()
+    (row,) = stiffness.cost_at_target(model, np.array([0.5, 0.0, 0.0, 0.0]), 1e-2, (under_test,))
+    assert row["solver"] == under_test and row["status"] == "ok", row
+    assert row["n_steps"] > 0 and "h_stab=" in row["note"]  # the fixed-step search, not the rtol ladder
