@@ -147,7 +147,9 @@ class Method:
         What ``nfev`` of its runs counts.
     roles : frozenset of str
         Where the harness uses it as a comparison: ``"cost"`` (a reference
-        of the stability study's cost sweeps).
+        of the stability study's cost sweeps), ``"banded"`` (the large-N
+        study's reference, run with a banded linear solver:
+        :func:`rk4h.validation.stability.large_n.cvode_band_cost`).
     long_rtol : float or None
         ``rtol`` of its run as a long-horizon reference of the stability
         study; None: not one.
@@ -157,6 +159,12 @@ class Method:
     rtol_floor : float or None
         The tightest ``rtol`` the harness runs it at (confirmation runs);
         None: the harness' default (100 machine epsilons).
+    native_steps : bool
+        A reference whose steps run in compiled code, no Python call per
+        step (heyoka's Taylor integrator, compiled once per process); the
+        other references step through Python (scipy's DOP853, CVODE calling
+        a Python right-hand side). Read by the workers' cost estimate
+        (:mod:`rk4h.validation.workers`).
     """
 
     name: str
@@ -177,6 +185,7 @@ class Method:
     long_rtol: float | None = None
     advisor_rtols: tuple | None = None
     rtol_floor: float | None = None
+    native_steps: bool = False
 
     @property
     def adaptive(self) -> bool:
@@ -266,11 +275,11 @@ _REFERENCE_DATA = {
     "dop853": dict(adapter="dop853", cost_unit=CostUnit.RHS, roles=frozenset({"cost"})),
     "cvode-adams": dict(adapter="cvode-adams", implicit=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ),
     "cvode-bdf": dict(adapter="cvode-bdf", implicit=True, stiff=True, cost_unit=CostUnit.RHS_WITH_JACOBIAN_DQ,
-                      roles=frozenset({"cost"}), long_rtol=1e-10),
+                      roles=frozenset({"cost", "banded"}), long_rtol=1e-10),
     # heyoka's Taylor method in double precision runs down to 10 eps (scipy
     # raises DOP853's rtol below 100 eps to 100 eps; CVODE's is taken the same)
     "heyoka": dict(adapter="heyoka", cost_unit=CostUnit.TAYLOR_STEPS, roles=frozenset({"cost"}), long_rtol=1e-12,
-                   advisor_rtols=(1e-4, 1e-10), rtol_floor=10 * 2.0 ** -52),
+                   advisor_rtols=(1e-4, 1e-10), rtol_floor=10 * 2.0 ** -52, native_steps=True),
 }
 #: The method whose trust the harness measures first (the thesis' RK4): the
 #: one the state figures, the modal-energy runs, the wave packets and the

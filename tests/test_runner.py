@@ -133,8 +133,9 @@ def test_small_run_writes_tables_and_index(tmp_path, previous_report):
     assert r.returncode == 0, r.stdout + r.stderr
     out = previous_report
     acc = pd.read_csv(out / "accuracy.csv")
-    assert list(acc.columns[:12]) == ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel",
-                                      "error_final", "energy_drift_max", "nfev", "n_steps", "wall_s"]
+    assert list(acc.columns[:13]) == ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel",
+                                      "error_final", "energy_drift_max", "nfev", "cost_unit", "n_steps", "wall_s"]
+    assert set(acc["cost_unit"]) == {"rhs"}  # rk4 and dop853 count every right-hand-side call
     assert len(acc) == 4 and set(acc["status"]) == {"ok"}
     rk4 = acc[acc.solver == "rk4"].set_index("setting")
     # RK4: 4 stages per step, h = 0.1 over 2 s is 20 steps

@@ -213,7 +213,7 @@ class _Problem:
         alike; :attr:`implementation` records that it did."""
         from rk4h.references.solvers import COMPILED_RUNNERS, integrate, integrate_compiled
 
-        runner = integrate_compiled if method.name in COMPILED_RUNNERS else integrate
+        runner = integrate_compiled if (method.adapter or method.name) in COMPILED_RUNNERS else integrate
         with np.errstate(all="ignore"):
             run = runner(method, self.model, self.y0, self.t, setting)
         if (run.extra or {}).get("implementation") == "compiled":

@@ -74,6 +74,18 @@ _PASSED = _c("", "bool", "the row's expectation held")
 _CHECKED = _c("", "bool", "the row carries a pass/fail verdict (False: informative only, `passed` is then False)")
 _STATUS = _c("", "category", "outcome of the run: ok, unstable, failed, skipped, singular, ...")
 
+
+def _cost_units() -> str:
+    """Each cost unit a method declares (rk4h.references.registry.CostUnit), as text."""
+    from rk4h.references.registry import CostUnit
+
+    return "; ".join(f"`{u.value}`: {u.text}" for u in CostUnit)
+
+
+def _cost_unit(what: str):
+    return _c("", "category", f"what {what} counts, as the method declares it in the registry "
+                              f"(rk4h.references.registry.CostUnit): {_cost_units()}")
+
 #: Columns shared by several tables, unless a table overrides them.
 _COMMON = {
     "scene": _c("", "str", "scene name (validation/scenes/*.toml)"),
@@ -83,7 +95,8 @@ _COMMON = {
                                       "components (in the state's units: m, m/s, rad, ...)"),
     "error_rel": _c("1", "float", "error_max / max |y_ref| over the scene's horizon"),
     "energy_drift_max": _c("1", "float", "max |E(t) - E0| / E_motion, E_motion = E0 - V(q*)"),
-    "nfev": _c("1", "int", "right-hand-side evaluations of the run"),
+    "nfev": _c("1", "int", "right-hand-side evaluations of the run, in the unit `cost_unit` names"),
+    "cost_unit": _cost_unit("`nfev` of the run"),
     "n_steps": _c("1", "int", "steps taken"),
     "wall_s": _c("s", "float", "wall time of the run (median of the repeats; timing, not reproducible)"),
     "compile_s": _c("s", "float", "compile time kept apart (heyoka JIT, numba; timing)"),
@@ -145,7 +158,8 @@ _TABLES = {
         "h": _c("s", "float", "the method's step: its cheapest confirming run's, else the prediction"),
         "h_source": _c("", "category", "how `h` was found: " + ", ".join(H_SOURCES) + " (details in `note`)"),
         "n_steps": _c("1", "int", "steps at `h` over the horizon (0 when no h)"),
-        "rhs": _c("1", "float", "right-hand-side calls at `h` (NaN when no h)"),
+        "rhs": _c("1", "float", "right-hand-side calls at `h` (NaN when no h; a Taylor method's steps x order)"),
+        "cost_unit": _cost_unit("`rhs` of the method"),
         "time_s": _c("s", "float", "run time at `h` (timing)"),
         "confirmed_error_rel": _c("1", "float", "measured relative error of the confirming run, else of the run "
                                                 "at the predicted step (NaN when not run)"),
@@ -155,7 +169,8 @@ _TABLES = {
         "alt_h": _c("s", "float", "the alternative run's step when it is a fixed-step method"),
         "alt_rtol": _c("1", "float", "the alternative run's rtol when it is an adaptive reference"),
         "alt_error_rel": _c("1", "float", "the alternative run's relative error"),
-        "alt_rhs": _c("1", "float", "the alternative run's right-hand-side calls"),
+        "alt_rhs": _c("1", "float", "the alternative run's right-hand-side calls (a Taylor method's steps x order)"),
+        "alt_cost_unit": _cost_unit("`alt_rhs` of the alternative (empty: no alternative)"),
         "alt_time_s": _c("s", "float", "the alternative run's time (timing)"),
         "alt_compile_s": _c("s", "float", "the alternative's compile time (timing)"),
         "alt_confirmed_error_rel": _c("1", "float", "the alternative run's measured relative error"),

@@ -37,7 +37,9 @@ def draw(job, out_dir, scenes_by_name) -> list:
 
 
 def _state(f, out_dir, name, d, scenes_by_name):
-    model = scenes_by_name[name].build_model()
+    from .figures.look import ModelLook
+
+    model = ModelLook(d.get("look"))  # the recorded model's look: drawing builds no model
     thesis = d.get("thesis")
     return f.scene_figures(out_dir, name, model, d["t"], d["y"], title=d["title"],
                            thesis=f"thesis {thesis}" if thesis else None, modal=d.get("modal"))

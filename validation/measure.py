@@ -159,10 +159,11 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
         rec = records[spec.key]
         v, tm = rec.values, rec.timing
         row = {"scene": scene.name, "solver": spec.solver, "setting": float(spec.setting)}
+        unit = {"cost_unit": scene.method(spec.solver).cost_unit.value}  # what its nfev counts
         if not v:  # the execution itself failed
             _failed(res, spec, rec)
             res.add("accuracy", {**row, "error_max": math.nan, "error_rel": math.nan, "error_final": math.nan,
-                                 "energy_drift_max": math.nan, "nfev": 0, "n_steps": 0, "wall_s": math.nan,
+                                 "energy_drift_max": math.nan, "nfev": 0, **unit, "n_steps": 0, "wall_s": math.nan,
                                  "compile_s": math.nan, "status": "failed", "message": rec.message,
                                  "note": ""})
             continue
@@ -181,12 +182,12 @@ def _runs(scene, specs, records, res, draw, confirm_specs=()):
         nfev = math.nan if status == "unavailable" else v["nfev"]
         res.add("accuracy", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
                              "error_final": v["error_final"], "energy_drift_max": v["energy_drift_max"],
-                             "nfev": nfev, "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
+                             "nfev": nfev, **unit, "n_steps": v["n_steps"], "wall_s": tm["wall_s"],
                              "compile_s": tm["compile_s"], "status": status, "message": rec.message,
                              "note": no_truth})
         if "work_precision" in wanted:
             res.add("work_precision", {**row, "error_max": v["error_max"], "error_rel": v["error_rel"],
-                                       "wall_s": tm["wall_s"], "nfev": nfev, "n_steps": v["n_steps"],
+                                       "wall_s": tm["wall_s"], "nfev": nfev, **unit, "n_steps": v["n_steps"],
                                        "taylor_order": v["taylor_order"], "status": status,
                                        "wall_min": tm.get("wall_min", tm["wall_s"]),
                                        "wall_max": tm.get("wall_max", tm["wall_s"]),
@@ -252,7 +253,8 @@ def _cheapest(scene, res, confirm_specs=(), records=None):
         scene.name, rows, method, scene.t_end, trust.stable_step(method, res.omega_max),
         TARGETS,
         setting_name=lambda sv: scene.method(sv).setting_name,
-        confirmations=confirmations, output_dt=scene.output_dt)
+        confirmations=confirmations, output_dt=scene.output_dt,
+        cost_unit=lambda sv: scene.method(sv).cost_unit.value)
 
 
 def _tolerance_checks(scene, res):
@@ -504,9 +506,10 @@ def _state_figure(scene, specs, records, res):
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             from .execute import recorded_modal
+            from .figures.look import recorded_look
 
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
-                                                               "title": title,
+                                                               "title": title, "look": recorded_look(rec),
                                                                "thesis": getattr(scene, "thesis_figures", ""),
                                                                "modal": recorded_modal(rec)}))
         return

@@ -18,12 +18,13 @@ SCENE_TABLES = ("methods",)
 #: The built-in tables' columns (an output names the tables it writes).
 _BUILTIN = {
     "accuracy": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "error_final",
-                 "energy_drift_max", "nfev", "n_steps", "wall_s", "compile_s", "status", "message", "note"],
+                 "energy_drift_max", "nfev", "cost_unit", "n_steps", "wall_s", "compile_s", "status", "message",
+                 "note"],
     "convergence": ["scene", "solver", "quantity", "observed_order", "expected_order", "passed",
                     "h_min", "h_max", "n_points", "t_end"],
     "modes": ["scene", "mode", "omega_rad_s", "freq_hz", "linearized"],
     "work_precision": ["scene", "solver", "setting", "h", "rtol", "error_max", "error_rel", "wall_s", "wall_min", "wall_max",
-                       "compile_s", "nfev", "n_steps", "taylor_order", "status"],
+                       "compile_s", "nfev", "cost_unit", "n_steps", "taylor_order", "status"],
     "energy": ["scene", "solver", "setting", "h", "rtol", "drift_per_time", "theory_drift_per_time",
                "energy_drift_max", "energy_growth_exponent", "energy_fit_t0", "energy_fit_t1",
                "phase_error_max", "phase_growth_exponent", "passed", "checked", "status"],

@@ -81,8 +81,8 @@ _EPS = float(np.finfo(float).eps)
 UNMEASURED = "unmeasured"
 
 COLUMNS = ["scene", "target_error", "method", "order", "error_constant", "h", "h_source", "n_steps",
-           "rhs", "time_s", "compile_s", "confirmed_error_rel", "confirmed", "alternative", "alt_setting",
-           "alt_h", "alt_rtol", "alt_error_rel", "alt_rhs", "alt_time_s", "alt_compile_s", "alt_confirmed_error_rel", "alt_confirmed",
+           "rhs", "cost_unit", "time_s", "compile_s", "confirmed_error_rel", "confirmed", "alternative", "alt_setting",
+           "alt_h", "alt_rtol", "alt_error_rel", "alt_rhs", "alt_cost_unit", "alt_time_s", "alt_compile_s", "alt_confirmed_error_rel", "alt_confirmed",
            "verdict_rhs", "verdict_one_run", "verdict_amortized", "note",
            "time_context"]
 #: Columns that are timings (differ between runs; machine-dependent); the two
@@ -411,8 +411,19 @@ def _timing_of(r) -> tuple:
     return (float(r["wall_s"]), float(r.get("wall_min", r["wall_s"])), float(r.get("wall_max", r["wall_s"])))
 
 
+def _builtin_cost_unit(solver: str) -> str:
+    """The cost unit a built-in method declares (``""`` for another name)."""
+    from rk4h.references.registry import resolve
+
+    try:
+        return resolve(solver).cost_unit.value
+    except ValueError:
+        return ""
+
+
 def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, *,
-               setting_name=lambda s: "setting", confirmations=(), output_dt=None) -> list[dict]:
+               setting_name=lambda s: "setting", confirmations=(), output_dt=None,
+               cost_unit=_builtin_cost_unit) -> list[dict]:
     """One row per target (:data:`COLUMNS`): the step ``method`` (a
     :class:`rk4h.references.registry.Method`: name, order, RHS calls per step)
     needs over ``t_span`` s, its cost, the cheapest other run reaching the
@@ -435,7 +446,8 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
     of the run at the predicted step (NaN when it was not run) and the method
     wins nothing. The alternative likewise (``alt_confirmed``). Neither side
     measured: every verdict is :data:`UNMEASURED`. Equal RHS calls:
-    :data:`TIE`.
+    :data:`TIE`. ``cost_unit(solver)``: the cost unit (``CostUnit`` value)
+    ``solver`` declares, for ``alt_cost_unit``; ``cost_unit`` is ``method``'s.
     """
     ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
     extra = [r for r in confirmations if r["status"] == "ok" and np.isfinite(r["error_rel"])]
@@ -471,6 +483,7 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
                   default=None)
         row = {"scene": scene, "target_error": target, "method": name, "order": order, "error_constant": C,
                "h": h, "h_source": source, "n_steps": n if math.isfinite(h) else 0, "rhs": rhs,
+               "cost_unit": method.cost_unit.value, "alt_cost_unit": "",
                "time_s": tm[0], "compile_s": compile_m[0], "confirmed_error_rel": conf_err,
                "confirmed": got is not None, "alternative": "", "alt_setting": math.nan,
                "alt_error_rel": math.nan, "alt_rhs": math.nan, "alt_time_s": math.nan, "alt_compile_s": math.nan,
@@ -492,7 +505,8 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
         ta = _timing_of(alt)
         ca = compile_spread([r for r in ok + extra if r["solver"] == alt["solver"]])
         row.update(alternative=alt["solver"], alt_setting=alt["setting"], alt_error_rel=alt["error_rel"],
-                   alt_rhs=rhs_calls(alt), alt_time_s=ta[0], alt_compile_s=ca[0],
+                   alt_rhs=rhs_calls(alt), alt_cost_unit=cost_unit(alt["solver"]), alt_time_s=ta[0],
+                   alt_compile_s=ca[0],
                    alt_confirmed_error_rel=alt["error_rel"], alt_confirmed=True)
         reached = (f"{alt['solver']} {setting_name(alt['solver'])} {alt['setting']:g} reached "
                    f"{alt['error_rel']:.2g}")

@@ -26,10 +26,17 @@ __all__ = ["loop_jobs", "warm_one", "warm_pools"]
 #: the same fixed-step loops as ``run`` (a method some scene uses only in its
 #: sweep was left to every worker that met it first).
 _SOLVER_PURPOSES = ("run", "confirm", "order", "figure")
+#: Reference adapters (``Method.adapter``) that call the model's compiled right-hand side.
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
-#: The references that call the compiled right-hand side on a read-only state
+#: The adapters that call the compiled right-hand side on a read-only state
 #: (scikit-sundae hands CVODE's state over read-only: a second numba signature).
 _READONLY_STATE = ("cvode-adams", "cvode-bdf")
+
+
+def _adapter(scene, solver) -> str:
+    """The registry adapter of ``solver`` in ``scene`` (its name for a method without one)."""
+    method = scene.method(solver)
+    return method.adapter or method.name
 
 
 def _loop_key(scene, solver):
@@ -50,7 +57,7 @@ def _loop_key(scene, solver):
         if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
             return ("scalar",) + _cache_key(method.tableau) + (kern.scalar_key(),)
         return ("array",) + _cache_key(method.tableau) + (kern.key(),)
-    if method.name in _COMPILED_REFERENCES:
+    if (method.adapter or method.name) in _COMPILED_REFERENCES:
         return ("rhs", kern.key())
     return None
 
@@ -92,7 +99,8 @@ def loop_jobs(jobs) -> list:
         if key not in seen:
             seen[key] = len(out)
             out.append((scene, solver))
-        elif key[0] == "rhs" and solver in _READONLY_STATE and out[seen[key]][1] not in _READONLY_STATE:
+        elif (key[0] == "rhs" and _adapter(scene, solver) in _READONLY_STATE
+              and _adapter(*out[seen[key]]) not in _READONLY_STATE):
             # one job per module: CVODE's job compiles both signatures of its right-hand side
             # (two jobs on one module, in two workers, would race on numba's index file)
             out[seen[key]] = (scene, solver)
@@ -118,7 +126,7 @@ def warm_one(scene, solver) -> float:
             rhs = compiled_rhs(model)
             if rhs is not None:
                 rhs.checked(y0)  # compiles rhs_permuted, the one entry point of the references
-                if method.name in _READONLY_STATE:
+                if (method.adapter or method.name) in _READONLY_STATE:
                     _warm_readonly(rhs, y0)
     except Exception:  # noqa: BLE001 - best effort: the run compiles it again and reports
         pass

@@ -44,12 +44,26 @@ FIGURE_SECONDS = 1.0
 #: CPU seconds ``(per step, per step and degree of freedom)`` by the kind of
 #: stepper (:class:`rk4h.references.registry.Kind` value): compiled fixed-step
 #: loops; Python-stepped references (scipy's DOP853 about 124 us per step on
-#: the 2-DOF case, CVODE a Python right-hand side per call; heyoka is
-#: compiled); a user's Python or command method. A quadruple-precision
+#: the 2-DOF case, CVODE a Python right-hand side per call); ``"native"``:
+#: a reference whose registry entry has ``native_steps`` (heyoka, compiled);
+#: a user's Python or command method. A quadruple-precision
 #: (truth) step counts as 1e3 compiled steps, as in the budget (the cost of a
 #: cold run: a warm one reads its truths from the cache).
 STEP_SECONDS = {"tableau": (0.0, 3e-7), "partitioned": (0.0, 3e-7), "reference": (1.2e-4, 1e-6),
-                "python": (1e-4, 1e-6), "command": (1e-4, 1e-6), "heyoka": (1e-6, 3e-7), "compiled": (0.0, 3e-7)}
+                "python": (1e-4, 1e-6), "command": (1e-4, 1e-6), "native": (1e-6, 3e-7), "compiled": (0.0, 3e-7)}
+
+
+def _step_kind(scene, solver) -> str:
+    """The :data:`STEP_SECONDS` key of ``solver`` in ``scene``: ``"native"``
+    for a reference whose registry entry says its steps run in compiled code
+    (``Method.native_steps``), else the method's kind."""
+    try:
+        method = scene.method(solver)
+    except Exception:  # noqa: BLE001 - an estimate only; the run reports an unknown method
+        return "reference"
+    if getattr(method, "native_steps", False):
+        return "native"
+    return getattr(method.kind, "value", "reference")
 
 
 def spec_seconds_function(quick: bool = False):
@@ -76,11 +90,7 @@ def spec_seconds_function(quick: bool = False):
             return SPEC_SECONDS
         step, dof = STEP_SECONDS["compiled"]
         if spec.purpose in ("run", "confirm", "figure", "modal") and spec.solver:
-            try:
-                kind = getattr(scene.method(spec.solver).kind, "value", "reference")
-            except Exception:  # noqa: BLE001
-                kind = "reference"
-            step, dof = STEP_SECONDS["heyoka"] if spec.solver == "heyoka" else STEP_SECONDS.get(kind, (step, dof))
+            step, dof = STEP_SECONDS.get(_step_kind(scene, spec.solver), (step, dof))
         quad = 1e3 * truth * STEP_SECONDS["compiled"][1] * model.n_dof
         return SPEC_SECONDS + steps * (step + dof * model.n_dof) + quad
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.lines import Line2D
 
-from rk4h.references.registry import BUILTIN
+from rk4h.references.registry import BUILTIN, with_role
 
 from .. import figures as F
 from ._common import FREQUENCY_RATIO, SWEEP_NAMES, cost_at_point, stiffest_index
@@ -227,10 +227,11 @@ def _large_n(plot, out_dir):
     N = np.asarray(d["n"], float)
     meth = d["method"]
     c_rk, m_rk = F.solver_style(meth)
-    c_cv, m_cv = F.solver_style("cvode-bdf")
+    ref = d.get("reference") or with_role("banded")[0]  # older plot data name no reference
+    c_cv, m_cv = F.solver_style(ref)
     ax_t.plot(N, d["wall_per_step"], "-", color=c_rk, marker=m_rk, label=f"time: {meth} (slope {fits['time']:.2f})")
     ax_t.plot(N, d["cvode_wall_per_step"], "-", color=c_cv, marker=m_cv,
-              label=f"time: cvode-bdf band (slope {fits['cvode_time']:.2f})")
+              label=f"time: {ref} band (slope {fits['cvode_time']:.2f})")
     ax_b.plot(N, d["peak_bytes"], "-", color=c_rk, marker=m_rk,
               label=f"memory: {meth} peak bytes (slope {fits['bytes']:.2f})")
     for ax, y in ((ax_t, d["wall_per_step"]), (ax_b, d["peak_bytes"])):

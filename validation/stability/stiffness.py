@@ -184,7 +184,7 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
     cost-at-target search; see the module docstring).
 
     ``fixed`` maps the fixed-step solvers among ``solvers`` to their tableaux
-    (default ``{"rk4": RK4}``): their step starts at 0.99 of the method's
+    (default: the registry's ``UNDER_TEST``, RK4): their step starts at 0.99 of the method's
     imaginary-axis boundary (or ``0.5 / omega_max`` for a method without one)
     and halves until the error meets ``target`` or ``max_rk4_steps`` steps
     would be needed; every other solver climbs the rtol ladder.
@@ -197,10 +197,11 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
     "not-reached", "skipped", or the run's failure status), note (deterministic),
     and ``omega_max``, ``omega_min``, ``stiffness_ratio``.
     """
-    from rk4h.methods import RK4
+    from rk4h.references import registry
     from rk4h.stability_function import imaginary_axis_boundary
 
-    fixed = {"rk4": RK4} if fixed is None else fixed
+    if fixed is None:  # the registry's method under test
+        fixed = {registry.UNDER_TEST: registry.resolve(registry.UNDER_TEST).tableau}
     omega = model.modes()[0]
     w_lo, w_hi = float(omega[omega > 0][0]), float(omega[-1])
     t_end = 2 * math.pi / w_lo
