@@ -103,3 +103,16 @@ def test_the_cost_search_steps_the_registrys_method_under_test(under_test, monke
     (row,) = stiffness.cost_at_target(model, np.array([0.5, 0.0, 0.0, 0.0]), 1e-2, (under_test,))
     assert row["solver"] == under_test and row["status"] == "ok", row
     assert row["n_steps"] > 0 and "h_stab=" in row["note"]  # the fixed-step search, not the rtol ladder
+
+
+def test_batch_outputs_pick_the_registry_method_under_test(monkeypatch):
+    from types import SimpleNamespace
+
+    from rk4h.references import registry
+    from rk4h.validation.outputs import _batch
+
+    scene = SimpleNamespace(fixed_solvers=["heun3", "rk4"],
+                            method=lambda s: SimpleNamespace(tableau=object()))
+    assert _batch.one_solver(scene) == "rk4"
+    monkeypatch.setattr(registry, "UNDER_TEST", "heun3")
+    assert _batch.one_solver(scene) == "heun3"

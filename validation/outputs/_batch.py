@@ -13,9 +13,13 @@ def tableau_solvers(scene) -> list:
 
 
 def one_solver(scene) -> str:
-    """``rk4`` when the scene runs it, else its first solver a batch can run (else ``rk4``)."""
+    """The method under test (:data:`rk4h.references.registry.UNDER_TEST`)
+    when the scene runs it, else its first solver a batch can run (else the
+    method under test)."""
+    from rk4h.references.registry import UNDER_TEST
+
     fixed = tableau_solvers(scene)
-    return "rk4" if "rk4" in fixed else (fixed[0] if fixed else "rk4")
+    return UNDER_TEST if UNDER_TEST in fixed else (fixed[0] if fixed else UNDER_TEST)
 
 
 def ok_records(m, purpose: str, what):
