@@ -133,6 +133,7 @@ def test_scheduler_run_equals_local_run(cluster, tmp_path):
                                       check_exact=True, obj=name)
 
 
+@pytest.mark.process
 def test_unreachable_scheduler_is_one_line_exit_3(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text(one_mass("dask-none"))
@@ -145,6 +146,7 @@ def test_unreachable_scheduler_is_one_line_exit_3(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.process
 def test_bad_scheduler_address_is_exit_2(tmp_path):
     p = tmp_path / "s.toml"
     p.write_text(one_mass("dask-bad"))
@@ -183,6 +185,7 @@ def _run_all(scene, out, address, **popen):
     return r, time.time()
 
 
+@pytest.mark.process
 def test_an_endpoint_that_accepts_and_never_answers_is_exit_3_within_the_timeout(tmp_path):
     import threading
 
@@ -214,6 +217,7 @@ def test_an_endpoint_that_accepts_and_never_answers_is_exit_3_within_the_timeout
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.process
 def test_a_scheduler_without_workers_is_exit_3_within_the_timeout(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text(one_mass("dask-empty"))

@@ -19,6 +19,8 @@ from rk4h.validation import atomic
 
 from _scenes import one_mass
 
+pytestmark = pytest.mark.process  # process-level: run by CI after the default set (-m process)
+
 REPO = Path(__file__).resolve().parent.parent
 
 SCENE_A = one_mass("kill-a", solvers='["rk4", "dop853", "cvode-bdf", "heyoka"]',

@@ -429,6 +429,7 @@ def _chown_tree(d: Path, uid, gid):
         os.chown(p, uid, gid, follow_symlinks=False)
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("what", ["directory", "file"])
 def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged, user_home, capsys, what):
     """The hostile-test case: a report in R, then ``mkdir R/private; chmod 000
@@ -460,6 +461,7 @@ def test_an_unreadable_entry_in_out_is_exit_3_and_the_report_stays(unprivileged,
         [p for p in listing if p.split("/")[0] not in warm], "something was added or moved beside R"
 
 
+@pytest.mark.process
 def test_an_unreadable_directory_found_at_the_swap_is_kept_aside(unprivileged):
     """An entry that turns unreadable while the run runs (after the checks):
     the previous report is kept aside, whole, not deleted."""
@@ -661,6 +663,7 @@ def test_a_name_too_long_is_exit_3(tmp_path, scene, capsys, length):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tiny.toml"]
 
 
+@pytest.mark.process
 def test_sigint_in_the_first_milliseconds_is_one_line(tmp_path, scene):
     """From the script's first line on -- imports, loading, the run -- SIGINT is
     one line and exit 130. A signal inside the interpreter's own start-up (before

@@ -115,6 +115,7 @@ def _job(i, seconds, die, marker):
     return i, os.getpid()
 
 
+@pytest.mark.process
 @pytest.mark.parametrize("once", [False, True], ids=["dies-twice", "dies-once"])
 def test_a_worker_that_dies_is_replaced_and_its_job_retried_once(tmp_path, capsys, once):
     """Item 2 kills its worker while the other general worker holds item 1
@@ -143,6 +144,7 @@ def _kill_self():
     os.kill(os.getpid(), __import__("signal").SIGSEGV)
 
 
+@pytest.mark.process
 def test_a_worker_that_dies_idle_charges_no_job(capsys):
     """A worker that dies before it takes a job (as one whose start-up
     imports an extension that segfaults would) leaves a broken pool behind:
