@@ -54,3 +54,28 @@ def test_the_column_is_declared_with_every_unit(table, column):
     assert all(f"`{u.value}`: {u.text}" in col.description for u in CostUnit)
     assert column in columns.markdown() and any(
         c["name"] == column for c in columns.columns_json([table])["tables"][table]["columns"])
+
+
+#: The columns that hold a cost in calls, by table: each needs a unit column beside it.
+COST_COLUMNS = ("nfev", "rhs", "alt_rhs", "rhs_calls")
+
+
+def test_every_registered_table_with_a_cost_column_declares_its_unit():
+    """Read from the outputs registry, so a new output's cost column cannot
+    come without its unit: ``cost_unit`` (``alt_cost_unit`` beside ``alt_rhs``)."""
+    seen = 0
+    for table, cols in columns.declared().items():
+        names = [c.name for c in cols]
+        for cost in COST_COLUMNS:
+            if cost in names:
+                seen += 1
+                assert ("alt_cost_unit" if cost.startswith("alt_") else "cost_unit") in names, (table, cost)
+    assert seen >= 6  # accuracy, work_precision, cheapest (rhs, alt_rhs), energy_work_precision, ensemble
+
+
+def test_energy_rows_name_the_unit_of_their_calls():
+    from rk4h.validation import energy_time
+
+    assert energy_time._RHS_UNIT == CostUnit.RHS.value
+    assert energy_time._reference_cost_unit("heyoka") == CostUnit.TAYLOR_STEPS.value
+    assert energy_time._reference_cost_unit("cvode-adams") == CostUnit.RHS_WITH_JACOBIAN_DQ.value

@@ -78,3 +78,30 @@ def test_no_eigensolve_for_a_scene_without_the_trust_table(monkeypatch):
         assert rec.status == "ok", rec.message
         assert math.isnan(rec.values["omega_max"])
     assert not solved
+
+
+ODE = {"name": "ode-records-only", "model": "ode",
+       "params": {"variables": ["u", "v"], "equations": ["u - u*v", "-v + u*v"], "invariant": "u - log(u) + v - log(v)"},
+       "initial": {"y": [1.5, 0.5]},
+       "run": {"t_end": 1.0, "h": [0.1], "tolerances": [1e-6], "solvers": ["rk4", "dop853"],
+               "outputs": ["trajectory"]}}
+CHAIN = {**DOC, "name": "chain-records-only", "run": {**DOC["run"], "outputs": ["trajectory"]}}
+
+
+@pytest.mark.parametrize("doc, first_order", [(ODE, True), (CHAIN, False)], ids=["ode", "chain"])
+def test_the_trajectory_output_builds_no_model(doc, first_order, monkeypatch):
+    """The trajectory file job (its component naming included) comes from
+    the records: measure with ``build_model`` refused gives the same job."""
+    scene = scene_from_dict(doc, f"{doc['name']}.toml")
+    specs = plan.plan(scene, figures=False)
+    records = {s.key: execute.execute(scene, s) for s in specs}
+
+    def refuse(self):
+        raise AssertionError("measure built the model")
+
+    execute.clear_problems()
+    monkeypatch.setattr(Scene, "build_model", refuse)
+    res = measure.measure(scene, specs, records, figures=False)
+    jobs = [j for j in res.files if j.output == "trajectory"]
+    assert len(jobs) == 1 and jobs[0].data["first_order"] is first_order
+    assert all(r["names"] for r in jobs[0].data["runs"])

@@ -326,7 +326,8 @@ def work_precision_rows(scene_name, model, y0, methods, steps_per_period=(8, 16,
                              "h": float(res.h), "rtol": math.nan,
                              "energy_drift_max": float(np.max(np.abs(e))) if ok else math.nan,
                              "energy_growth_exponent": k,
-                             "nfev": int(res.nfev), "wall_s": wall, "status": "ok" if ok else res.reason,
+                             "nfev": int(res.nfev), "cost_unit": _RHS_UNIT, "wall_s": wall,
+                             "status": "ok" if ok else res.reason,
                              "max_steps": math.nan, "message": note})
         for name in references:
             for rtol in rtols:
@@ -440,6 +441,18 @@ def reference_step_cap(model, y0, name: str, rtol: float, t_end: float) -> dict:
                    f"{t_cal:.4g} s"}
 
 
+#: What a fixed-step method's ``nfev`` counts: every stage of every step.
+_RHS_UNIT = "rhs"
+
+
+def _reference_cost_unit(name: str) -> str:
+    """The cost unit the registry declares for reference ``name``
+    (:class:`rk4h.references.registry.CostUnit` value)."""
+    from rk4h.references.registry import resolve
+
+    return resolve(name).cost_unit.value
+
+
 def _reference_row(scene_name, model, y0, name, rtol, periods, t_end, max_steps=None, t_exchange=math.nan) -> dict:
     """One adaptive reference's run for :func:`work_precision_rows` (``nfev``: its
     RHS calls, heyoka's Taylor steps times order; ``wall_s`` as the solver timed it).
@@ -457,7 +470,7 @@ def _reference_row(scene_name, model, y0, name, rtol, periods, t_end, max_steps=
              else {"cap": int(max_steps), "estimate": math.nan, "why": f"cap {int(max_steps):.3g} steps (given)"})
     row = {"scene": scene_name, "solver": name, "periods": float(periods), "t_end": t_end, "h": math.nan,
            "rtol": float(rtol), "energy_drift_max": math.nan, "energy_growth_exponent": math.nan, "nfev": 0,
-           "wall_s": 0.0, "status": STEP_CAP_STATUS, "max_steps": sized["cap"], "message": sized["why"]}
+           "cost_unit": _reference_cost_unit(name), "wall_s": 0.0, "status": STEP_CAP_STATUS, "max_steps": sized["cap"], "message": sized["why"]}
     if sized["cap"] <= 0:
         if "calibration" in sized["why"]:
             row["status"] = "failed"

@@ -290,8 +290,10 @@ def _trajectory(model, t, run) -> dict:
     if y.ndim != 2 or y.shape[1] != t.shape[0]:
         return {}
     names = [str(n) for n in getattr(model, "coord_names", [])]
-    out = {"trajectory_t": np.asarray(t, float), "trajectory_y": y}
-    if getattr(model, "first_order", False):  # a first-order ODE: y is its variables
+    first_order = bool(getattr(model, "first_order", False))
+    out = {"trajectory_t": np.asarray(t, float), "trajectory_y": y,
+           "trajectory_first_order": np.array(first_order)}  # the file's reader builds no model
+    if first_order:  # a first-order ODE: y is its variables
         if len(names) == y.shape[0]:
             out["trajectory_names"] = np.array(names, dtype=str)
     elif len(names) == model.n_dof:  # the state's components: q names, then their rates

@@ -294,7 +294,7 @@ def fit_order(h, err, scale) -> OrderFit:
     return OrderFit(h, err, scale)
 
 
-def cheapest(rows, targets, *, cost="wall_s", under_test="rk4"):
+def cheapest(rows, targets, *, cost="wall_s", under_test=None):
     """Cheapest solver per target relative error.
 
     Parameters
@@ -306,7 +306,8 @@ def cheapest(rows, targets, *, cost="wall_s", under_test="rk4"):
     cost : str
         The key of the cost column.
     under_test : str or None
-        The method under test (``rk4h.validation.plan.under_test``).
+        The method under test (None: the registry's
+        :data:`rk4h.references.registry.UNDER_TEST`).
 
     Returns
     -------
@@ -316,6 +317,9 @@ def cheapest(rows, targets, *, cost="wall_s", under_test="rk4"):
         ``rk4_cost`` (the method under test's cheapest run reaching it, None
         if none; named after the thesis' RK4, the default).
     """
+    if under_test is None:
+        from rk4h.references.registry import UNDER_TEST as under_test
+
     out = []
     ok = [r for r in rows if r["status"] == "ok" and np.isfinite(r["error_rel"])]
     for target in targets:

@@ -102,6 +102,8 @@ COLUMNS = (
                                              "those decades start before half an FPUT-alpha chain's 2:1 exchange "
                                              "period (energy_time.exchange_period)"),
     ("nfev", "calls", "int", "right-hand-side calls of the run (heyoka: Taylor steps times order)"),
+    ("cost_unit", "", "category", "what `nfev` counts (rk4h.references.registry.CostUnit): rhs, "
+                                  "rhs+jacobian-dq, rhs-without-jacobian or taylor-steps"),
     ("wall_s", "s", "float", "wall time of the run, compile time apart"),
     ("status", "", "category", "outcome of the run: ok, unstable, step_cap (a reference reached its step cap, "
                                "or would need more than the ceiling: a failure, no numbers), or the solver's "

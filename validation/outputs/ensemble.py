@@ -85,7 +85,8 @@ def execute(scene, spec, quick):
           "energy_error": statistics(eerrs) if eerrs.size else None}
     weak, weak_e, weak_bound = sums.weak()
     values = {"instances": int(y0.shape[0]), "failed": sums.failed,
-              "rhs_calls": rk4h.nfev_count(tableau, rk4h.step_count((0.0, scene.t_end), spec.setting))}
+              "rhs_calls": rk4h.nfev_count(tableau, rk4h.step_count((0.0, scene.t_end), spec.setting)),
+              "cost_unit": scene.method(spec.solver).cost_unit.value}
     for q in ("error", "energy_error"):
         for k in STATS:
             values[f"{q}_{k}"] = float("nan") if st[q] is None else st[q][k]
@@ -125,6 +126,7 @@ def measure(m) -> None:
         v = rec.values
         row = {"scene": m.scene.name, "solver": spec.solver, "h_s": spec.setting,
                "instances": v["instances"], "failed": v["failed"], "rhs_calls": v.get("rhs_calls", -1),
+               "cost_unit": v.get("cost_unit", ""),
                **{f"{q}_{k}": v[f"{q}_{k}"] for q in ("error", "energy_error") for k in STATS},
                **{k: v[k] for k in _WEAK_KEYS}}
         m.res.add("ensemble", row)
@@ -198,6 +200,8 @@ _COLUMNS = (("scene", "", "str", "scene name"),
             ("instances", "1", "int", "instances in the batch ([ensemble] size)"),
             ("failed", "1", "int", "instances stopped by the instability rule (left out of the statistics)"),
             ("rhs_calls", "1", "int", "right-hand-side calls per instance over the run (rk4h.nfev_count)"),
+            ("cost_unit", "", "category", "what `rhs_calls` counts (rk4h.references.registry.CostUnit; a "
+                                          "fixed-step method: rhs, every stage of every step)"),
             *((f"error_{k}", "1", "float", f"{w} over the instances of max_t |y - y_exact|_inf / max_t "
                f"|y_exact|_inf (each instance's exact modal solution)")
               for k, w in STAT_WORDS),

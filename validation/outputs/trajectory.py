@@ -42,7 +42,7 @@ def measure(m) -> None:
     runs' arrays (read from the records only)."""
     import numpy as np
 
-    runs = []
+    runs, first_order = [], False
     name = file_name(m.scene.name)
     for spec in m.specs("run"):
         rec = m.records[spec.key]
@@ -54,13 +54,13 @@ def measure(m) -> None:
                      "energy": None if t is None or "trajectory_energy" not in a
                      else np.asarray(a["trajectory_energy"], float),
                      "names": None if "trajectory_names" not in a else [str(x) for x in a["trajectory_names"]]})
+        first_order = first_order or bool(np.asarray(a.get("trajectory_first_order", False)))
         n_times = 0 if t is None else int(np.asarray(t).shape[0])
         n_state = 0 if t is None else int(np.asarray(a["trajectory_y"]).shape[0])
         m.res.add("trajectory", {"scene": m.scene.name, "solver": spec.solver, "setting": float(spec.setting),
                                  "file": name if t is not None else "", "n_times": n_times, "n_state": n_state,
                                  "status": rec.status or "failed"})
     if runs:
-        first_order = bool(getattr(m.scene.build_model(), "first_order", False))
         m.res.files.append(FileJob(m.scene.name, "trajectory", {"file": name, "runs": runs,
                                                                 "first_order": first_order}))
 
