@@ -546,22 +546,12 @@ def instance_model(model, params, b, built):
     """The model of instance ``b``: ``model`` itself without ``params``, else
     built from its parameter row (once per distinct row when ``built``, a
     dict, is passed to every call)."""
-    from rk4h.batch.api import _split_key
+    from rk4h.batch.api import parameter_row
 
     if not params:
         return model
     row = tuple(x for col in params.values() for x in np.asarray(np.asarray(col)[b], dtype=float).reshape(-1).tolist())
     built = {} if built is None else built
-    if row not in built:
-        p = {k: (list(x) if isinstance(x, list) else x) for k, x in model.params().items()}
-        for key, col in params.items():
-            name, i = _split_key(key)
-            val = np.asarray(col)[b]
-            if i is not None:
-                p[name][i] = float(val)
-            elif np.ndim(val):
-                p[name] = [float(c) for c in val]
-            else:
-                p[name] = float(val) if not isinstance(p[name], list) else [float(val)] * len(p[name])
-        built[row] = type(model)(**p)
+    if row not in built:  # the parameters rk4h.ensemble gave this instance
+        built[row] = type(model)(**parameter_row(model.params(), ((k, np.asarray(col)[b]) for k, col in params.items())))
     return built[row]

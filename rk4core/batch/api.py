@@ -152,6 +152,25 @@ def _split_key(key: str):
     return key, None
 
 
+def parameter_row(base: Mapping, values) -> dict:
+    """One instance's parameters: a copy of ``base`` (``model.params()``)
+    with each ``(key, value)`` of ``values`` set, ``value`` a number or a
+    vector. ``"name[i]"`` sets element ``i`` of a list parameter; a list
+    parameter takes a vector whole, or one value for every element; any other
+    parameter takes the (first) value as a float."""
+    p = {k: (list(v) if isinstance(v, list) else v) for k, v in base.items()}
+    for key, value in values:
+        name, i = _split_key(key)
+        vals = np.asarray(value, dtype=float).reshape(-1)
+        if i is not None:
+            p[name][i] = float(vals[0])
+        elif isinstance(p[name], list):
+            p[name] = [float(v) for v in vals] if vals.size > 1 else [float(vals[0])] * len(p[name])
+        else:
+            p[name] = float(vals[0])
+    return p
+
+
 def instance_parameters(model, params: Mapping | None, B: int):
     """Per-instance kernel numbers of ``model`` under ``params``, grouped by
     the structure of the compiled force.
@@ -212,25 +231,15 @@ def instance_parameters(model, params: Mapping | None, B: int):
                                  f"got {np.shape(value)}")
         elif col.shape[1] != 1:
             raise ValueError(f"`params[{key!r}]` must have shape (B,), got {np.shape(value)}")
-        cols.append((name, i, isinstance(current, list), col))
-    table = np.concatenate([c[3] for c in cols], axis=1)
+        cols.append((key, col))
+    table = np.concatenate([col for _, col in cols], axis=1)
     rows, inverse = np.unique(table, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
     structures: dict = {}  # structure -> (kern, row numbers, fp rows, mass rows)
     row_group = np.empty(rows.shape[0], dtype=np.int64)
+    ends = np.cumsum([col.shape[1] for _, col in cols])
     for r, row in enumerate(rows):
-        p = {k: (list(v) if isinstance(v, list) else v) for k, v in base.items()}
-        j = 0
-        for name, i, is_list, col in cols:
-            w = col.shape[1]
-            vals = row[j:j + w]
-            j += w
-            if i is not None:
-                p[name][i] = float(vals[0])
-            elif is_list:
-                p[name] = [float(v) for v in vals] if w > 1 else [float(vals[0])] * len(p[name])
-            else:
-                p[name] = float(vals[0])
+        p = parameter_row(base, ((key, row[end - col.shape[1]:end]) for (key, col), end in zip(cols, ends)))
         try:
             m = type(model)(**p)
         except ValueError as e:
