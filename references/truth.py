@@ -412,19 +412,28 @@ def shipped_manifest(directory=None) -> dict:
     directory = Path(SHIPPED_DIR if directory is None else directory)
     got = _SHIPPED.get(str(directory))
     if got is None:
-        got = {}
-        try:
-            text = _read_regular(directory / SHIPPED_MANIFEST, _SHIPPED_MANIFEST_CAP)
-            manifest = json.loads(text.decode("utf-8")) if text is not None else {}
-            if manifest.get("format") == _FORMAT:
-                for key, entry in manifest["entries"].items():
-                    name, digest = str(entry["file"]), str(entry["sha256"])
-                    if name == Path(name).name and not name.startswith(".") and len(digest) == 64:
-                        got[str(key)] = (name, digest)
-        except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, _Corrupt):
-            got = {}
-        _SHIPPED[str(directory)] = got
+        fmt, entries = manifest_entries(directory / SHIPPED_MANIFEST)
+        got = _SHIPPED[str(directory)] = entries if fmt == _FORMAT else {}
     return got
+
+
+def manifest_entries(file: Path) -> tuple:
+    """``(format, {key: (file name, sha256 hex)})`` of a shipped truths'
+    manifest, whatever its format (read as :func:`_read_regular` reads package
+    data); entries whose file name is not a plain name in the folder or whose
+    digest is not 64 characters are left out. ``(None, {})`` when the manifest
+    is missing, unreadable or malformed."""
+    try:
+        text = _read_regular(file, _SHIPPED_MANIFEST_CAP)
+        manifest = json.loads(text.decode("utf-8")) if text is not None else {}
+        entries = {}
+        for key, entry in manifest.get("entries", {}).items():
+            name, digest = str(entry["file"]), str(entry["sha256"])
+            if name == Path(name).name and not name.startswith(".") and len(digest) == 64:
+                entries[str(key)] = (name, digest)
+        return manifest.get("format"), entries
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, _Corrupt):
+        return None, {}
 
 
 def _shipped_hit(key: str, t: np.ndarray, n_state: int, kind: str) -> Truth | None:
@@ -462,17 +471,21 @@ def _shipped_hit(key: str, t: np.ndarray, n_state: int, kind: str) -> Truth | No
 _SHIPPED_MANIFEST_CAP = 16 * 2**20  # bytes; the manifest of the shipped scenes is ~13 kB
 
 
-def _read_regular(file: Path, cap: int) -> bytes | None:
-    """The bytes of ``file`` if it is a regular file (a symbolic link is not
-    followed, a FIFO does not block) of at most ``cap`` bytes; None if it does
-    not exist. Raises _Corrupt (or OSError) otherwise. Unlike
-    :func:`_read_private` the owner is not checked: package data belongs to
-    whoever installed the package, and its content is verified by SHA-256."""
+def _read_regular(file: Path, cap: int | None = None, *, private: bool = False) -> bytes | None:
+    """The bytes of ``file`` if it is a regular file (checked on the opened
+    descriptor: a symbolic link is not followed, a FIFO does not block) of at
+    most ``cap`` bytes (None: any size); None if it does not exist. Raises
+    _Corrupt (or OSError) otherwise.
+
+    ``private`` (the disk cache's entries): the file must also be owned by the
+    user and not writable by group or others. Shipped package data is read
+    without it: it belongs to whoever installed the package, and its content
+    is verified by SHA-256."""
     try:
         fd = os.open(file, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         return None
-    except OSError as e:
+    except OSError:
         if os.path.islink(file):
             raise _Corrupt("it is a symbolic link") from None
         raise
@@ -480,6 +493,14 @@ def _read_regular(file: Path, cap: int) -> bytes | None:
         st = os.fstat(f.fileno())
         if not stat.S_ISREG(st.st_mode):
             raise _Corrupt("it is not a regular file")
+        if private:
+            uid = os.getuid() if hasattr(os, "getuid") else st.st_uid
+            if st.st_uid != uid:
+                raise _Corrupt(f"it is owned by uid {st.st_uid}, not by you (uid {uid})")
+            if st.st_mode & 0o022:
+                raise _Corrupt(f"it has mode {stat.S_IMODE(st.st_mode):04o}: writable by group or others")
+        if cap is None:
+            return f.read()
         if st.st_size > cap:
             raise _Corrupt(f"it has {st.st_size} bytes, more than the {cap} it can need")
         data = f.read(cap + 1)
@@ -638,38 +659,12 @@ class _Corrupt(Exception):
     pass
 
 
-def _read_private(file: Path) -> bytes | None:
-    """The bytes of ``file`` if it is a regular file owned by the user and not
-    writable by group or others (checked on the opened descriptor, without
-    following a symbolic link); None if it does not exist. Raises _Corrupt."""
-    try:
-        st = os.lstat(file)
-    except FileNotFoundError:
-        return None
-    if stat.S_ISLNK(st.st_mode):
-        raise _Corrupt("it is a symbolic link")
-    if not stat.S_ISREG(st.st_mode):
-        raise _Corrupt("it is not a regular file")
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
-    fd = os.open(file, flags)
-    with os.fdopen(fd, "rb") as f:
-        st = os.fstat(f.fileno())
-        uid = os.getuid() if hasattr(os, "getuid") else st.st_uid
-        if not stat.S_ISREG(st.st_mode):
-            raise _Corrupt("it is not a regular file")
-        if st.st_uid != uid:
-            raise _Corrupt(f"it is owned by uid {st.st_uid}, not by you (uid {uid})")
-        if st.st_mode & 0o022:
-            raise _Corrupt(f"it has mode {stat.S_IMODE(st.st_mode):04o}: writable by group or others")
-        return f.read()
-
-
 def _load(file: Path, key: str, t: np.ndarray, n_state: int, kind: str):
     """``(truth, None)`` on a verified hit, ``(None, None)`` when there is no
     entry, ``(None, reason)`` when the entry is corrupt (see the module
     docstring). Never raises, never unpickles."""
     try:
-        data = _read_private(file)
+        data = _read_regular(file, private=True)
         if data is None:
             return None, None
     except _Corrupt as e:

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import json
 import os
 import sys
 import time
@@ -69,6 +68,8 @@ def write_shipped(problems, directory, *, say=print) -> dict:
     written."""
     from rk4h.references import truth as T
 
+    from .atomic import write_json_atomic
+
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     manifest_file = directory / T.SHIPPED_MANIFEST
@@ -93,11 +94,7 @@ def write_shipped(problems, directory, *, say=print) -> dict:
             f"{len(data)} bytes")
     manifest = {"format": T._FORMAT, "generator": "python -m rk4h.validation.ship_truths",
                 "versions": T._versions(), "tol": T.TOL_REAL128, "entries": dict(sorted(entries.items()))}
-    tmp = manifest_file.with_name(f".{manifest_file.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644)
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(json.dumps(manifest, indent=1, sort_keys=True) + "\n")
-    os.replace(tmp, manifest_file)
+    write_json_atomic(manifest_file, manifest)
     for key, (name, digest) in old.items():
         if key not in entries:
             _remove_if_written(directory / name, digest, say)
@@ -106,22 +103,15 @@ def write_shipped(problems, directory, *, say=print) -> dict:
 
 
 def _old_entries(manifest_file: Path) -> dict:
-    """``{key: (file name, sha256)}`` of the previous manifest, only entries
-    whose file is named ``<key>.npz`` for a 64-hex-digit key (the names this
-    tool gives); ``{}`` when there is no readable manifest."""
+    """``{key: (file name, sha256)}`` of the previous manifest, whatever its
+    format, only entries whose file is named ``<key>.npz`` for a
+    64-hex-digit key (the names this tool gives); ``{}`` when there is no
+    readable manifest."""
     from rk4h.references import truth as T
 
-    try:
-        text = T._read_regular(manifest_file, T._SHIPPED_MANIFEST_CAP)
-        entries = json.loads(text.decode("utf-8")).get("entries", {}) if text is not None else {}
-        out = {}
-        for key, entry in entries.items():
-            name, digest = str(entry["file"]), str(entry["sha256"])
-            if len(key) == 64 and set(key) <= set("0123456789abcdef") and name == f"{key}.npz":
-                out[key] = (name, digest)
-        return out
-    except (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError, T._Corrupt):
-        return {}
+    _, entries = T.manifest_entries(manifest_file)
+    return {key: (name, digest) for key, (name, digest) in entries.items()
+            if len(key) == 64 and set(key) <= set("0123456789abcdef") and name == f"{key}.npz"}
 
 
 def _remove_if_written(file: Path, digest: str, say) -> None:
