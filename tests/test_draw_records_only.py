@@ -1,13 +1,13 @@
 """Drawing reads records only: the state figures take what they need of the
 model (coordinates, masses, its drawing) from the run's record
-(rk4h.validation.figures.look), so drawing builds no model; and the recorded
+(rk4h.validation.look), so drawing builds no model; and the recorded
 look draws the same figures, with the same sentences, as the model itself."""
 from __future__ import annotations
 
 import pytest
 
 from rk4h.validation import draw, execute, measure, plan
-from rk4h.validation.figures.look import ModelLook
+from rk4h.validation.look import ModelLook
 from rk4h.validation.scenes import Scene, load_scene, scene_from_dict
 
 pytest.importorskip("matplotlib")

@@ -37,7 +37,7 @@ def draw(job, out_dir, scenes_by_name) -> list:
 
 
 def _state(f, out_dir, name, d, scenes_by_name):
-    from .figures.look import ModelLook
+    from .look import ModelLook
 
     model = ModelLook(d.get("look"))  # the recorded model's look: drawing builds no model
     thesis = d.get("thesis")

@@ -27,6 +27,7 @@ import numpy as np
 from rk4h.references.registry import Kind
 
 from . import metrics
+from .look import record_look
 from .plan import FIGURE_POINTS, RunSpec
 from .records import RunRecord, failed_record
 
@@ -232,7 +233,7 @@ def _truth_spec(scene, spec, quick):
     if "trajectory" in spec.keep:
         arrays = {"t": t, "y": y}
         _record_modal(model, t, y, values, arrays)
-        _record_look(model, values, arrays)
+        record_look(model, values, arrays)
     return RunRecord(spec.key, values=values, arrays=arrays)
 
 
@@ -314,7 +315,7 @@ def _figure_spec(scene, spec, quick):
     if status == "ok":
         arrays = {"t": np.asarray(run.t, float), "y": np.asarray(run.y, float)}
         _record_modal(model, arrays["t"], arrays["y"], values, arrays)
-        _record_look(model, values, arrays)
+        record_look(model, values, arrays)
     return RunRecord(spec.key, status=status, message=_first_line(run.message), values=values, arrays=arrays)
 
 
@@ -419,16 +420,6 @@ def _record_modal(model, t, y, values, arrays) -> None:
     for key in ("share_min", "share_t"):
         if key in content:
             values[f"modal_{key}"] = float(content[key])
-
-
-def _record_look(model, values, arrays) -> None:
-    """What the state figure reads of ``model`` (its coordinates, masses,
-    drawing) into the record of a kept trajectory
-    (:func:`rk4h.validation.figures.look.record_look`): drawing it then
-    builds no model."""
-    from .figures.look import record_look
-
-    record_look(model, values, arrays)
 
 
 def recorded_modal(record) -> dict:

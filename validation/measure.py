@@ -506,7 +506,7 @@ def _state_figure(scene, specs, records, res):
                  else f"{scene.name}: reference ({rec.values.get('truth_kind', '')})")
         if draw:
             from .execute import recorded_modal
-            from .figures.look import recorded_look
+            from .look import recorded_look
 
             res.figures.append(FigureJob(scene.name, "state", {"t": rec.arrays["t"], "y": rec.arrays["y"],
                                                                "title": title, "look": recorded_look(rec),

@@ -64,7 +64,7 @@ class ModelLook:
 
     def __init__(self, recorded: dict):
         if not recorded or "look" not in recorded:
-            raise ValueError("the record holds no model look (rk4h.validation.figures.look): rerun its scene")
+            raise ValueError("the record holds no model look (rk4h.validation.look): rerun its scene")
         look = json.loads(recorded["look"])
         self.name = look["name"]
         self.n_dof = int(look["n_dof"])
