@@ -194,6 +194,12 @@ class Method:
         return not self.fixed_step
 
     @property
+    def runner_key(self) -> str:
+        """What dispatch tables are keyed by: :attr:`adapter` (the runner of a
+        reference), else the method's name (a method without one)."""
+        return self.adapter or self.name
+
+    @property
     def partitioned(self) -> bool:
         """True for a partitioned tableau (positions and velocities advanced by
         different weights)."""

@@ -213,7 +213,7 @@ class _Problem:
         alike; :attr:`implementation` records that it did."""
         from rk4h.references.solvers import COMPILED_RUNNERS, integrate, integrate_compiled
 
-        runner = integrate_compiled if (method.adapter or method.name) in COMPILED_RUNNERS else integrate
+        runner = integrate_compiled if method.runner_key in COMPILED_RUNNERS else integrate
         with np.errstate(all="ignore"):
             run = runner(method, self.model, self.y0, self.t, setting)
         if (run.extra or {}).get("implementation") == "compiled":
@@ -581,7 +581,7 @@ def advise(scene, target: float) -> Advice:
     p = _Problem(scene)
     adv = Advice(scene.name, float(target))
     methods = [scene.method(s) for s in scene.solvers]
-    late = [m for m in methods if not m.fixed_step and (m.adapter or m.name) in PYTHON_CALLBACK]
+    late = [m for m in methods if not m.fixed_step and m.runner_key in PYTHON_CALLBACK]
     cands = []
     for m in methods:
         if any(m is x for x in late):

@@ -35,8 +35,7 @@ _READONLY_STATE = ("cvode-adams", "cvode-bdf")
 
 def _adapter(scene, solver) -> str:
     """The registry adapter of ``solver`` in ``scene`` (its name for a method without one)."""
-    method = scene.method(solver)
-    return method.adapter or method.name
+    return scene.method(solver).runner_key
 
 
 def _loop_key(scene, solver):
@@ -57,7 +56,7 @@ def _loop_key(scene, solver):
         if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
             return ("scalar",) + _cache_key(method.tableau) + (kern.scalar_key(),)
         return ("array",) + _cache_key(method.tableau) + (kern.key(),)
-    if (method.adapter or method.name) in _COMPILED_REFERENCES:
+    if method.runner_key in _COMPILED_REFERENCES:
         return ("rhs", kern.key())
     return None
 
@@ -126,7 +125,7 @@ def warm_one(scene, solver) -> float:
             rhs = compiled_rhs(model)
             if rhs is not None:
                 rhs.checked(y0)  # compiles rhs_permuted, the one entry point of the references
-                if (method.adapter or method.name) in _READONLY_STATE:
+                if method.runner_key in _READONLY_STATE:
                     _warm_readonly(rhs, y0)
     except Exception:  # noqa: BLE001 - best effort: the run compiles it again and reports
         pass

@@ -130,7 +130,7 @@ def mechanical_only(method) -> bool:
     mechanical model: heyoka (equations from the force), a command method
     (the problem file holds masses and springs), a partitioned tableau (it
     integrates ``q' = v`` and uses only the acceleration half of ``fun``)."""
-    return (method.adapter or method.name) in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
+    return method.runner_key in MECHANICAL_ONLY or method.kind in (Kind.COMMAND, Kind.PARTITIONED)
 
 
 def _check_inputs(model, y0, t_eval, atol, max_steps):
