@@ -291,20 +291,11 @@ def instance_errors(model, result, y0, params=None, built=None):
     failed : int
         Instances that did not reach the end.
     """
-    from rk4h.references.exact import modal_solution
-
     if not model.linear:
         raise ValueError(f"`model` {model.name} is nonlinear: error_statistics needs an exact (modal) solution")
-    ok = np.flatnonzero(result.status == 0)
-    errs, eerrs = [], []
-    built = {} if built is None else built  # parameter row -> model: one build (and eigensolve) per row
-    for b in ok:
-        m = instance_model(model, params, b, built)
-        exact = modal_solution(m, y0[b])(result.t).T
-        errs.append(np.max(np.abs(result.y[b] - exact)) / np.max(np.abs(exact)))
-        e = m.energy(result.y[b].T)
-        eerrs.append(np.max(np.abs(e - e[0])) / abs(e[0]) if e[0] != 0 else np.nan)
-    return np.asarray(errs, float), np.asarray(eerrs, float), int(result.status.size - ok.size)
+    sums = EnsembleSums()
+    sums.add(model, result, y0, params, built)
+    return np.asarray(sums.errors, float), np.asarray(sums.energy_errors, float), sums.failed
 
 
 def stability_map_figure(smap, path, *, limit=None, label=None):
@@ -513,6 +504,7 @@ class EnsembleSums:
         m_rows, n = result.y.shape[1], result.y.shape[2]
         if self.dy is None:
             self.dy, self.ref_norm, self.de = np.zeros((m_rows, n)), np.zeros(m_rows), np.zeros(m_rows)
+        built = {} if built is None else built  # one build per distinct parameter row of the chunk
         for b in np.flatnonzero(ok):
             m = instance_model(model, params, b, built)
             ref = modal_solution(m, y0[b])(result.t).T if y_ref is None else y_ref[b]
