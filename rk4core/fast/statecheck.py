@@ -115,18 +115,6 @@ def network_ok(fp, ip, mass, y, limit, D):
     return s <= limit
 '''
 
-_MODULE = None
-
-
-def _module():
-    global _MODULE
-    if _MODULE is None:
-        from .codegen import load_generated
-
-        _MODULE = load_generated(_SOURCE)
-    return _MODULE
-
-
 #: The methods whose definition the compiled test stands for: a class that
 #: defines one of them, other than these, gets no checker.
 _DEFINING = ("_force", "force", "_potential", "potential", "energy", "state_problem", "check_state",
@@ -184,8 +172,10 @@ def state_checker(model):
     mass = np.ascontiguousarray(mech.mass, dtype=np.float64)
     if mass.shape != (mech.n_dof,):
         return None
+    from .codegen import load_generated
+
     try:
-        module = _module()
+        module = load_generated(_SOURCE)  # kept in sys.modules by codegen: loaded once per process
     except Exception:  # noqa: BLE001 - no compiler: the numpy check runs
         return None
     if isinstance(kern, ChainKernel) and type(mech) is Chain:
