@@ -262,10 +262,7 @@ def model_current(model) -> bool:
     if d is None:
         return False
     w = d.get(_WATCH)
-    if w is not None and w.attrs is d and _unchanged(w.snapshot):
-        return True
-    _watch(model)
-    return False
+    return _watch(model) is w  # the same record: unchanged; a new one (caches dropped): changed or new
 
 
 def _plain(value):
