@@ -26,6 +26,33 @@ The last lines are the results:
     check max |y_old - y_new| / state scale: X
     check max error_max ratio new/old: X
 
+``--per-call`` (issue 29) prints instead where one right-hand-side call's
+time goes, per CVODE solver at ``--rtol`` (default 1e-7) on the first of
+``--scenes`` (default ``thesis_2dof_case1``), every figure a median of
+``--repeats`` measured in this one process, in microseconds per RHS call:
+
+    python benchmarks/bench_cvode.py --per-call
+    python benchmarks/bench_cvode.py --per-call --old /tmp/old_cvode.py   # old glue beside
+
+- ``run``: a whole ``run_cvode`` (``wall_s / nfev``);
+- ``replay``: the same CVODE run (same options, same steps and nfev, checked)
+  with a right-hand side that copies the recorded result of each call
+  (``zp[:] = next(rows)``): scikit-sundae's wrapper and CVODE itself plus a
+  one-line Python frame, the floor for any Python right-hand side;
+- ``glue``: the ``rhsfn`` that ``run_cvode`` hands CVODE (captured from the
+  ``CVODE`` constructor), called from a Python loop with the read-only state
+  and writable output scikit-sundae passes: our frame(s) plus the compiled
+  right-hand side and its numba call; ``jac``: the Jacobian callback per
+  call, and times ``njev / nfev`` per RHS call;
+- ``dispatch``: the compiled right-hand side through numba's dispatcher
+  (8 arguments, type resolution per call); ``entry``: the same through its
+  compiled entry point (no type resolution); ``empty``: a Python function of
+  ``(t, z, zp)`` that does nothing; ``replay frame``: the replay function
+  alone;
+- ``sundae+cvode`` = ``run - glue - jac per RHS call``: scikit-sundae's
+  wrapper (two ndarrays made from CVODE's vectors, the Python call) and
+  CVODE's own work, what a user with any Python right-hand side pays.
+
 The one-step loop of the module takes the same internal steps as ``solve``,
 so the ``check`` lines must show equal counters and identical trajectories
 (0.0); against an older file (``--old``) whose loop aimed its first step at
@@ -66,14 +93,149 @@ def load_old(path):
     return mod.run_cvode
 
 
+class _Capture:
+    """Stands in for ``sksundae.cvode.CVODE`` while a run is built: keeps the
+    callbacks it is given (``rhsfn``, ``jacfn``) and builds the real solver."""
+
+    def __init__(self, real):
+        self.real, self.rhsfn, self.opts = real, None, None
+
+    def __call__(self, rhsfn, **opts):
+        self.rhsfn, self.opts = rhsfn, opts
+        return self.real(rhsfn, **opts)
+
+
+def _per_call_time(fn, args, n):
+    """Median over 5 rounds of the time of one ``fn(*args)`` (us), ``n`` calls a round."""
+    rounds = []
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(n):
+            fn(*args)
+        rounds.append((time.perf_counter() - start) / n * 1e6)
+    return float(np.median(rounds))
+
+
+def per_call(args):
+    """The ``--per-call`` table (module docstring)."""
+    import sksundae.cvode as skc
+
+    from rk4h.references.solvers.base import compiled_rhs
+
+    runs = {"new": cvode.run_cvode}
+    if args.old:
+        runs["old"] = load_old(args.old)
+    scene = load_scene(SCENE_DIR / f"{args.scenes[0]}.toml")
+    model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
+    if args.tiny:
+        t = t[t <= 5.0]
+    n2 = y0.size
+    print(f"{scene.name}: {model.n_dof} DOF, {t.size} outputs to t = {t[-1]:g} s, rtol {args.rtol:g}; "
+          f"medians of {args.repeats}, microseconds per right-hand-side call")
+    real = skc.CVODE
+    for solver in CVODE:
+        atol = absolute_tolerance(model, y0, args.rtol)
+        glue, ref = {}, None
+        for which, fn in runs.items():
+            cap = _Capture(real)
+            skc.CVODE = cap
+            try:
+                r = fn(solver, model, y0, t, args.rtol, atol)
+            finally:
+                skc.CVODE = real
+            assert r.ok, r.message
+            ref = ref or r
+            assert (r.n_steps, r.nfev) == (ref.n_steps, ref.nfev) and np.array_equal(r.y, ref.y), which
+            glue[which] = (cap.rhsfn, cap.opts.get("jacfn"))
+        # record every call's result, then replay it: the same steps with no model
+        rows = []
+        rec_rhs = glue["new"][0]
+
+        def record(tt, z, zp):
+            rec_rhs(tt, z, zp)
+            rows.append(zp.copy())
+
+        from rk4h.references.solvers.cvode import _options, interleave
+        perm = interleave(n2 // 2)
+        opts = _options(model, perm, {"cvode-adams": "Adams", "cvode-bdf": "BDF"}[solver], args.rtol, atol,
+                        cvode.DEFAULT_MAX_STEPS)
+
+        def replay_run(fun):
+            s = real(fun, **opts)
+            start = time.perf_counter()
+            res = s.solve(t, y0[perm])
+            return time.perf_counter() - start, res
+
+        _, res_rec = replay_run(record)
+        table = np.array(rows)
+
+        def replay_once():
+            it = iter(table)
+
+            def replay(tt, z, zp):
+                zp[:] = next(it)
+
+            wall, res = replay_run(replay)
+            assert res.success and res.nfev == res_rec.nfev and np.array_equal(res.y, res_rec.y)
+            return wall / table.shape[0] * 1e6
+
+        nfev = ref.nfev
+        walls = {w: [] for w in runs}
+        replays = []
+        for _ in range(args.repeats):
+            for which, fn in runs.items():
+                walls[which].append(fn(solver, model, y0, t, args.rtol, atol).wall_s / nfev * 1e6)
+            replays.append(replay_once())
+        # the callbacks alone, called as scikit-sundae calls them
+        z = y0[perm].copy()
+        z.setflags(write=False)
+        zp = np.empty(n2)
+        JJ = np.zeros((n2, n2))
+        n = 20000
+        it = iter(np.tile(table[:1], (5 * n + 10, 1)))
+
+        def replay_frame(tt, z, zp):
+            zp[:] = next(it)
+
+        def empty(tt, z, zp):
+            pass
+
+        fast = compiled_rhs(model)
+        parts = fast.permuted_parts(perm)
+        cargs = (parts[1], parts[2], parts[3], z, zp) + parts[4:]
+        entry = cvode._compiled_entry(parts[0], cargs)
+        njev = ref.extra["njev"]
+        line = {"empty": _per_call_time(empty, (0.0, z, zp), n),
+                "replay frame": _per_call_time(replay_frame, (0.0, z, zp), n),
+                "dispatch": _per_call_time(parts[0], cargs, n),
+                "entry": _per_call_time(entry, cargs, n)}
+        print(f"\n{solver}: n_steps {ref.n_steps}, nfev {nfev}, njev {njev} ({ref.extra.get('linsolver')}); "
+              f"replay: {np.median(replays):.2f} us per call")
+        print(f"  compiled RHS alone: numba dispatcher {line['dispatch']:.2f}, entry point {line['entry']:.2f}; "
+              f"empty Python function {line['empty']:.2f}; replay frame {line['replay frame']:.2f}")
+        for which in runs:
+            rhsfn, jacfn = glue[which]
+            g = _per_call_time(rhsfn, (0.0, z, zp), n)
+            j = _per_call_time(jacfn, (0.0, z, zp, JJ), n // 10) if jacfn is not None else 0.0
+            run = float(np.median(walls[which]))
+            print(f"  {which}: run {run:.2f} = glue {g:.2f} + jac {j:.2f} x {njev / nfev:.4f} "
+                  f"+ sundae+cvode {run - g - j * njev / nfev:.2f}; "
+                  f"our frames {g - line['entry' if which == 'new' else 'dispatch']:.2f}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--tiny", action="store_true", help="t_end 5 s, 2 repeats")
     ap.add_argument("--old", default=None, help="an older cvode.py whose run_cvode is 'old'")
+    ap.add_argument("--per-call", action="store_true", help="where one RHS call's time goes (docstring)")
+    ap.add_argument("--rtol", type=float, default=1e-7, help="the --per-call tolerance")
     args = ap.parse_args(argv)
     repeats = 2 if args.tiny else args.repeats
+    if args.per_call:
+        args.repeats = repeats
+        return per_call(args)
 
     new = cvode.run_cvode
     if args.old:
