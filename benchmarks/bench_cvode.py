@@ -51,7 +51,10 @@ time goes, per CVODE solver at ``--rtol`` (default 1e-7) on the first of
   alone;
 - ``sundae+cvode`` = ``run - glue - jac per RHS call``: scikit-sundae's
   wrapper (two ndarrays made from CVODE's vectors, the Python call) and
-  CVODE's own work, what a user with any Python right-hand side pays.
+  CVODE's own work, what a user with any Python right-hand side pays;
+- scipy's DOP853 (``run_dop853``, the timed rows) at the same ``--rtol``:
+  the run per RHS call and the right-hand-side wrapper it hands scipy (our
+  share), beside ``--old-dop853 FILE``'s when given.
 
 The one-step loop of the module takes the same internal steps as ``solve``,
 so the ``check`` lines must show equal counters and identical trajectories
@@ -221,6 +224,53 @@ def per_call(args):
             print(f"  {which}: run {run:.2f} = glue {g:.2f} + jac {j:.2f} x {njev / nfev:.4f} "
                   f"+ sundae+cvode {run - g - j * njev / nfev:.2f}; "
                   f"our frames {g - line['entry' if which == 'new' else 'dispatch']:.2f}")
+    dop853_per_call(args, model, y0, t, n)
+
+
+def dop853_per_call(args, model, y0, t, n):
+    """The ``--per-call`` lines of scipy's DOP853 (``run_dop853``, the timed
+    rows): whole run per RHS call, and its right-hand-side wrapper alone
+    (captured from scipy's ``DOP853`` constructor), new and ``--old-dop853``."""
+    import scipy.integrate as si
+
+    from rk4h.references.solvers import dop853
+
+    runs = {"new": dop853.run_dop853}
+    if args.old_dop853:
+        spec = importlib.util.spec_from_file_location("rk4h.references.solvers._dop853_old", args.old_dop853)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        runs["old"] = mod.run_dop853
+    real = si.DOP853
+    atol = absolute_tolerance(model, y0, args.rtol)
+    funs, ref = {}, None
+    for which, fn in runs.items():
+        got = {}
+
+        def capture(fun, *a, **k):
+            got["fun"] = fun
+            return real(fun, *a, **k)
+
+        si.DOP853 = capture
+        try:
+            r = fn(model, y0, t, args.rtol, atol)
+        finally:
+            si.DOP853 = real
+        assert r.ok, r.message
+        ref = ref or r
+        assert (r.n_steps, r.nfev) == (ref.n_steps, ref.nfev) and np.array_equal(r.y, ref.y), which
+        funs[which] = got["fun"]
+    walls = {w: [] for w in runs}
+    for _ in range(args.repeats):
+        for which, fn in runs.items():
+            walls[which].append(fn(model, y0, t, args.rtol, atol).wall_s / ref.nfev * 1e6)
+    y = y0.astype(float)
+    print(f"\ndop853 (scipy, the timed rows): n_steps {ref.n_steps}, nfev {ref.nfev}")
+    for which in runs:
+        g = _per_call_time(funs[which], (0.0, y), n)
+        run = float(np.median(walls[which]))
+        print(f"  {which}: run {run:.2f} = RHS wrapper {g:.2f} ({100 * g / run:.1f}%) + scipy's stepping "
+              f"{run - g:.2f}")
 
 
 def main(argv=None):
@@ -231,6 +281,7 @@ def main(argv=None):
     ap.add_argument("--old", default=None, help="an older cvode.py whose run_cvode is 'old'")
     ap.add_argument("--per-call", action="store_true", help="where one RHS call's time goes (docstring)")
     ap.add_argument("--rtol", type=float, default=1e-7, help="the --per-call tolerance")
+    ap.add_argument("--old-dop853", default=None, help="--per-call: an older dop853.py whose run_dop853 is 'old'")
     args = ap.parse_args(argv)
     repeats = 2 if args.tiny else args.repeats
     if args.per_call:

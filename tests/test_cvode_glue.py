@@ -177,3 +177,44 @@ def test_tiny_step_caps_on_the_compiled_glue(solver, cap):
         assert r.n_steps == cap
     assert new.t_fail == loop.t_fail
     np.testing.assert_array_equal(new.y, loop.y)
+
+
+# -- scipy's DOP853 (the timed rows): the same one-frame glue -------------------------------------
+
+class _CheckedGlue:
+    """The DOP853 glue before: ``checked`` only (a method over the dispatcher)."""
+
+    def __init__(self, fast):
+        self.checked = fast.checked
+
+
+@pytest.mark.parametrize("name", ["chain-2dof", "chain-12", "pendulums"])
+def test_dop853_one_frame_glue_gives_the_checked_glue_bit_for_bit(monkeypatch, name):
+    from rk4h.references.solvers.dop853 import run_dop853
+
+    model, y0 = case(name)
+    atol = absolute_tolerance(model, y0, 1e-9)
+    new = run_dop853(model, y0, T, 1e-9, atol)
+    fast = compiled_rhs(model)
+    monkeypatch.setattr("rk4h.references.solvers.dop853.compiled_rhs", lambda m: _CheckedGlue(fast))
+    old = run_dop853(model, y0, T, 1e-9, atol)
+    assert new.status is Status.OK and old.status is Status.OK and new.extra["rhs"] == "compiled"
+    assert (new.n_steps, new.nfev) == (old.n_steps, old.nfev) and new.n_steps > 0
+    np.testing.assert_array_equal(new.y, old.y)
+
+
+def test_dop853_strided_initial_state_goes_through_the_dispatcher():
+    # scipy evaluates f(t0, y0) on the y0 it was given (a strided view here):
+    # the entry point, made for contiguous vectors, must not read it
+    from rk4h.references.solvers.dop853 import run_dop853
+
+    model, y0 = case("pendulums")
+    wide = np.zeros((y0.size, 2))
+    wide[:, 0] = y0
+    strided = wide[:, 0]
+    assert not strided.flags.c_contiguous
+    atol = absolute_tolerance(model, y0, 1e-8)
+    a = run_dop853(model, y0.copy(), T, 1e-8, atol)
+    b = run_dop853(model, strided, T, 1e-8, atol)
+    assert a.status is Status.OK and (a.n_steps, a.nfev) == (b.n_steps, b.nfev)
+    np.testing.assert_array_equal(a.y, b.y)

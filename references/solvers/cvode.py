@@ -34,6 +34,24 @@ below) takes the same internal steps at 2-5x the wall time:
 ``python benchmarks/bench_cvode.py`` measured 3.5x in total (median of 5,
 per row 1.9-4.9x) over the CVODE runs of three shipped scenes.
 
+The right-hand side's glue
+--------------------------
+scikit-sundae 1.2 takes no compiled callback: its Cython wrapper makes two
+ndarrays from CVODE's vectors and calls ``rhsfn(t, z, zp)`` (and ``jacfn``)
+as Python objects, for every evaluation. So the CVODE rows time scikit-sundae
+with a compiled right-hand side called from Python, as a user would run it.
+What is ours per call is kept small: one Python frame (``rhsfn_compiled``:
+the count, the step-cap test, the call) that calls the model's compiled
+right-hand side (:meth:`rk4h.fast.CompiledRHS.permuted_parts`) through the
+numba entry point of the argument types scikit-sundae passes, picked at the
+run's first call (:func:`_compiled_entry`: numba's per-call type resolution
+of 8 arguments skipped). The constant dense Jacobian of a linear model is
+written once into the array scikit-sundae passes (it is the same array at
+every call and is only copied into CVODE's matrix). The numbers are those of
+the earlier glue bit for bit (``tests/test_cvode_glue.py``);
+``python benchmarks/bench_cvode.py --per-call`` prints where a call's time
+goes (most of it is scikit-sundae's wrapper and CVODE itself).
+
 Counters
 --------
 CVODE's own statistics are read with the SUNDIALS C API (``CVodeGetNumSteps``,
