@@ -28,8 +28,10 @@ The last lines are the results:
 
 ``--per-call`` (issue 29) prints instead where one right-hand-side call's
 time goes, per CVODE solver at ``--rtol`` (default 1e-7) on the first of
-``--scenes`` (default ``thesis_2dof_case1``), every figure a median of
-``--repeats`` measured in this one process, in microseconds per RHS call:
+``--scenes`` (default ``thesis_2dof_case1``), every figure the least of
+``--repeats`` runs (15 interleaved rounds of calls for the callbacks alone) measured in
+this one process (the least disturbed by a shared machine's load), in
+microseconds per RHS call:
 
     python benchmarks/bench_cvode.py --per-call
     python benchmarks/bench_cvode.py --per-call --old /tmp/old_cvode.py   # old glue beside
@@ -108,15 +110,19 @@ class _Capture:
         return self.real(rhsfn, **opts)
 
 
-def _per_call_time(fn, args, n):
-    """Median over 5 rounds of the time of one ``fn(*args)`` (us), ``n`` calls a round."""
-    rounds = []
-    for _ in range(5):
-        start = time.perf_counter()
-        for _ in range(n):
-            fn(*args)
-        rounds.append((time.perf_counter() - start) / n * 1e6)
-    return float(np.median(rounds))
+def _per_call_times(cases, n, rounds=15):
+    """``{label: us}``: the least over ``rounds`` rounds of the time of one
+    ``fn(*args)`` for each ``(label, fn, args)`` of ``cases``, ``n`` calls a
+    round, the cases interleaved round by round (the same load for each)."""
+    best = {label: math.inf for label, _, _ in cases}
+    for _ in range(rounds):
+        for label, fn, args in cases:
+            k = max(1, n // 10) if label.startswith("jac") else n
+            start = time.perf_counter()
+            for _ in range(k):
+                fn(*args)
+            best[label] = min(best[label], (time.perf_counter() - start) / k * 1e6)
+    return best
 
 
 def per_call(args):
@@ -134,7 +140,7 @@ def per_call(args):
         t = t[t <= 5.0]
     n2 = y0.size
     print(f"{scene.name}: {model.n_dof} DOF, {t.size} outputs to t = {t[-1]:g} s, rtol {args.rtol:g}; "
-          f"medians of {args.repeats}, microseconds per right-hand-side call")
+          f"least of {args.repeats} runs, microseconds per right-hand-side call")
     real = skc.CVODE
     for solver in CVODE:
         atol = absolute_tolerance(model, y0, args.rtol)
@@ -195,7 +201,7 @@ def per_call(args):
         zp = np.empty(n2)
         JJ = np.zeros((n2, n2))
         n = 20000
-        it = iter(np.tile(table[:1], (5 * n + 10, 1)))
+        it = iter(np.tile(table[:1], (16 * n, 1)))
 
         def replay_frame(tt, z, zp):
             zp[:] = next(it)
@@ -208,19 +214,21 @@ def per_call(args):
         cargs = (parts[1], parts[2], parts[3], z, zp) + parts[4:]
         entry = cvode._compiled_entry(parts[0], cargs)
         njev = ref.extra["njev"]
-        line = {"empty": _per_call_time(empty, (0.0, z, zp), n),
-                "replay frame": _per_call_time(replay_frame, (0.0, z, zp), n),
-                "dispatch": _per_call_time(parts[0], cargs, n),
-                "entry": _per_call_time(entry, cargs, n)}
+        cases = [("empty", empty, (0.0, z, zp)), ("replay frame", replay_frame, (0.0, z, zp)),
+                 ("dispatch", parts[0], cargs), ("entry", entry, cargs)]
+        for which in runs:
+            rhsfn, jacfn = glue[which]
+            cases.append((f"glue {which}", rhsfn, (0.0, z, zp)))
+            if jacfn is not None:
+                cases.append((f"jac {which}", jacfn, (0.0, z, zp, JJ)))
+        line = _per_call_times(cases, n)
         print(f"\n{solver}: n_steps {ref.n_steps}, nfev {nfev}, njev {njev} ({ref.extra.get('linsolver')}); "
-              f"replay: {np.median(replays):.2f} us per call")
+              f"replay: {np.min(replays):.2f} us per call")
         print(f"  compiled RHS alone: numba dispatcher {line['dispatch']:.2f}, entry point {line['entry']:.2f}; "
               f"empty Python function {line['empty']:.2f}; replay frame {line['replay frame']:.2f}")
         for which in runs:
-            rhsfn, jacfn = glue[which]
-            g = _per_call_time(rhsfn, (0.0, z, zp), n)
-            j = _per_call_time(jacfn, (0.0, z, zp, JJ), n // 10) if jacfn is not None else 0.0
-            run = float(np.median(walls[which]))
+            g, j = line[f"glue {which}"], line.get(f"jac {which}", 0.0)
+            run = float(np.min(walls[which]))
             print(f"  {which}: run {run:.2f} = glue {g:.2f} + jac {j:.2f} x {njev / nfev:.4f} "
                   f"+ sundae+cvode {run - g - j * njev / nfev:.2f}; "
                   f"our frames {g - line['entry' if which == 'new' else 'dispatch']:.2f}")
@@ -266,9 +274,10 @@ def dop853_per_call(args, model, y0, t, n):
             walls[which].append(fn(model, y0, t, args.rtol, atol).wall_s / ref.nfev * 1e6)
     y = y0.astype(float)
     print(f"\ndop853 (scipy, the timed rows): n_steps {ref.n_steps}, nfev {ref.nfev}")
+    line = _per_call_times([(which, funs[which], (0.0, y)) for which in runs], n)
     for which in runs:
-        g = _per_call_time(funs[which], (0.0, y), n)
-        run = float(np.median(walls[which]))
+        g = line[which]
+        run = float(np.min(walls[which]))
         print(f"  {which}: run {run:.2f} = RHS wrapper {g:.2f} ({100 * g / run:.1f}%) + scipy's stepping "
               f"{run - g:.2f}")
 

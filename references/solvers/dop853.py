@@ -159,6 +159,7 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         entry = _compiled_entry(disp, (fp, ip, mass, yc, np.empty(n_state), ident, buf, w))
     else:
         entry = None
+    ndarray, f64 = np.ndarray, _F64
 
     def fun(t, yy):
         calls[0] += 1
@@ -172,7 +173,7 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
             f = np.empty(n_state)
             # the entry point takes C-contiguous float64 vectors only (scipy's
             # stages are; anything else goes through numba's dispatcher)
-            call = entry if type(yy) is np.ndarray and yy.dtype is _F64 and yy.flags.c_contiguous else disp
+            call = entry if type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous else disp
             if call(fp, ip, mass, yy, f, ident, buf, w) and not bad:
                 bad.append(float(t))
             return f
