@@ -218,3 +218,25 @@ def test_dop853_strided_initial_state_goes_through_the_dispatcher():
     b = run_dop853(model, strided, T, 1e-8, atol)
     assert a.status is Status.OK and (a.n_steps, a.nfev) == (b.n_steps, b.nfev)
     np.testing.assert_array_equal(a.y, b.y)
+
+
+def test_per_call_benchmark_runs_and_prints_each_split():
+    # its own checks: the runs it times give the same steps, nfev and y, and
+    # the replay run reproduces the recorded one exactly
+    import pathlib
+    import re
+    import subprocess
+    import sys
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_cvode.py"), "--per-call", "--tiny"],
+                          cwd=root, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    num = r"-?[0-9]+\.[0-9]+"
+    for solver in ("cvode-adams", "cvode-bdf"):
+        assert re.search(rf"^{solver}: n_steps \d+, nfev \d+, njev \d+ \(dense\); replay: {num} us per call$",
+                         proc.stdout, flags=re.M), proc.stdout
+    assert len(re.findall(rf"^  new: run {num} = glue {num} \+ jac {num} x {num} \+ sundae\+cvode {num}; "
+                          rf"our frames {num}$", proc.stdout, flags=re.M)) == 2, proc.stdout
+    assert re.search(rf"^  new: run {num} = RHS wrapper {num} \({num}%\) \+ scipy's stepping {num}$",
+                     proc.stdout, flags=re.M), proc.stdout
