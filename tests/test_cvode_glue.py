@@ -158,9 +158,16 @@ def test_compiled_entry_only_for_the_types_it_was_compiled_for():
     assert entry(fp, ip, mass, z, zp_entry, p64, buf, w) == fn(fp, ip, mass, z, zp_disp, p64, buf, w)
     np.testing.assert_array_equal(zp_entry, zp_disp)
     assert np.any(zp_entry != 0.0)
-    # types never compiled: the dispatcher itself
+    # types never compiled: the dispatcher itself, also after the entry above
+    # was kept (the kept answers are per argument types)
     z32 = z.astype(np.float32)
     assert cvode._compiled_entry(fn, (fp, ip, mass, z32, zp_entry, p64, buf, w)) is fn
+    swapped = z.astype(">f8")
+    assert cvode._compiled_entry(fn, (fp, ip, mass, swapped, zp_entry, p64, buf, w)) is fn
+    # a writable state: its own compiled version, not the read-only one's
+    writable = cvode._compiled_entry(fn, (fp, ip, mass, z.copy(), zp_entry, p64, buf, w))
+    assert writable is not fn and writable is not entry
+    assert cvode._compiled_entry(fn, (fp, ip, mass, z, zp_entry, p64, buf, w)) is entry
 
 
 @pytest.mark.parametrize("solver", ["cvode-adams", "cvode-bdf"])
