@@ -26,6 +26,38 @@ The last lines are the results:
     check max |y_old - y_new| / state scale: X
     check max error_max ratio new/old: X
 
+``--per-call`` (issue 29) prints instead where one right-hand-side call's
+time goes, per CVODE solver at ``--rtol`` (default 1e-7) on the first of
+``--scenes`` (default ``thesis_2dof_case1``), every figure the least of
+``--repeats`` runs (15 interleaved rounds of calls for the callbacks alone) measured in
+this one process (the least disturbed by a shared machine's load), in
+microseconds per RHS call:
+
+    python benchmarks/bench_cvode.py --per-call
+    python benchmarks/bench_cvode.py --per-call --old /tmp/old_cvode.py   # old glue beside
+
+- ``run``: a whole ``run_cvode`` (``wall_s / nfev``);
+- ``replay``: the same CVODE run (same options, same steps and nfev, checked)
+  with a right-hand side that copies the recorded result of each call
+  (``zp[:] = next(rows)``): scikit-sundae's wrapper and CVODE itself plus a
+  one-line Python frame, the floor for any Python right-hand side;
+- ``glue``: the ``rhsfn`` that ``run_cvode`` hands CVODE (captured from the
+  ``CVODE`` constructor), called from a Python loop with the read-only state
+  and writable output scikit-sundae passes: our frame(s) plus the compiled
+  right-hand side and its numba call; ``jac``: the Jacobian callback per
+  call, and times ``njev / nfev`` per RHS call;
+- ``dispatch``: the compiled right-hand side through numba's dispatcher
+  (8 arguments, type resolution per call); ``entry``: the same through its
+  compiled entry point (no type resolution); ``empty``: a Python function of
+  ``(t, z, zp)`` that does nothing; ``replay frame``: the replay function
+  alone;
+- ``sundae+cvode`` = ``run - glue - jac per RHS call``: scikit-sundae's
+  wrapper (two ndarrays made from CVODE's vectors, the Python call) and
+  CVODE's own work, what a user with any Python right-hand side pays;
+- scipy's DOP853 (``run_dop853``, the timed rows) at the same ``--rtol``:
+  the run per RHS call and the right-hand-side wrapper it hands scipy (our
+  share), beside ``--old-dop853 FILE``'s when given.
+
 The one-step loop of the module takes the same internal steps as ``solve``,
 so the ``check`` lines must show equal counters and identical trajectories
 (0.0); against an older file (``--old``) whose loop aimed its first step at
@@ -66,14 +98,204 @@ def load_old(path):
     return mod.run_cvode
 
 
+class _Capture:
+    """Stands in for ``sksundae.cvode.CVODE`` while a run is built: keeps the
+    callbacks it is given (``rhsfn``, ``jacfn``) and builds the real solver."""
+
+    def __init__(self, real):
+        self.real, self.rhsfn, self.opts = real, None, None
+
+    def __call__(self, rhsfn, **opts):
+        self.rhsfn, self.opts = rhsfn, opts
+        return self.real(rhsfn, **opts)
+
+
+def _per_call_times(cases, n, rounds=15):
+    """``{label: us}``: the least over ``rounds`` rounds of the time of one
+    ``fn(*args)`` for each ``(label, fn, args)`` of ``cases``, ``n`` calls a
+    round, the cases interleaved round by round (the same load for each)."""
+    best = {label: math.inf for label, _, _ in cases}
+    for _ in range(rounds):
+        for label, fn, args in cases:
+            k = max(1, n // 10) if label.startswith("jac") else n
+            start = time.perf_counter()
+            for _ in range(k):
+                fn(*args)
+            best[label] = min(best[label], (time.perf_counter() - start) / k * 1e6)
+    return best
+
+
+def per_call(args):
+    """The ``--per-call`` table (module docstring)."""
+    import sksundae.cvode as skc
+
+    from rk4h.references.solvers.base import compiled_rhs
+
+    runs = {"new": cvode.run_cvode}
+    if args.old:
+        runs["old"] = load_old(args.old)
+    scene = load_scene(SCENE_DIR / f"{args.scenes[0]}.toml")
+    model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
+    if args.tiny:
+        t = t[t <= 5.0]
+    n2 = y0.size
+    print(f"{scene.name}: {model.n_dof} DOF, {t.size} outputs to t = {t[-1]:g} s, rtol {args.rtol:g}; "
+          f"least of {args.repeats} runs, microseconds per right-hand-side call")
+    real = skc.CVODE
+    for solver in CVODE:
+        atol = absolute_tolerance(model, y0, args.rtol)
+        glue, ref = {}, None
+        for which, fn in runs.items():
+            cap = _Capture(real)
+            skc.CVODE = cap
+            try:
+                r = fn(solver, model, y0, t, args.rtol, atol)
+            finally:
+                skc.CVODE = real
+            assert r.ok, r.message
+            ref = ref or r
+            assert (r.n_steps, r.nfev) == (ref.n_steps, ref.nfev) and np.array_equal(r.y, ref.y), which
+            glue[which] = (cap.rhsfn, cap.opts.get("jacfn"))
+        # record every call's result, then replay it: the same steps with no model
+        rows = []
+        rec_rhs = glue["new"][0]
+
+        def record(tt, z, zp):
+            rec_rhs(tt, z, zp)
+            rows.append(zp.copy())
+
+        from rk4h.references.solvers.cvode import _options, interleave
+        perm = interleave(n2 // 2)
+        opts = _options(model, perm, {"cvode-adams": "Adams", "cvode-bdf": "BDF"}[solver], args.rtol, atol,
+                        cvode.DEFAULT_MAX_STEPS)
+
+        def replay_run(fun):
+            s = real(fun, **opts)
+            start = time.perf_counter()
+            res = s.solve(t, y0[perm])
+            return time.perf_counter() - start, res
+
+        _, res_rec = replay_run(record)
+        table = np.array(rows)
+
+        def replay_once():
+            it = iter(table)
+
+            def replay(tt, z, zp):
+                zp[:] = next(it)
+
+            wall, res = replay_run(replay)
+            assert res.success and res.nfev == res_rec.nfev and np.array_equal(res.y, res_rec.y)
+            return wall / table.shape[0] * 1e6
+
+        nfev = ref.nfev
+        walls = {w: [] for w in runs}
+        replays = []
+        for _ in range(args.repeats):
+            for which, fn in runs.items():
+                walls[which].append(fn(solver, model, y0, t, args.rtol, atol).wall_s / nfev * 1e6)
+            replays.append(replay_once())
+        # the callbacks alone, called as scikit-sundae calls them
+        z = y0[perm].copy()
+        z.setflags(write=False)
+        zp = np.empty(n2)
+        JJ = np.zeros((n2, n2))
+        n = 20000
+        it = iter(np.tile(table[:1], (16 * n, 1)))
+
+        def replay_frame(tt, z, zp):
+            zp[:] = next(it)
+
+        def empty(tt, z, zp):
+            pass
+
+        fast = compiled_rhs(model)
+        parts = fast.permuted_parts(perm)
+        cargs = (parts[1], parts[2], parts[3], z, zp) + parts[4:]
+        entry = cvode._compiled_entry(parts[0], cargs)
+        njev = ref.extra["njev"]
+        cases = [("empty", empty, (0.0, z, zp)), ("replay frame", replay_frame, (0.0, z, zp)),
+                 ("dispatch", parts[0], cargs), ("entry", entry, cargs)]
+        for which in runs:
+            rhsfn, jacfn = glue[which]
+            cases.append((f"glue {which}", rhsfn, (0.0, z, zp)))
+            if jacfn is not None:
+                cases.append((f"jac {which}", jacfn, (0.0, z, zp, JJ)))
+        line = _per_call_times(cases, n)
+        print(f"\n{solver}: n_steps {ref.n_steps}, nfev {nfev}, njev {njev} ({ref.extra.get('linsolver')}); "
+              f"replay: {np.min(replays):.2f} us per call")
+        print(f"  compiled RHS alone: numba dispatcher {line['dispatch']:.2f}, entry point {line['entry']:.2f}; "
+              f"empty Python function {line['empty']:.2f}; replay frame {line['replay frame']:.2f}")
+        for which in runs:
+            g, j = line[f"glue {which}"], line.get(f"jac {which}", 0.0)
+            run = float(np.min(walls[which]))
+            print(f"  {which}: run {run:.2f} = glue {g:.2f} + jac {j:.2f} x {njev / nfev:.4f} "
+                  f"+ sundae+cvode {run - g - j * njev / nfev:.2f}; "
+                  f"our frames {g - line['entry' if which == 'new' else 'dispatch']:.2f}")
+    dop853_per_call(args, model, y0, t, n)
+
+
+def dop853_per_call(args, model, y0, t, n):
+    """The ``--per-call`` lines of scipy's DOP853 (``run_dop853``, the timed
+    rows): whole run per RHS call, and its right-hand-side wrapper alone
+    (captured from scipy's ``DOP853`` constructor), new and ``--old-dop853``."""
+    import scipy.integrate as si
+
+    from rk4h.references.solvers import dop853
+
+    runs = {"new": dop853.run_dop853}
+    if args.old_dop853:
+        spec = importlib.util.spec_from_file_location("rk4h.references.solvers._dop853_old", args.old_dop853)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        runs["old"] = mod.run_dop853
+    real = si.DOP853
+    atol = absolute_tolerance(model, y0, args.rtol)
+    funs, ref = {}, None
+    for which, fn in runs.items():
+        got = {}
+
+        def capture(fun, *a, **k):
+            got["fun"] = fun
+            return real(fun, *a, **k)
+
+        si.DOP853 = capture
+        try:
+            r = fn(model, y0, t, args.rtol, atol)
+        finally:
+            si.DOP853 = real
+        assert r.ok, r.message
+        ref = ref or r
+        assert (r.n_steps, r.nfev) == (ref.n_steps, ref.nfev) and np.array_equal(r.y, ref.y), which
+        funs[which] = got["fun"]
+    walls = {w: [] for w in runs}
+    for _ in range(args.repeats):
+        for which, fn in runs.items():
+            walls[which].append(fn(model, y0, t, args.rtol, atol).wall_s / ref.nfev * 1e6)
+    y = y0.astype(float)
+    print(f"\ndop853 (scipy, the timed rows): n_steps {ref.n_steps}, nfev {ref.nfev}")
+    line = _per_call_times([(which, funs[which], (0.0, y)) for which in runs], n)
+    for which in runs:
+        g = line[which]
+        run = float(np.min(walls[which]))
+        print(f"  {which}: run {run:.2f} = RHS wrapper {g:.2f} ({100 * g / run:.1f}%) + scipy's stepping "
+              f"{run - g:.2f}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--tiny", action="store_true", help="t_end 5 s, 2 repeats")
     ap.add_argument("--old", default=None, help="an older cvode.py whose run_cvode is 'old'")
+    ap.add_argument("--per-call", action="store_true", help="where one RHS call's time goes (docstring)")
+    ap.add_argument("--rtol", type=float, default=1e-7, help="the --per-call tolerance")
+    ap.add_argument("--old-dop853", default=None, help="--per-call: an older dop853.py whose run_dop853 is 'old'")
     args = ap.parse_args(argv)
     repeats = 2 if args.tiny else args.repeats
+    if args.per_call:
+        args.repeats = repeats
+        return per_call(args)
 
     new = cvode.run_cvode
     if args.old:

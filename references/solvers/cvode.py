@@ -34,6 +34,24 @@ below) takes the same internal steps at 2-5x the wall time:
 ``python benchmarks/bench_cvode.py`` measured 3.5x in total (median of 5,
 per row 1.9-4.9x) over the CVODE runs of three shipped scenes.
 
+The right-hand side's glue
+--------------------------
+scikit-sundae 1.2 takes no compiled callback: its Cython wrapper makes two
+ndarrays from CVODE's vectors and calls ``rhsfn(t, z, zp)`` (and ``jacfn``)
+as Python objects, for every evaluation. So the CVODE rows time scikit-sundae
+with a compiled right-hand side called from Python, as a user would run it.
+What is ours per call is kept small: one Python frame (``rhsfn_compiled``:
+the count, the step-cap test, the call) that calls the model's compiled
+right-hand side (:meth:`rk4h.fast.CompiledRHS.permuted_parts`) through the
+numba entry point of the argument types scikit-sundae passes, picked at the
+run's first call (:func:`_compiled_entry`: numba's per-call type resolution
+of 8 arguments skipped). The constant dense Jacobian of a linear model is
+written once into the array scikit-sundae passes (it is the same array at
+every call and is only copied into CVODE's matrix). The numbers are those of
+the earlier glue bit for bit (``tests/test_cvode_glue.py``);
+``python benchmarks/bench_cvode.py --per-call`` prints where a call's time
+goes (most of it is scikit-sundae's wrapper and CVODE itself).
+
 Counters
 --------
 CVODE's own statistics are read with the SUNDIALS C API (``CVodeGetNumSteps``,
@@ -137,6 +155,50 @@ _LAYOUT = ("mem", "ctx", "atol", "constraints", "yy", "A", "LS", "NEQ", "aux", "
            "_options", "_initialized")
 
 
+def _plain_vector(a, n: int) -> bool:
+    """Whether ``a`` is a C-contiguous float64 vector of length ``n`` (what
+    scikit-sundae passes the right-hand side: views of CVODE's vectors)."""
+    return type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (n,) and a.flags.c_contiguous
+
+
+#: numpy's array flags that numba's type of an array depends on: C_CONTIGUOUS,
+#: F_CONTIGUOUS, ALIGNED, WRITEABLE.
+_TYPE_FLAGS = 0x1 | 0x2 | 0x100 | 0x400
+#: :func:`_compiled_entry`'s answers, by ``(id(dispatcher), the arrays' type key)``;
+#: each value keeps its dispatcher, so that the id is not reused.
+_ENTRIES: dict = {}
+
+
+def _compiled_entry(dispatcher, args):
+    """The compiled entry point of the numba ``dispatcher`` for exactly the
+    types of ``args`` (numba's per-call type resolution skipped: about 0.6 us
+    of a call with 8 array arguments), or ``dispatcher`` itself when it has
+    no such compiled version. The entry point converts its arguments without
+    checking their types (only the item size of arrays): a caller passes
+    arrays of the types of ``args`` on every later call. ``args`` are
+    ndarrays; the answer is kept per dispatcher and argument types (numba's
+    ``typeof`` of 8 arrays takes about 0.1-0.2 ms, the key 2-3 us)."""
+    # numba's type of an array: its dtype (byte order included), ndim, layout
+    # (C/F contiguous), alignment and whether it is writable
+    key = (id(dispatcher),) + tuple((a.dtype, a.ndim, a.flags.num & _TYPE_FLAGS) for a in args)
+    hit = _ENTRIES.get(key)
+    if hit is not None:
+        return hit[1]
+    try:
+        from numba import typeof
+
+        cres = dispatcher.overloads.get(tuple(typeof(a) for a in args))
+        entry = getattr(cres, "entry_point", None)
+    except Exception:  # noqa: BLE001 - another numba: its dispatcher
+        return dispatcher
+    entry = dispatcher if entry is None else entry
+    if entry is not dispatcher:
+        if len(_ENTRIES) > 256:
+            _ENTRIES.clear()
+        _ENTRIES[key] = (dispatcher, entry)
+    return entry
+
+
 class _NonFiniteStart(Exception):
     """The right-hand side is not finite at the initial state."""
 
@@ -200,10 +262,16 @@ def _options(model, perm, method, rtol, atol, max_steps):
     y = np.empty(n2)
     if model.linear:
         rows, cols, vals, lband, uband = _linear_jacobian_once(model, perm)
+        filled = [None]
 
         def jacfn(t, z, zp, JJ):
-            JJ[rows, cols] = vals
+            # constant: scikit-sundae passes the same array every call and only
+            # copies it into CVODE's matrix, so it is written once
+            if JJ is not filled[0]:
+                JJ[rows, cols] = vals
+                filled[0] = JJ
 
+        jacfn.constant = True  # no cap check needed (_run_cvode)
         if lband + uband + 1 < n2:
             opts.update(linsolver="band", lband=lband, uband=uband)
             return opts  # CVODE's banded difference quotient: see the module docstring
@@ -335,12 +403,25 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
     stats = None
     bad = []  # time of the first non-finite right-hand side at a finite state
     fast_rhs = compiled_rhs(model)
-    permuted = fast_rhs.permuted(perm) if fast_rhs is not None else None
+    permuted = call = None
+    if fast_rhs is not None and hasattr(fast_rhs, "permuted_parts"):
+        call, fp, ip, mass, perm64, buf, w = fast_rhs.permuted_parts(perm)
+        next_check = 1  # the first call picks the compiled entry (over_cap)
+    elif fast_rhs is not None:
+        permuted = fast_rhs.permuted(perm)
 
-    def over_cap():
+    def over_cap(z=None, zp=None):
         """Reads CVODE's step count when it may have reached ``max_steps``
-        (every step makes >= 1 call; module docstring, "Step cap")."""
-        nonlocal next_check, capped
+        (every step makes >= 1 call; module docstring, "Step cap"). At the
+        first call of the compiled path, first picks the compiled entry for
+        the arrays scikit-sundae passes (:func:`_compiled_entry`)."""
+        nonlocal next_check, capped, call
+        if calls == 1 and next_check == 1:
+            next_check = max_steps
+            if call is not None and _plain_vector(z, n2) and _plain_vector(zp, n2):
+                call = _compiled_entry(call, (fp, ip, mass, z, zp, perm64, buf, w))
+            if calls < next_check:
+                return False
         if capped:
             return True
         if stats is None:  # the one-step loop counts its own steps
@@ -352,6 +433,17 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
             return True
         next_check = calls + (max_steps - nst)
         return False
+
+    def rhsfn_compiled(t, z, zp):
+        # one Python frame per call: the compiled right-hand side is called
+        # with its constant arguments bound here
+        nonlocal calls
+        calls += 1
+        if calls >= next_check and over_cap(z, zp):
+            zp.fill(nan)
+            return
+        if call(fp, ip, mass, z, zp, perm64, buf, w) and not bad:
+            bad.append(float(t))
 
     def rhsfn(t, z, zp):
         nonlocal calls
@@ -369,6 +461,8 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
             bad.append(float(t))
         zp[:] = f[perm]
 
+    cvode_rhs = rhsfn_compiled if call is not None else rhsfn
+
     t0, t1, tn = float(t_eval[0]), float(t_eval[-1]), float(t_eval[0])
     n_steps, k, nfev_cvode, njev, nfev_dq = 0, 1, 0, 0, None
     status, message, t_fail = Status.OK, f"{solver_name}: reached the end of the interval", None
@@ -382,7 +476,7 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
                                   f"(t = {t0:.6g}); no step taken")
         opts = _options(model, perm, method, rtol, atol, max_steps)
         extra.update({key: opts[key] for key in ("linsolver", "lband", "uband") if key in opts})
-        if "jacfn" in opts:
+        if "jacfn" in opts and not getattr(opts["jacfn"], "constant", False):
             jac = opts["jacfn"]
 
             def jacfn(t, z, zp, JJ):
@@ -390,10 +484,10 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
                     jac(t, z, zp, JJ)
 
             opts["jacfn"] = jacfn
-        solver = CVODE(rhsfn, **opts)
+        solver = CVODE(cvode_rhs, **opts)
         solver.init_step(t0, y0[perm])
         if not one_step_loop:
-            stats = _CvodeStats.attach(solver, rhsfn, n2)
+            stats = _CvodeStats.attach(solver, cvode_rhs, n2)
         extra["counters"] = "cvode-stats" if stats is not None else "one-step-loop"
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             if stats is not None:

@@ -46,6 +46,7 @@ import warnings
 import numpy as np
 
 from .base import SolverRun, Status, compiled_rhs
+from .cvode import _compiled_entry
 
 __all__ = ["run_dop853", "run_dop853_compiled", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
 
@@ -56,6 +57,8 @@ RTOL_MIN = 100 * np.finfo(float).eps
 EVALS_PER_STEP = 30
 #: Default cap on accepted DOP853 steps in one run (as CVODE's).
 DEFAULT_MAX_STEPS = 5_000_000
+#: The native float64 dtype (the compiled entry point's, :func:`run_dop853`).
+_F64 = np.dtype(np.float64)
 #: DOP853's error estimator order (scipy: ``DOP853.error_estimator_order``).
 _ORDER = 7
 
@@ -146,6 +149,17 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
     if fast_rhs is not None:
         with np.errstate(all="ignore"):
             fast_rhs.checked(np.ascontiguousarray(y0, dtype=float))  # compiled (or loaded) before the clock starts
+    n_state = y0.shape[0]
+    if fast_rhs is not None and hasattr(fast_rhs, "permuted_parts"):
+        # the compiled right-hand side called from this one frame through its
+        # numba entry point (CVODE's glue; rk4h.references.solvers.cvode)
+        with np.errstate(all="ignore"):
+            disp, fp, ip, mass, ident, buf, w = fast_rhs.permuted_parts(np.arange(n_state), readonly=False)
+        yc = np.ascontiguousarray(y0, dtype=float)
+        entry = _compiled_entry(disp, (fp, ip, mass, yc, np.empty(n_state), ident, buf, w))
+    else:
+        entry = None
+    ndarray, f64 = np.ndarray, _F64
 
     def fun(t, yy):
         calls[0] += 1
@@ -155,6 +169,14 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         if not math.isfinite(t):
             raise _Stop(Status.FAILED, f"dop853: the step size became non-finite (right-hand side asked "
                                        f"for at t = {t!r})")
+        if entry is not None:
+            f = np.empty(n_state)
+            # the entry point takes C-contiguous float64 vectors only (scipy's
+            # stages are; anything else goes through numba's dispatcher)
+            call = entry if type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous else disp
+            if call(fp, ip, mass, yy, f, ident, buf, w) and not bad:
+                bad.append(float(t))
+            return f
         if fast_rhs is not None:
             f, nonfinite = fast_rhs.checked(yy)
             if nonfinite and not bad:

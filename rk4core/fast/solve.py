@@ -127,6 +127,23 @@ class CompiledRHS:
 
         return fun
 
+    def permuted_parts(self, perm, readonly=True):
+        """``(fn, fp, ip, mass, perm, buf, w)``: :meth:`permuted`'s compiled
+        function (a numba dispatcher) and its constant arguments, for a caller
+        that calls ``fn(fp, ip, mass, z, zp, perm, buf, w) -> bad`` itself
+        (one Python frame less per call: CVODE's glue). ``fn`` is compiled
+        here for a writable ``z`` and, with ``readonly``, a read-only one
+        (scikit-sundae passes the state read-only), so that no call compiles."""
+        perm = np.ascontiguousarray(perm, dtype=np.int64)
+        buf = np.zeros((3, self.n_state))
+        fn = self._perm
+        z = np.zeros(self.n_state)
+        fn(self.fp, self.ip, self.mass, z, np.zeros(self.n_state), perm, buf, self.w)
+        if readonly:
+            z.setflags(write=False)
+            fn(self.fp, self.ip, self.mass, z, np.zeros(self.n_state), perm, buf, self.w)
+        return fn, self.fp, self.ip, self.mass, perm, buf, self.w
+
 
 def compiled_rhs(model) -> CompiledRHS | None:
     """The model's :class:`CompiledRHS`, or None when it has no compiled form
