@@ -368,3 +368,75 @@ def test_cvode_is_not_calibrated_further_when_its_loosest_run_cannot_win():
         assert "skip" not in c and p.ran == [1e-4, 1e-8] and c["source"] == "log-log line through 2 rtol"
     assert "skip" not in advise_mod._late_candidate(_Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}),
                                                     _CVODE, 1e-3, [], "rk4")   # nothing confirmed yet
+
+
+def test_importing_the_advisor_loads_no_solver_library(tmp_path):
+    """``import rk4h.validation.advise`` (what ``rk4h advise --help`` and a
+    bad argument pay) loads none of the libraries only some candidates need:
+    scikit-sundae (with scipy.optimize), heyoka, numba, scipy, pydantic,
+    matplotlib; each is imported by the run that needs it."""
+    libs = ("sksundae", "heyoka", "sympy", "numba", "scipy", "scipy.optimize", "scipy.integrate", "pydantic",
+            "matplotlib")
+    code = ("import sys\nimport rk4h.validation.advise\n"
+            f"print('LOADED', sorted(m for m in {libs!r} if m in sys.modules))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "LOADED []" in r.stdout
+
+
+def test_no_setting_is_run_twice_except_the_timing_repeats(monkeypatch):
+    """Every integration of one advice, counted (thesis-2dof-case1 at 1e-3):
+    a confirmation at a setting a calibration already ran reuses that run, a
+    sampled step already run is not run again, so each (method, setting) is
+    integrated once outside the timing repeats; those number
+    ``timing_runs - 1`` per listed candidate; and every listed setting was
+    run."""
+    phase, runs = ["other"], []
+    real_run, real_timed = _Problem.run, advise_mod._timed
+
+    def spy(self, method, setting):
+        runs.append((method.name, float(setting), phase[0]))
+        return real_run(self, method, setting)
+
+    def timed(*a, **k):
+        phase[0] = "timing"
+        try:
+            return real_timed(*a, **k)
+        finally:
+            phase[0] = "other"
+
+    monkeypatch.setattr(_Problem, "run", spy)
+    monkeypatch.setattr(advise_mod, "_timed", timed)
+    adv = advise(_scene("thesis-2dof-case1"), 1e-3)
+    evidence = [(m, s) for m, s, ph in runs if ph != "timing"]
+    assert len(evidence) == len(set(evidence)) and len(evidence) > 10
+    for c in adv.candidates:
+        assert (c["method"], c["setting"]) in evidence
+        assert sum(1 for m, s, ph in runs if ph == "timing" and (m, s) == (c["method"], c["setting"])) \
+            == c["timing_runs"] - 1
+    assert all(ph == "other" or (m, s) in {(c["method"], c["setting"]) for c in adv.candidates}
+               for m, s, ph in runs)
+
+
+def test_the_ledger_of_bench_advisor_names_a_setting_run_twice(capsys):
+    """``benchmarks/bench_advisor.py --ledger`` prints, per method and phase,
+    the runs, calls and CPU seconds, and names a (method, setting) integrated
+    more than once outside the timing repeats (a rerun the advisor should
+    have reused); timing repeats are not counted as such."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_advisor", REPO / "benchmarks" / "bench_advisor.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    base = {"scene": "s", "target": 1e-3, "start": 0.1, "import": 0.2, "scene_load": 0.3, "problem": 0.4,
+            "advise": 2.0, "total": 3.0, "answer": "rk4 h = 0.01", "listed": ["rk4 0.01"]}
+    rows = [["rk4", 0.02, "calibration", 4e3, 0.3, 0.3], ["rk4", 0.01, "confirmation", 8e3, 0.002, 0.002],
+            ["rk4", 0.01, "timing", 8e3, 0.002, 0.002], ["rk4", 0.01, "timing", 8e3, 0.002, 0.002]]
+    bench.print_ledger({**base, "rows": rows})
+    out = capsys.readouterr().out
+    assert "integrations 0.31 (4 runs), the rest of advise 1.29" in out
+    assert "run more than once outside timing repeats: none" in out
+    timing = [ln.split() for ln in out.splitlines() if ln.split()[:2] == ["rk4", "timing"]]
+    assert timing == [["rk4", "timing", "2", "1.6e+04", "0.004"]]
+    bench.print_ledger({**base, "rows": rows + [["rk4", 0.02, "confirmation", 4e3, 0.001, 0.001]]})
+    assert "run more than once outside timing repeats: rk4 0.02 x2" in capsys.readouterr().out
