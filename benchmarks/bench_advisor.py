@@ -27,6 +27,10 @@ confirmation, timing repeats) with its RHS calls, the first run of each
 method apart (imports it triggers, numba's cache load, heyoka's JIT), and
 the (method, setting) pairs run more than once outside the timing repeats
 (none expected: a confirmation at a setting already run reuses that run).
+Sampled runs made in forked workers (``advise._prefetch``) are the phase
+"confirmation, forked": the workers' CPU (``RUSAGE_CHILDREN``, a run stopped
+after a miss included) shared equally among the runs recorded, and counted
+in the total.
 
 ``--loop``: RK4's CPU ns per step on planar4-case2 through
 ``rk4h.references.solvers.integrate`` (the advisor's runs) beside a
@@ -115,8 +119,28 @@ def ledger_child(scene: str, target: float) -> dict:
         problem_s[0] = time.process_time() - a
 
     adv_mod._Problem.run, adv_mod._Problem.__init__ = run, init
+    real_prefetch = adv_mod._prefetch
+
+    def prefetch(p, method, steps, target):
+        """Sampled runs in forked workers (advise._prefetch): their CPU is the
+        workers' (RUSAGE_CHILDREN, runs stopped after a miss included), shared
+        equally among the runs recorded."""
+        import resource
+
+        before, c0, w0 = set(p.runs), resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        real_prefetch(p, method, steps, target)
+        c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        new = [k for k in p.runs if k not in before]
+        cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+        for k in new:
+            rows.append([k[0], k[1], "confirmation, forked", float(p.runs[k][1]), cpu / len(new),
+                         (time.perf_counter() - w0) / len(new)])
+
+    adv_mod._prefetch = prefetch
     advice = adv_mod.advise(sc, target)
     t_end = time.process_time()
+    forked = [r[4] for r in rows if r[2] == "confirmation, forked"]
+    t_end += sum(forked)  # the forked workers' CPU, not in this process' clock
     return {"scene": scene, "target": target, "start": t_start, "import": t_import - t_start,
             "scene_load": t_scene - t_import, "problem": problem_s[0], "advise": t_end - t_scene,
             "total": t_end, "rows": rows, "answer": f"{advice.method} {advice.setting_name} = {advice.setting:.4g}",
@@ -132,24 +156,26 @@ def print_ledger(d: dict) -> None:
           f"truth, modes) {d['problem']:.2f}, integrations {runs_s:.2f} ({len(rows)} runs), the rest of advise "
           f"{d['advise'] - d['problem'] - runs_s:.2f}")
     print(f"  answer {d['answer']}; listed: {', '.join(d['listed'])}")
-    print(f"  {'method':<18} {'phase':<13} {'runs':>4} {'RHS calls':>10} {'CPU s':>7}  first run of the method")
+    print(f"  {'method':<18} {'phase':<20} {'runs':>4} {'RHS calls':>10} {'CPU s':>7} {'wall s':>7}  "
+          f"first run of the method")
     first = {}
     for r in rows:
         first.setdefault(r[0], r)
     groups = {}
     for r in rows:
-        g = groups.setdefault((r[0], r[2]), [0, 0.0, 0.0])
+        g = groups.setdefault((r[0], r[2]), [0, 0.0, 0.0, 0.0])
         g[0] += 1
         g[1] += r[3]
         g[2] += r[4]
-    for (name, phase), (n, rhs, cpu) in groups.items():
+        g[3] += r[5]
+    for (name, phase), (n, rhs, cpu, wall) in groups.items():
         f = first[name]
         rest = [r for r in rows if r[0] == name and r is not f and r[3] > 0]
         rate = min((r[4] / r[3] for r in rest), default=math.nan)  # CPU s per RHS call, best of the others
         extra = f[4] - rate * f[3] if math.isfinite(rate) else math.nan
         note = (f"{f[4]:.3f} s CPU ({extra:.3f} s above its calls at the method's best rate)"
                 if f[2] == phase else "")
-        print(f"  {name:<18} {phase:<13} {n:>4} {rhs:>10.3g} {cpu:>7.3f}  {note}")
+        print(f"  {name:<18} {phase:<20} {n:>4} {rhs:>10.3g} {cpu:>7.3f} {wall:>7.3f}  {note}")
     seen = {}
     for r in rows:
         if r[2] != "timing":

@@ -437,6 +437,66 @@ def test_the_ledger_of_bench_advisor_names_a_setting_run_twice(capsys):
     assert "integrations 0.31 (4 runs), the rest of advise 1.29" in out
     assert "run more than once outside timing repeats: none" in out
     timing = [ln.split() for ln in out.splitlines() if ln.split()[:2] == ["rk4", "timing"]]
-    assert timing == [["rk4", "timing", "2", "1.6e+04", "0.004"]]
+    assert timing == [["rk4", "timing", "2", "1.6e+04", "0.004", "0.004"]]
     bench.print_ledger({**base, "rows": rows + [["rk4", 0.02, "confirmation", 4e3, 0.001, 0.001]]})
     assert "run more than once outside timing repeats: rk4 0.02 x2" in capsys.readouterr().out
+
+
+class _Forkable:
+    """A problem whose fixed-step runs return ``(err(h), calls, pid, "ok")``:
+    the error from ``errors`` by step, the process that ran it in place of the
+    wall time; ``rate`` (s per call) decides whether the sample is forked."""
+
+    def __init__(self, errors, rate):
+        self.errors, self.ran = errors, []
+        self.scene = SimpleNamespace(t_end=1.0)
+        self.runs, self.rate, self.compile, self.implementation = {}, {"m": rate}, {}, {}
+
+    def run(self, method, h):
+        import os
+
+        self.ran.append(h)
+        out = (self.errors[h], 4.0 / h, float(os.getpid()), "ok")
+        self.runs.setdefault((method.name, float(h)), out)
+        self.compile[(method.name, float(h))] = 0.5
+        return out
+
+
+_FIXED = SimpleNamespace(name="m", nfev_per_step=4, tableau=None, order=4)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="forked workers need fork")
+def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch):
+    """Sampled runs predicted to take over SAMPLE_FORK_MIN_S each run in
+    forked workers (other processes), and are recorded in the sample's order
+    up to and including the first that misses, nothing after it, each with
+    the result the run gives; a step already run is not run again; with
+    RK4H_WORKERS=1, or runs predicted short, nothing is forked."""
+    import os
+
+    monkeypatch.delenv("RK4H_WORKERS", raising=False)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    errors = {0.1: 1e-4, 0.09: 2e-4, 0.08: 5e-3, 0.07: 1e-4, 0.06: 1e-4}
+    steps, target = sorted(errors, reverse=True), 1e-3
+    p = _Forkable(errors, rate=1.0)
+    p.runs[("m", 0.1)] = (1e-4, 40.0, -1.0, "ok")     # already run (a calibration run): not run again
+    advise_mod._prefetch(p, _FIXED, steps, target)
+    assert p.ran == []                                  # the parent ran nothing itself
+    assert sorted(p.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)]   # up to the miss at 0.08
+    assert p.runs[("m", 0.1)][2] == -1.0
+    assert all(p.runs[("m", h)][:2] == (errors[h], 4.0 / h) and p.runs[("m", h)][3] == "ok" for h in (0.09, 0.08))
+    assert all(p.runs[("m", h)][2] != os.getpid() for h in (0.09, 0.08))     # run in other processes
+    assert p.compile[("m", 0.09)] == 0.5 and p.compile["m"] == 0.5
+    # the sample then reads the same results as one run after the other would give
+    q = _Forkable(errors, rate=1.0)
+    for h in steps[:3]:
+        q.run(_FIXED, h)
+    assert all(q.runs[("m", h)][:2] == p.runs[("m", h)][:2] for h in steps[1:3])
+    for env, rate in (("1", 1.0), (None, 1e-9)):
+        if env:
+            monkeypatch.setenv("RK4H_WORKERS", env)
+        else:
+            monkeypatch.delenv("RK4H_WORKERS", raising=False)
+        r = _Forkable(errors, rate=rate)
+        advise_mod._prefetch(r, _FIXED, steps, target)
+        assert r.runs == {} and r.ran == []

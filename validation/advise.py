@@ -143,6 +143,13 @@ TIMING_REPEATS = 3
 #: this factor.
 SKIP_FACTOR = 10.0
 SKIP_MIN_S = 0.2
+#: Sampled confirmation runs (:func:`sample_steps`) not yet run are run side
+#: by side, in forked copies of this process (:func:`_prefetch`, results
+#: taken in the sample's order, as one after the other), when each is
+#: predicted (its method's best CPU rate times its RHS calls) to take at least
+#: this many seconds; at most one per core this process may use, or
+#: ``RK4H_WORKERS`` when set (1: one after the other).
+SAMPLE_FORK_MIN_S = 0.2
 #: References whose right-hand side is a Python callback per call (CVODE
 #: through scikit-sundae, about 10 us a call): calibrated after every other
 #: candidate is confirmed, and only as far as they can still win
@@ -410,6 +417,8 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     h = cand["setting"]
     for _ in range(CONFIRM_ROUNDS):
         steps = sample_steps(p, h) if why else [h]
+        if why:
+            _prefetch(p, method, steps, target)
         miss = None
         for s in steps:
             err, rhs, wall, status = run(s)
@@ -430,6 +439,79 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     err, rhs, wall, _ = run(s)
     return {"status": "not-met", "setting": s, "error": err, "rhs": rhs, "wall": wall, "sample": [],
             "evidence": sorted(([k, v[0]] for k, v in cache.items()), reverse=True), "why": why}
+
+
+_FORKED = None  # (problem, method) that a forked worker of _prefetch runs
+
+
+def _forked_run(setting):
+    """One run in a forked worker: :meth:`_Problem.run`'s result and what that
+    run recorded (its method's best rate, its compile time, the compiled
+    loop), which the parent records again (:func:`_prefetch`)."""
+    p, method = _FORKED
+    out = p.run(method, setting)
+    return (out, p.rate.get(method.name), p.compile.get((method.name, float(setting)), 0.0),
+            p.implementation.get(method.name))
+
+
+def _sample_workers(p, method, steps) -> int:
+    """How many forked workers :func:`_prefetch` uses for ``steps`` (1: none);
+    see :data:`SAMPLE_FORK_MIN_S`."""
+    import multiprocessing
+    import os
+
+    rate = getattr(p, "rate", {}).get(method.name)
+    if len(steps) < 2 or not rate or "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    t_end = p.scene.t_end
+    if min(rate * trust.fixed_rhs(method, math.ceil(t_end / s * (1 - 1e-12))) for s in steps) < SAMPLE_FORK_MIN_S:
+        return 1
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    env = os.environ.get("RK4H_WORKERS", "")
+    cap = int(env) if env.isdigit() and int(env) >= 1 else cores
+    return max(1, min(len(steps), cores, cap))
+
+
+def _prefetch(p, method, steps, target) -> None:
+    """Run the fixed-step ``steps`` of a sample not run yet (up to the first
+    run already known to miss) side by side (forked copies of this process,
+    :func:`_sample_workers`), and record their results in the sample's
+    order, as :meth:`_Problem.run` would one after the other, up to and
+    including the first that misses ``target``: the later ones, which a
+    sample run in order would not have reached, are dropped (their workers
+    stopped), so the evidence is the same as one run after the other. The
+    runs are deterministic: a forked run gives the error and calls the
+    parent would. Does nothing when one worker is chosen."""
+    global _FORKED
+    import multiprocessing
+
+    known, todo = getattr(p, "runs", {}), []
+    for s in steps:  # up to the first run already known to miss
+        hit = known.get((method.name, float(s)))
+        if hit is None:
+            todo.append(s)
+        elif not (hit[3] == "ok" and hit[0] <= target):
+            break
+    w = _sample_workers(p, method, todo)
+    if w < 2:
+        return
+    _FORKED = (p, method)
+    pool = multiprocessing.get_context("fork").Pool(w)
+    try:
+        for s, (out, rate, compile_s, impl) in zip(todo, pool.imap(_forked_run, todo, chunksize=1)):
+            p.runs.setdefault((method.name, float(s)), out)
+            if rate is not None:
+                p.rate[method.name] = min(p.rate.get(method.name, math.inf), rate)
+            for key in ((method.name, float(s)), method.name):
+                p.compile[key] = max(p.compile.get(key, 0.0), float(compile_s or 0.0))
+            if impl:
+                p.implementation[method.name] = impl
+            if not (out[3] == "ok" and out[0] <= target):
+                break
+    finally:
+        pool.terminate()
+        pool.join()
+        _FORKED = None
 
 
 def _confirm_adaptive(p, method, cand, target) -> dict:
