@@ -471,11 +471,13 @@ def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch)
     forked workers (other processes), and are recorded in the sample's order
     up to and including the first that misses, nothing after it, each with
     the result the run gives; a step already run is not run again; with
-    RK4H_WORKERS=1, or runs predicted short, nothing is forked."""
+    RK4H_WORKERS=1, runs predicted short, or no core left free by the load,
+    nothing is forked; RK4H_WORKERS=2 forks whatever the load."""
     import os
 
     monkeypatch.delenv("RK4H_WORKERS", raising=False)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 1.0, 1.0))    # this process alone
     errors = {0.1: 1e-4, 0.09: 2e-4, 0.08: 5e-3, 0.07: 1e-4, 0.06: 1e-4}
     steps, target = sorted(errors, reverse=True), 1e-3
     p = _Forkable(errors, rate=1.0)
@@ -492,11 +494,16 @@ def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch)
     for h in steps[:3]:
         q.run(_FIXED, h)
     assert all(q.runs[("m", h)][:2] == p.runs[("m", h)][:2] for h in steps[1:3])
-    for env, rate in (("1", 1.0), (None, 1e-9)):
+    for env, rate, load in (("1", 1.0, 1.0), (None, 1e-9, 1.0), (None, 1.0, 2.5)):   # 2.5: a core taken
         if env:
             monkeypatch.setenv("RK4H_WORKERS", env)
         else:
             monkeypatch.delenv("RK4H_WORKERS", raising=False)
+        monkeypatch.setattr(os, "getloadavg", lambda: (load, 1.0, 1.0))
         r = _Forkable(errors, rate=rate)
         advise_mod._prefetch(r, _FIXED, steps, target)
         assert r.runs == {} and r.ran == []
+    monkeypatch.setenv("RK4H_WORKERS", "2")          # as asked, whatever the load
+    r = _Forkable(errors, rate=1.0)
+    advise_mod._prefetch(r, _FIXED, steps, target)
+    assert sorted(r.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)] and r.ran == []

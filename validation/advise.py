@@ -48,9 +48,13 @@ How (all plain data):
    :data:`SAMPLE_STEPS` steps in ``[h/2, h]`` on the output grid
    (:func:`sample_steps`) meet the target; a run that misses shrinks the
    step below it by the error ratio (at least 10 %), at most
-   :data:`CONFIRM_ROUNDS` rounds. On planar4-case2 RK4's error is erratic in
-   ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
-   6.0e-4): the advisor says so and the sampled runs are the evidence.
+   :data:`CONFIRM_ROUNDS` rounds. Sampled runs predicted to take over
+   :data:`SAMPLE_FORK_MIN_S` each run side by side in forked workers on the
+   cores left free (:func:`_prefetch`), recorded in the sample's order up to
+   the first miss: the same evidence, in less wall time. On planar4-case2
+   RK4's error is erratic in ``h`` (623 steps per 0.02 s miss 1e-3 with
+   2.4e-3, 624 meet it with 6.0e-4): the advisor says so and the sampled
+   runs are the evidence.
    ``confirmed_error`` is the largest error of the runs that confirm the
    setting; ``cost_rhs`` the RHS calls of the run at it (heyoka: Taylor steps
    x order); ``cost_s`` the median wall time of up to
@@ -112,7 +116,7 @@ from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step 
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
-           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps"]
+           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "SAMPLE_FORK_MIN_S", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
@@ -146,8 +150,10 @@ SKIP_MIN_S = 0.2
 #: Sampled confirmation runs (:func:`sample_steps`) not yet run are run side
 #: by side, in forked copies of this process (:func:`_prefetch`, results
 #: taken in the sample's order, as one after the other), when each is
-#: predicted (its method's best CPU rate times its RHS calls) to take at least
-#: this many seconds; at most one per core this process may use, or
+#: predicted (its method's best rate times its RHS calls) to take at least
+#: this many seconds; at most one per core this process may use and not
+#: taken by other work (the cores less the 1-minute load average, this
+#: process counted once: on a busy machine forked runs would only wait), or
 #: ``RK4H_WORKERS`` when set (1: one after the other).
 SAMPLE_FORK_MIN_S = 0.2
 #: References whose right-hand side is a Python callback per call (CVODE
@@ -468,7 +474,10 @@ def _sample_workers(p, method, steps) -> int:
         return 1
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     env = os.environ.get("RK4H_WORKERS", "")
-    cap = int(env) if env.isdigit() and int(env) >= 1 else cores
+    if env.isdigit() and int(env) >= 1:
+        cap = int(env)
+    else:  # the cores other work leaves (this process counted once in the load): none on a busy machine
+        cap = int(cores - max(0.0, os.getloadavg()[0] - 1.0) + 0.5) if hasattr(os, "getloadavg") else cores
     return max(1, min(len(steps), cores, cap))
 
 
