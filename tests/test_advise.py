@@ -472,7 +472,9 @@ def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch)
     up to and including the first that misses, nothing after it, each with
     the result the run gives; a step already run is not run again; with
     RK4H_WORKERS=1, runs predicted short, or no core left free by the load,
-    nothing is forked; RK4H_WORKERS=2 forks whatever the load."""
+    nothing is forked; RK4H_WORKERS=2 forks whatever the load. The sample's
+    largest step, when not run yet, runs first in this process, and a miss
+    there forks nothing."""
     import os
 
     monkeypatch.delenv("RK4H_WORKERS", raising=False)
@@ -504,6 +506,10 @@ def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch)
         advise_mod._prefetch(r, _FIXED, steps, target)
         assert r.runs == {} and r.ran == []
     monkeypatch.setenv("RK4H_WORKERS", "2")          # as asked, whatever the load
-    r = _Forkable(errors, rate=1.0)
+    r = _Forkable(errors, rate=1.0)                  # nothing run yet: the largest step here first, then forked
     advise_mod._prefetch(r, _FIXED, steps, target)
-    assert sorted(r.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)] and r.ran == []
+    assert sorted(r.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)] and r.ran == [0.1]
+    assert r.runs[("m", 0.1)][2] == os.getpid() != r.runs[("m", 0.09)][2]
+    r = _Forkable({**errors, 0.1: 2e-3}, rate=1.0)   # and when it misses, nothing is forked
+    advise_mod._prefetch(r, _FIXED, steps, target)
+    assert r.ran == [0.1] and sorted(r.runs) == [("m", 0.1)]

@@ -485,7 +485,8 @@ def _prefetch(p, method, steps, target) -> None:
     """Run the fixed-step ``steps`` of a sample not run yet (up to the first
     run already known to miss) side by side (forked copies of this process,
     :func:`_sample_workers`), and record their results in the sample's
-    order, as :meth:`_Problem.run` would one after the other, up to and
+    order (the sample's largest step, when not run yet, first and alone in
+    this process: it misses most often, and a miss there forks nothing), as :meth:`_Problem.run` would one after the other, up to and
     including the first that misses ``target``: the later ones, which a
     sample run in order would not have reached, are dropped (their workers
     stopped), so the evidence is the same as one run after the other. The
@@ -504,6 +505,10 @@ def _prefetch(p, method, steps, target) -> None:
     w = _sample_workers(p, method, todo)
     if w < 2:
         return
+    if todo[0] == steps[0]:  # the largest step, the likeliest to miss and the cheapest: here first, alone
+        err, _, _, status = getattr(p, "measured", p.run)(method, todo.pop(0))
+        if not (status == "ok" and err <= target) or not todo:
+            return
     _FORKED = (p, method)
     pool = multiprocessing.get_context("fork").Pool(w)
     try:
