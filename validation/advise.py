@@ -486,12 +486,14 @@ def _prefetch(p, method, steps, target) -> None:
     run already known to miss) side by side (forked copies of this process,
     :func:`_sample_workers`), and record their results in the sample's
     order (the sample's largest step, when not run yet, first and alone in
-    this process: it misses most often, and a miss there forks nothing), as :meth:`_Problem.run` would one after the other, up to and
-    including the first that misses ``target``: the later ones, which a
-    sample run in order would not have reached, are dropped (their workers
-    stopped), so the evidence is the same as one run after the other. The
-    runs are deterministic: a forked run gives the error and calls the
-    parent would. Does nothing when one worker is chosen."""
+    this process: it misses most often, and a miss there forks nothing), as
+    :meth:`_Problem.run` would one after the other, up to and including the
+    first that misses ``target``: the later ones, which a sample run in
+    order would not have reached, are dropped (their workers stopped), so
+    the evidence is the same as one run after the other. The runs are
+    deterministic: a forked run gives the error and calls the parent would.
+    Does nothing when one worker is chosen, or fewer than two runs are left
+    (:func:`_confirm_fixed` then runs them one after the other)."""
     global _FORKED
     import multiprocessing
 
@@ -507,10 +509,10 @@ def _prefetch(p, method, steps, target) -> None:
         return
     if todo[0] == steps[0]:  # the largest step, the likeliest to miss and the cheapest: here first, alone
         err, _, _, status = getattr(p, "measured", p.run)(method, todo.pop(0))
-        if not (status == "ok" and err <= target) or not todo:
+        if not (status == "ok" and err <= target) or len(todo) < 2:
             return
     _FORKED = (p, method)
-    pool = multiprocessing.get_context("fork").Pool(w)
+    pool = multiprocessing.get_context("fork").Pool(min(w, len(todo)))
     try:
         for s, (out, rate, compile_s, impl) in zip(todo, pool.imap(_forked_run, todo, chunksize=1)):
             p.runs.setdefault((method.name, float(s)), out)
