@@ -128,13 +128,15 @@ def ledger_child(scene: str, target: float) -> dict:
         import resource
 
         before, c0, w0 = set(p.runs), resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        n_rows = len(rows)
         real_prefetch(p, method, steps, target)
         c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        new = [k for k in p.runs if k not in before]
+        here = {(r[0], r[1]) for r in rows[n_rows:]}  # run in this process (the sample's largest step)
+        new = [k for k in p.runs if k not in before and k not in here]
         cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+        wall = time.perf_counter() - w0 - sum(r[5] for r in rows[n_rows:])
         for k in new:
-            rows.append([k[0], k[1], "confirmation, forked", float(p.runs[k][1]), cpu / len(new),
-                         (time.perf_counter() - w0) / len(new)])
+            rows.append([k[0], k[1], "confirmation, forked", float(p.runs[k][1]), cpu / len(new), wall / len(new)])
 
     adv_mod._prefetch = prefetch
     advice = adv_mod.advise(sc, target)
