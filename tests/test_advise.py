@@ -368,3 +368,148 @@ def test_cvode_is_not_calibrated_further_when_its_loosest_run_cannot_win():
         assert "skip" not in c and p.ran == [1e-4, 1e-8] and c["source"] == "log-log line through 2 rtol"
     assert "skip" not in advise_mod._late_candidate(_Calls({1e-4: (0.3, 2e4, 0.4), 1e-8: (1e-5, 9e4, 1.8)}),
                                                     _CVODE, 1e-3, [], "rk4")   # nothing confirmed yet
+
+
+def test_importing_the_advisor_loads_no_solver_library(tmp_path):
+    """``import rk4h.validation.advise`` (what ``rk4h advise --help`` and a
+    bad argument pay) loads none of the libraries only some candidates need:
+    scikit-sundae (with scipy.optimize), heyoka, numba, scipy, pydantic,
+    matplotlib; each is imported by the run that needs it."""
+    libs = ("sksundae", "heyoka", "sympy", "numba", "scipy", "scipy.optimize", "scipy.integrate", "pydantic",
+            "matplotlib")
+    code = ("import sys\nimport rk4h.validation.advise\n"
+            f"print('LOADED', sorted(m for m in {libs!r} if m in sys.modules))\n")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "LOADED []" in r.stdout
+
+
+def test_no_setting_is_run_twice_except_the_timing_repeats(monkeypatch):
+    """Every integration of one advice, counted (thesis-2dof-case1 at 1e-3):
+    a confirmation at a setting a calibration already ran reuses that run, a
+    sampled step already run is not run again, so each (method, setting) is
+    integrated once outside the timing repeats; those number
+    ``timing_runs - 1`` per listed candidate; and every listed setting was
+    run."""
+    phase, runs = ["other"], []
+    real_run, real_timed = _Problem.run, advise_mod._timed
+
+    def spy(self, method, setting):
+        runs.append((method.name, float(setting), phase[0]))
+        return real_run(self, method, setting)
+
+    def timed(*a, **k):
+        phase[0] = "timing"
+        try:
+            return real_timed(*a, **k)
+        finally:
+            phase[0] = "other"
+
+    monkeypatch.setattr(_Problem, "run", spy)
+    monkeypatch.setattr(advise_mod, "_timed", timed)
+    adv = advise(_scene("thesis-2dof-case1"), 1e-3)
+    evidence = [(m, s) for m, s, ph in runs if ph != "timing"]
+    assert len(evidence) == len(set(evidence)) and len(evidence) > 10
+    for c in adv.candidates:
+        assert (c["method"], c["setting"]) in evidence
+        assert sum(1 for m, s, ph in runs if ph == "timing" and (m, s) == (c["method"], c["setting"])) \
+            == c["timing_runs"] - 1
+    assert all(ph == "other" or (m, s) in {(c["method"], c["setting"]) for c in adv.candidates}
+               for m, s, ph in runs)
+
+
+def test_the_ledger_of_bench_advisor_names_a_setting_run_twice(capsys):
+    """``benchmarks/bench_advisor.py --ledger`` prints, per method and phase,
+    the runs, calls and CPU seconds, and names a (method, setting) integrated
+    more than once outside the timing repeats (a rerun the advisor should
+    have reused); timing repeats are not counted as such."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("bench_advisor", REPO / "benchmarks" / "bench_advisor.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    base = {"scene": "s", "target": 1e-3, "start": 0.1, "import": 0.2, "scene_load": 0.3, "problem": 0.4,
+            "advise": 2.0, "total": 3.0, "answer": "rk4 h = 0.01", "listed": ["rk4 0.01"]}
+    rows = [["rk4", 0.02, "calibration", 4e3, 0.3, 0.3], ["rk4", 0.01, "confirmation", 8e3, 0.002, 0.002],
+            ["rk4", 0.01, "timing", 8e3, 0.002, 0.002], ["rk4", 0.01, "timing", 8e3, 0.002, 0.002]]
+    bench.print_ledger({**base, "rows": rows})
+    out = capsys.readouterr().out
+    assert "integrations 0.31 (4 runs), the rest of advise 1.29" in out
+    assert "run more than once outside timing repeats: none" in out
+    timing = [ln.split() for ln in out.splitlines() if ln.split()[:2] == ["rk4", "timing"]]
+    assert timing == [["rk4", "timing", "2", "1.6e+04", "0.004", "0.004"]]
+    bench.print_ledger({**base, "rows": rows + [["rk4", 0.02, "confirmation", 4e3, 0.001, 0.001]]})
+    assert "run more than once outside timing repeats: rk4 0.02 x2" in capsys.readouterr().out
+
+
+class _Forkable:
+    """A problem whose fixed-step runs return ``(err(h), calls, pid, "ok")``:
+    the error from ``errors`` by step, the process that ran it in place of the
+    wall time; ``rate`` (s per call) decides whether the sample is forked."""
+
+    def __init__(self, errors, rate):
+        self.errors, self.ran = errors, []
+        self.scene = SimpleNamespace(t_end=1.0)
+        self.runs, self.rate, self.compile, self.implementation = {}, {"m": rate}, {}, {}
+
+    def run(self, method, h):
+        import os
+
+        self.ran.append(h)
+        out = (self.errors[h], 4.0 / h, float(os.getpid()), "ok")
+        self.runs.setdefault((method.name, float(h)), out)
+        self.compile[(method.name, float(h))] = 0.5
+        return out
+
+
+_FIXED = SimpleNamespace(name="m", nfev_per_step=4, tableau=None, order=4)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="forked workers need fork")
+def test_a_forked_sample_records_what_one_run_after_the_other_would(monkeypatch):
+    """Sampled runs predicted to take over SAMPLE_FORK_MIN_S each run in
+    forked workers (other processes), and are recorded in the sample's order
+    up to and including the first that misses, nothing after it, each with
+    the result the run gives; a step already run is not run again; with
+    RK4H_WORKERS=1, runs predicted short, or no core left free by the load,
+    nothing is forked; RK4H_WORKERS=2 forks whatever the load. The sample's
+    largest step, when not run yet, runs first in this process, and a miss
+    there forks nothing."""
+    import os
+
+    monkeypatch.delenv("RK4H_WORKERS", raising=False)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 1.0, 1.0))    # this process alone
+    errors = {0.1: 1e-4, 0.09: 2e-4, 0.08: 5e-3, 0.07: 1e-4, 0.06: 1e-4}
+    steps, target = sorted(errors, reverse=True), 1e-3
+    p = _Forkable(errors, rate=1.0)
+    p.runs[("m", 0.1)] = (1e-4, 40.0, -1.0, "ok")     # already run (a calibration run): not run again
+    advise_mod._prefetch(p, _FIXED, steps, target)
+    assert p.ran == []                                  # the parent ran nothing itself
+    assert sorted(p.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)]   # up to the miss at 0.08
+    assert p.runs[("m", 0.1)][2] == -1.0
+    assert all(p.runs[("m", h)][:2] == (errors[h], 4.0 / h) and p.runs[("m", h)][3] == "ok" for h in (0.09, 0.08))
+    assert all(p.runs[("m", h)][2] != os.getpid() for h in (0.09, 0.08))     # run in other processes
+    assert p.compile[("m", 0.09)] == 0.5 and p.compile["m"] == 0.5
+    # the sample then reads the same results as one run after the other would give
+    q = _Forkable(errors, rate=1.0)
+    for h in steps[:3]:
+        q.run(_FIXED, h)
+    assert all(q.runs[("m", h)][:2] == p.runs[("m", h)][:2] for h in steps[1:3])
+    for env, rate, load in (("1", 1.0, 1.0), (None, 1e-9, 1.0), (None, 1.0, 2.5)):   # 2.5: a core taken
+        if env:
+            monkeypatch.setenv("RK4H_WORKERS", env)
+        else:
+            monkeypatch.delenv("RK4H_WORKERS", raising=False)
+        monkeypatch.setattr(os, "getloadavg", lambda: (load, 1.0, 1.0))
+        r = _Forkable(errors, rate=rate)
+        advise_mod._prefetch(r, _FIXED, steps, target)
+        assert r.runs == {} and r.ran == []
+    monkeypatch.setenv("RK4H_WORKERS", "2")          # as asked, whatever the load
+    r = _Forkable(errors, rate=1.0)                  # nothing run yet: the largest step here first, then forked
+    advise_mod._prefetch(r, _FIXED, steps, target)
+    assert sorted(r.runs) == [("m", 0.08), ("m", 0.09), ("m", 0.1)] and r.ran == [0.1]
+    assert r.runs[("m", 0.1)][2] == os.getpid() != r.runs[("m", 0.09)][2]
+    r = _Forkable({**errors, 0.1: 2e-3}, rate=1.0)   # and when it misses, nothing is forked
+    advise_mod._prefetch(r, _FIXED, steps, target)
+    assert r.ran == [0.1] and sorted(r.runs) == [("m", 0.1)]
