@@ -14,8 +14,9 @@ Conventions
   (nothing to close, nothing left open, no display needed) and the caller's
   pyplot backend is left alone.
 * Layout: a figure is laid out once by matplotlib's constrained layout
-  engine when it is drawn (:func:`finish`); the legend sits outside the axes,
-  below them (:func:`legend_below`, never over data).
+  engine just before it is drawn (:func:`lay_out`, from :func:`finish`);
+  the legend sits outside the axes, below them (:func:`legend_below`,
+  never over data).
 * One colour and marker per solver across all figures (:data:`SOLVER_STYLE`);
   the exact/reference solution is black.
 * Sizes: :data:`SIZE` (7 x 4.5 in) at :data:`DPI` (120), i.e. 840 x 540 px;
@@ -51,8 +52,8 @@ __all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "
            "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
            "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors",
            "new_figure", "suptitle", "legend_below", "log_tick_text", "log_decade_text", "log_axes",
-           "tick_labels", "overlapping", "thin_ticks", "texts", "finish", "save", "si", "fmt", "fmt_t",
-           "sentence"]
+           "tick_labels", "overlapping", "thin_ticks", "texts", "layout_on_edges_only", "lay_out",
+           "finish", "save", "si", "fmt", "fmt_t", "sentence"]
 
 SIZE = (7.0, 4.5)        # inches
 SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
@@ -237,8 +238,12 @@ def tick_labels(ax, axis, renderer):
     minor) whose tick lies inside the axes."""
     box = ax.get_window_extent(renderer)
     lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
+    from matplotlib import ticker
+
     out = []
-    for lab in axis.get_ticklabels(minor=False) + axis.get_ticklabels(minor=True):
+    # unlabelled minor ticks (NullFormatter) are not asked for: each call re-locates the ticks
+    unlabelled = isinstance(axis.get_minor_formatter(), ticker.NullFormatter)
+    for lab in axis.get_ticklabels(minor=False) + ([] if unlabelled else axis.get_ticklabels(minor=True)):
         if not lab.get_visible() or not lab.get_text().strip():
             continue
         e = lab.get_window_extent(renderer)
@@ -291,15 +296,63 @@ def texts(fig):
     return out
 
 
+def layout_on_edges_only(fig):
+    """Leave the axes' spines out of the constrained layout. A spine lies on
+    its axes' edge and reaches out only by its tick marks (3.5 pt, inside the
+    tick labels' pad); matplotlib measures it by updating its axis' ticks
+    again, four spines per axes and twice per layout: a quarter of a
+    figure's layout for no change of its margins. Tick labels, axis labels,
+    titles, legends and texts stay in the layout."""
+    for ax in fig.axes:
+        for spine in ax.spines.values():
+            spine.set_in_layout(False)
+
+
+def lay_out(fig, engine):
+    """Lay ``fig`` out once with ``engine`` (its constrained layout engine)
+    and keep the result: the draw that follows runs no layout of its own.
+
+    The layout is computed from cheaper inputs that give the same margins:
+    spines out of it (:func:`layout_on_edges_only`), and no minor ticks on
+    axes whose minor ticks carry no label (``NullFormatter``: the log axes'
+    faint grid) while it runs; they are located again for the draw. Any
+    other engine (or none) is left to the draw."""
+    from matplotlib import ticker
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    if not isinstance(engine, ConstrainedLayoutEngine):
+        return
+    layout_on_edges_only(fig)
+    unlabelled = []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            locator = axis.get_minor_locator()
+            if isinstance(axis.get_minor_formatter(), ticker.NullFormatter) and not isinstance(
+                    locator, ticker.NullLocator):  # a shared axis' locator is met once: the first puts it aside
+                unlabelled.append((axis, locator, axis.isDefault_minloc))
+                axis.set_minor_locator(ticker.NullLocator())
+    fig.set_layout_engine(engine)
+    try:
+        engine.execute(fig)
+    finally:
+        for axis, locator, default in reversed(unlabelled):
+            axis.set_minor_locator(locator)
+            axis.isDefault_minloc = default
+        fig.set_layout_engine("none")  # the positions just computed stand for the draw
+
+
 def finish(fig):
-    """Draw ``fig`` (layout included) with the house rules enforced: no text
-    under :data:`FONT_MIN`, white background, and axes whose tick labels
-    overlap thinned until they do not (at most three redraws)."""
+    """Draw ``fig`` (layout included, :func:`lay_out`) with the house rules
+    enforced: no text under :data:`FONT_MIN`, white background, and axes
+    whose tick labels overlap thinned until they do not (at most three
+    redraws, each laid out again)."""
     fig.patch.set_facecolor("white")
     fig.patch.set_alpha(1.0)
     for t in texts(fig):
         if t.get_fontsize() < FONT_MIN:
             t.set_fontsize(FONT_MIN)
+    engine = fig.get_layout_engine()
+    lay_out(fig, engine)
     fig.canvas.draw()
     for _ in range(3):
         renderer = fig.canvas.get_renderer()
@@ -315,6 +368,7 @@ def finish(fig):
             return
         for ax, axis, n in crowded:
             thin_ticks(ax, axis, n)
+        lay_out(fig, engine)
         fig.canvas.draw()
 
 
