@@ -308,6 +308,38 @@ def layout_on_edges_only(fig):
             spine.set_in_layout(False)
 
 
+def minor_grid_lines(fig):
+    """The faint grid of the log axes' unlabelled minor ticks (``NullFormatter``,
+    :func:`log_axes`) drawn as one line collection per axis at the ticks'
+    final places, and those ticks removed: a minor tick is an object of five
+    artists that the layout and the draw update one by one, a fifth of a
+    log-log figure's time for lines that carry no label. The grid keeps the
+    minor gridlines' colour, width and alpha; the short minor tick marks on
+    the frame go. Call when the limits are final (:func:`finish` does)."""
+    from matplotlib import ticker
+    from matplotlib.collections import LineCollection
+
+    found = []
+    for ax in fig.axes:
+        for axis, to_axes in ((ax.xaxis, ax.get_xaxis_transform()), (ax.yaxis, ax.get_yaxis_transform())):
+            locator = axis.get_minor_locator()
+            if (axis.get_scale() != "log" or isinstance(locator, ticker.NullLocator)
+                    or not isinstance(axis.get_minor_formatter(), ticker.NullFormatter)):
+                continue
+            lo, hi = sorted(axis.get_view_interval())
+            found.append((ax, axis, to_axes, [v for v in locator() if lo <= v <= hi]))
+    for ax, axis, to_axes, locs in found:  # located first: shared axes share one locator
+        tick = axis.get_minor_ticks(1)[0] if locs else None  # its gridline carries ax.grid's settings
+        if tick is not None and tick.gridline.get_visible():
+            g = tick.gridline
+            segments = [[(v, 0.0), (v, 1.0)] if axis is ax.xaxis else [(0.0, v), (1.0, v)] for v in locs]
+            ax.add_collection(LineCollection(segments, transform=to_axes, colors=[g.get_color()],
+                                             linewidths=g.get_linewidth(), linestyles=g.get_linestyle(),
+                                             alpha=g.get_alpha(), zorder=axis.get_zorder()),
+                              autolim=False)
+        axis.set_minor_locator(ticker.NullLocator())
+
+
 def lay_out(fig, engine):
     """Lay ``fig`` out once with ``engine`` (its constrained layout engine)
     and keep the result: the draw that follows runs no layout of its own.
@@ -351,6 +383,7 @@ def finish(fig):
     for t in texts(fig):
         if t.get_fontsize() < FONT_MIN:
             t.set_fontsize(FONT_MIN)
+    minor_grid_lines(fig)
     engine = fig.get_layout_engine()
     lay_out(fig, engine)
     fig.canvas.draw()
