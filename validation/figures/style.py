@@ -236,10 +236,10 @@ def log_axes(ax, x=True, y=True):
 def tick_labels(ax, axis, renderer):
     """Window extents of ``axis``'s visible, non-empty tick labels (major and
     minor) whose tick lies inside the axes."""
-    box = ax.get_window_extent(renderer)
-    lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
     from matplotlib import ticker
 
+    box = ax.get_window_extent(renderer)
+    lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
     out = []
     # unlabelled minor ticks (NullFormatter) are not asked for: each call re-locates the ticks
     unlabelled = isinstance(axis.get_minor_formatter(), ticker.NullFormatter)
@@ -300,8 +300,9 @@ def layout_on_edges_only(fig):
     """Leave the axes' spines out of the constrained layout. A spine lies on
     its axes' edge and reaches out only by its tick marks (3.5 pt, inside the
     tick labels' pad); matplotlib measures it by updating its axis' ticks
-    again, four spines per axes and twice per layout: a quarter of a
-    figure's layout for no change of its margins. Tick labels, axis labels,
+    again, four spines per axes and twice per layout: half of the layout's
+    tick updates, for no change of its margins (within the tick marks'
+    length where a shared axis hides a panel's tick labels). Tick labels, axis labels,
     titles, legends and texts stay in the layout."""
     for ax in fig.axes:
         for spine in ax.spines.values():
@@ -312,8 +313,8 @@ def minor_grid_lines(fig):
     """The faint grid of the log axes' unlabelled minor ticks (``NullFormatter``,
     :func:`log_axes`) drawn as one line collection per axis at the ticks'
     final places, and those ticks removed: a minor tick is an object of five
-    artists that the layout and the draw update one by one, a fifth of a
-    log-log figure's time for lines that carry no label. The grid keeps the
+    artists that the layout and the draw update one by one: a third to a
+    half of a log-log figure's Python calls, for lines that carry no label. The grid keeps the
     minor gridlines' colour, width and alpha; the short minor tick marks on
     the frame go. Call when the limits are final (:func:`finish` does)."""
     from matplotlib import ticker
