@@ -9,7 +9,9 @@ before and after. Each kind is drawn once first (imports, fonts, caches).
 ``--against REV`` draws the same kinds with the code of commit ``REV``
 (``git archive`` into a temporary directory) in a second process, rounds
 alternating between the two trees so machine drift hits both alike, and
-prints both medians and their ratio. CPU seconds are the figure to read on
+prints both medians and their ratio. Each process imports ``rk4h`` from the
+tree it measures (a finder of its own ahead of an editable install's, which
+would map ``rk4h`` to this checkout in both processes) and checks that it did. CPU seconds are the figure to read on
 a shared machine; wall seconds include what the neighbours take.
 ``--minor-ticks`` instead compares the log axes' minor ticks at 2 and 5 of
 each decade (``rk4h.validation.figures.style.MINOR_SUBS``, the default) with
@@ -36,10 +38,24 @@ REPO = Path(__file__).resolve().parent.parent
 #: One round in a child process: every kind once (warm), then ``rounds`` timed
 #: draws of each; prints ``{kind: [[cpu, wall], ...]}`` as JSON.
 _CHILD = r"""
-import json, sys, tempfile, time
+import importlib.util, json, sys, tempfile, time
 from pathlib import Path
 root, rounds, minor = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
-sys.path[:0] = [str(root), str(root / "tests")]
+# rk4h from the tree under test, not from the installed one: an editable install maps rk4h to its
+# own checkout whatever sys.path says, so the other commit's figures would be this checkout's
+_DIRS = {"rk4h": root / "rk4core", "rk4h.references": root / "references", "rk4h.validation": root / "validation"}
+class _TreeFinder:
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if name in _DIRS:
+            return importlib.util.spec_from_file_location(name, _DIRS[name] / "__init__.py",
+                                                          submodule_search_locations=[str(_DIRS[name])])
+        return None
+sys.meta_path.insert(0, _TreeFinder)
+sys.path[:0] = [str(root / "tests")]
+import rk4h.validation.figures.style
+assert Path(rk4h.validation.figures.style.__file__).resolve().is_relative_to(root.resolve()), \
+    f"rk4h comes from {rk4h.validation.figures.style.__file__}, not from {root}"
 import test_figure_layout as layout
 if minor != "default":
     from rk4h.validation.figures import style

@@ -540,3 +540,48 @@ def test_scene_methods_are_drawn_in_their_registry_styles(built):
     assert len(set(colours.values())) == len(colours), colours
     guides = sorted(line.get_gid() for line in ax.get_lines() if (line.get_gid() or "").startswith("guide"))
     assert guides == ["guide_slope_1", "guide_slope_2", "guide_slope_3", "guide_slope_4"]
+
+
+# -- the cheaper layout and the minor grid (figures at a fraction of their cost) -----------------------
+@pytest.mark.parametrize("kind", ["convergence", "energy_work_precision", "dispersion"])
+def test_the_layout_from_cheaper_inputs_is_the_constrained_layout(kind, tmp_path, monkeypatch):
+    """Laid out without the spines (``style.lay_out``), every axes sits where
+    the full constrained layout puts it, give or take the tick marks' length
+    (3.5 pt) where a panel's tick labels are hidden (shared axes): its tick
+    marks then reach into the gap instead of widening it."""
+    import matplotlib
+
+    seen = []
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append(fig))
+    BUILDERS[kind](tmp_path)
+    tick_px = matplotlib.rcParams["xtick.major.size"] / 72.0 * figures.DPI
+    for fig in seen:
+        size = np.array(fig.canvas.get_width_height() * 2, float)
+        fast = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        for ax in fig.axes:
+            for spine in ax.spines.values():
+                spine.set_in_layout(True)
+        fig.set_layout_engine("constrained")
+        fig.canvas.draw()
+        full = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        assert np.abs(fast - full).max() <= tick_px, (kind, fast - full)
+
+
+def test_log_axes_draw_their_minor_grid_as_lines_not_ticks(built):
+    """The unlabelled minor ticks of a log axis (2 and 5 x 10^k) are drawn as
+    one faint line collection at every such value inside the view, and no
+    minor tick objects are left to lay out and draw."""
+    from matplotlib.collections import LineCollection
+
+    (fig, _, _), = built("convergence")
+    ax = fig.axes[0]
+    grids = [c for c in ax.collections if isinstance(c, LineCollection)]
+    assert len(grids) == 2  # one per log axis
+    for axis, grid, col in ((ax.xaxis, grids[0], 0), (ax.yaxis, grids[1], 1)):
+        assert len(axis.get_minorticklocs()) == 0
+        lo, hi = sorted(axis.get_view_interval())
+        values = np.array([seg[0][col] for seg in grid.get_segments()])
+        want = [m * 10.0 ** e for e in range(math.floor(math.log10(lo)), math.ceil(math.log10(hi)) + 1)
+                for m in figures.style.MINOR_SUBS if lo <= m * 10.0 ** e <= hi]
+        np.testing.assert_allclose(np.sort(values), np.sort(want), rtol=1e-12)
+        assert 0 < grid.get_alpha() < 0.5

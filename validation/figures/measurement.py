@@ -562,12 +562,15 @@ def crossover(out_dir, df) -> tuple[Path, str]:
             empty[blank] = empty.get(blank, 0) + 1
         counts[solver] = counts.get(solver, 0) + 1
         color = kit.solver_style(solver)[0] if solver else "#ffffff"
-        ax.add_patch(_rect(j, i, color, alpha=0.45 if solver else 1.0))
+        # add_artist, not add_patch: the limits are set below, and add_patch's update of the data
+        # limits per cell was a fifth of the figure
+        ax.add_artist(_rect(j, i, color, alpha=0.45 if solver else 1.0))
         txt = solver or blank
         cost = getattr(r, "rhs" if by_rhs else "wall_s", None)
         if solver and cost is not None and np.isfinite(cost):
             txt += f"\n{cost:.2g} RHS" if by_rhs else f"\n{cost:.2g} s"
-        ax.text(j, i, txt, ha="center", va="center", fontsize=kit.FONT_SMALL, linespacing=1.0)
+        # inside its cell, so inside the axes: left out of the layout, which measured every cell's text
+        ax.text(j, i, txt, ha="center", va="center", fontsize=kit.FONT_SMALL, linespacing=1.0, in_layout=False)
     ax.set_xlim(-0.5, len(targets) - 0.5)
     ax.set_ylim(len(scenes) - 0.5, -0.5)
     ax.set_xticks(range(len(targets)), [f"{t:.0e}" for t in targets])

@@ -570,7 +570,8 @@ def _plane_paths(title, d, q, labels, margin=0.06):
     for ax, (cx, cy), w in zip(axes, centres, wx):  # provisional limits, for the layout
         ax.set_xlim(cx - w * (0.5 + margin), cx + w * (0.5 + margin))
         ax.set_ylim(cy - wy * (0.5 + margin), cy + wy * (0.5 + margin))
-    fig.canvas.draw()  # lays the panels out; their sizes set the common scale
+    kit.layout_on_edges_only(fig)
+    fig.get_layout_engine().execute(fig)  # lays the panels out (no rendering); their sizes set the common scale
     fw, fh = fig.get_size_inches()
     size = [(ax.get_position().width * fw, ax.get_position().height * fh) for ax in axes]
     scale = max(max(w * (1 + 2 * margin) / sw, wy * (1 + 2 * margin) / sh) for w, (sw, sh) in zip(wx, size))

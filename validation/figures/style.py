@@ -14,8 +14,9 @@ Conventions
   (nothing to close, nothing left open, no display needed) and the caller's
   pyplot backend is left alone.
 * Layout: a figure is laid out once by matplotlib's constrained layout
-  engine when it is drawn (:func:`finish`); the legend sits outside the axes,
-  below them (:func:`legend_below`, never over data).
+  engine just before it is drawn (:func:`lay_out`, from :func:`finish`);
+  the legend sits outside the axes, below them (:func:`legend_below`,
+  never over data).
 * One colour and marker per solver across all figures (:data:`SOLVER_STYLE`);
   the exact/reference solution is black.
 * Sizes: :data:`SIZE` (7 x 4.5 in) at :data:`DPI` (120), i.e. 840 x 540 px;
@@ -51,8 +52,8 @@ __all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "
            "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
            "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors",
            "new_figure", "suptitle", "legend_below", "log_tick_text", "log_decade_text", "log_axes",
-           "tick_labels", "overlapping", "thin_ticks", "texts", "finish", "save", "si", "fmt", "fmt_t",
-           "sentence"]
+           "tick_labels", "overlapping", "thin_ticks", "texts", "layout_on_edges_only", "lay_out",
+           "finish", "save", "si", "fmt", "fmt_t", "sentence"]
 
 SIZE = (7.0, 4.5)        # inches
 SIZE_TALL = (7.0, 6.0)   # inches, the three-panel dispersion figure
@@ -235,10 +236,14 @@ def log_axes(ax, x=True, y=True):
 def tick_labels(ax, axis, renderer):
     """Window extents of ``axis``'s visible, non-empty tick labels (major and
     minor) whose tick lies inside the axes."""
+    from matplotlib import ticker
+
     box = ax.get_window_extent(renderer)
     lo, hi = (box.x0, box.x1) if axis is ax.xaxis else (box.y0, box.y1)
     out = []
-    for lab in axis.get_ticklabels(minor=False) + axis.get_ticklabels(minor=True):
+    # unlabelled minor ticks (NullFormatter) are not asked for: each call re-locates the ticks
+    unlabelled = isinstance(axis.get_minor_formatter(), ticker.NullFormatter)
+    for lab in axis.get_ticklabels(minor=False) + ([] if unlabelled else axis.get_ticklabels(minor=True)):
         if not lab.get_visible() or not lab.get_text().strip():
             continue
         e = lab.get_window_extent(renderer)
@@ -291,15 +296,97 @@ def texts(fig):
     return out
 
 
+def layout_on_edges_only(fig):
+    """Leave the axes' spines out of the constrained layout. A spine lies on
+    its axes' edge and reaches out only by its tick marks (3.5 pt, inside the
+    tick labels' pad); matplotlib measures it by updating its axis' ticks
+    again, four spines per axes and twice per layout: half of the layout's
+    tick updates, for no change of its margins (within the tick marks'
+    length where a shared axis hides a panel's tick labels). Tick labels, axis labels,
+    titles, legends and texts stay in the layout."""
+    for ax in fig.axes:
+        for spine in ax.spines.values():
+            spine.set_in_layout(False)
+
+
+def minor_grid_lines(fig):
+    """The faint grid of the log axes' unlabelled minor ticks (``NullFormatter``,
+    :func:`log_axes`) drawn as one line collection per axis at the ticks'
+    final places, and those ticks removed: a minor tick is an object of five
+    artists that the layout and the draw update one by one: a third to a
+    half of a log-log figure's Python calls, for lines that carry no label. The grid keeps the
+    minor gridlines' colour, width and alpha; the short minor tick marks on
+    the frame go. Call when the limits are final (:func:`finish` does)."""
+    from matplotlib import ticker
+    from matplotlib.collections import LineCollection
+
+    found = []
+    for ax in fig.axes:
+        for axis, to_axes in ((ax.xaxis, ax.get_xaxis_transform()), (ax.yaxis, ax.get_yaxis_transform())):
+            locator = axis.get_minor_locator()
+            if (axis.get_scale() != "log" or isinstance(locator, ticker.NullLocator)
+                    or not isinstance(axis.get_minor_formatter(), ticker.NullFormatter)):
+                continue
+            lo, hi = sorted(axis.get_view_interval())
+            found.append((ax, axis, to_axes, [v for v in locator() if lo <= v <= hi]))
+    for ax, axis, to_axes, locs in found:  # located first: shared axes share one locator
+        tick = axis.get_minor_ticks(1)[0] if locs else None  # its gridline carries ax.grid's settings
+        if tick is not None and tick.gridline.get_visible():
+            g = tick.gridline
+            segments = [[(v, 0.0), (v, 1.0)] if axis is ax.xaxis else [(0.0, v), (1.0, v)] for v in locs]
+            ax.add_collection(LineCollection(segments, transform=to_axes, colors=[g.get_color()],
+                                             linewidths=g.get_linewidth(), linestyles=g.get_linestyle(),
+                                             alpha=g.get_alpha(), zorder=axis.get_zorder()),
+                              autolim=False)
+        axis.set_minor_locator(ticker.NullLocator())
+
+
+def lay_out(fig, engine):
+    """Lay ``fig`` out once with ``engine`` (its constrained layout engine)
+    and keep the result: the draw that follows runs no layout of its own.
+
+    The layout is computed from cheaper inputs that give the same margins:
+    spines out of it (:func:`layout_on_edges_only`), and no minor ticks on
+    axes whose minor ticks carry no label (``NullFormatter``: the log axes'
+    faint grid) while it runs; they are located again for the draw. Any
+    other engine (or none) is left to the draw."""
+    from matplotlib import ticker
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    if not isinstance(engine, ConstrainedLayoutEngine):
+        return
+    layout_on_edges_only(fig)
+    unlabelled = []
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            locator = axis.get_minor_locator()
+            if isinstance(axis.get_minor_formatter(), ticker.NullFormatter) and not isinstance(
+                    locator, ticker.NullLocator):  # a shared axis' locator is met once: the first puts it aside
+                unlabelled.append((axis, locator, axis.isDefault_minloc))
+                axis.set_minor_locator(ticker.NullLocator())
+    fig.set_layout_engine(engine)
+    try:
+        engine.execute(fig)
+    finally:
+        for axis, locator, default in reversed(unlabelled):
+            axis.set_minor_locator(locator)
+            axis.isDefault_minloc = default
+        fig.set_layout_engine("none")  # the positions just computed stand for the draw
+
+
 def finish(fig):
-    """Draw ``fig`` (layout included) with the house rules enforced: no text
-    under :data:`FONT_MIN`, white background, and axes whose tick labels
-    overlap thinned until they do not (at most three redraws)."""
+    """Draw ``fig`` (layout included, :func:`lay_out`) with the house rules
+    enforced: no text under :data:`FONT_MIN`, white background, and axes
+    whose tick labels overlap thinned until they do not (at most three
+    redraws, each laid out again)."""
     fig.patch.set_facecolor("white")
     fig.patch.set_alpha(1.0)
     for t in texts(fig):
         if t.get_fontsize() < FONT_MIN:
             t.set_fontsize(FONT_MIN)
+    minor_grid_lines(fig)
+    engine = fig.get_layout_engine()
+    lay_out(fig, engine)
     fig.canvas.draw()
     for _ in range(3):
         renderer = fig.canvas.get_renderer()
@@ -315,6 +402,7 @@ def finish(fig):
             return
         for ax, axis, n in crowded:
             thin_ticks(ax, axis, n)
+        lay_out(fig, engine)
         fig.canvas.draw()
 
 
