@@ -29,7 +29,9 @@ _SOLVER_PURPOSES = ("run", "confirm", "order", "figure")
 #: Reference adapters (``Method.adapter``) that call the model's compiled right-hand side.
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
 #: The adapters that call the compiled right-hand side on a read-only state
-#: (scikit-sundae hands CVODE's state over read-only: a second numba signature).
+#: (scikit-sundae hands CVODE's state over read-only). Since round 3 of the
+#: cold start the right-hand side is compiled for that one signature only
+#: (``rk4h.fast.solve._one_signature``); CVODE's job is still preferred.
 _READONLY_STATE = ("cvode-adams", "cvode-bdf")
 
 
@@ -100,8 +102,8 @@ def loop_jobs(jobs) -> list:
             out.append((scene, solver))
         elif (key[0] == "rhs" and _adapter(scene, solver) in _READONLY_STATE
               and _adapter(*out[seen[key]]) not in _READONLY_STATE):
-            # one job per module: CVODE's job compiles both signatures of its right-hand side
-            # (two jobs on one module, in two workers, would race on numba's index file)
+            # one job per module (two jobs on one module, in two workers, would race on
+            # numba's index file); CVODE's, which also calls the read-only form
             out[seen[key]] = (scene, solver)
     return out
 
@@ -133,8 +135,9 @@ def warm_one(scene, solver) -> float:
 
 
 def _warm_readonly(rhs, y0) -> None:
-    """Compile ``rhs``'s entry point for a read-only state, the form CVODE's
-    callback calls (the computed values are discarded)."""
+    """Call ``rhs``'s entry point on a read-only state, the form CVODE's
+    callback calls (the computed values are discarded): the one signature
+    :class:`rk4h.fast.CompiledRHS` compiles, so nothing more is compiled."""
     import numpy as np
 
     z = np.array(y0, dtype=float)
