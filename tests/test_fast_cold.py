@@ -109,3 +109,25 @@ def test_equal_coefficients_share_one_loop_text(method, n):
     b = fast.solve_model(model, (0.0, 1.0), y0, n_steps=50, t_eval=[0.0, 0.33, 1.0], method=twin)
     assert np.array_equal(a.y, b.y) and a.nfev == b.nfev
     assert b.method == twin.name
+
+
+def test_a_stability_studys_loop_is_handed_out():
+    """stability_planar4 has no run spec: its studies' RK4 loop on planar4
+    was compiled by each worker that met it (round 3's two-worker ledger);
+    it is now one job of :func:`rk4h.validation.warm.loop_jobs`."""
+    from pathlib import Path
+
+    from rk4h.validation.execute import problem
+    from rk4h.validation.plan import plan_all
+    from rk4h.validation.scenes import load_scene
+    from rk4h.validation.warm import STABILITY, _loop_key, loop_jobs, warm_one
+
+    scene = load_scene(Path(__file__).resolve().parent.parent / "validation" / "scenes" / "stability_planar4.toml")
+    jobs = plan_all([scene], quick=True, figures=False)
+    assert {spec.purpose for _, spec in jobs} == {"stability"}
+    pairs = loop_jobs(jobs)
+    assert pairs == [(scene, STABILITY)]
+    model, _ = problem(scene)
+    assert _loop_key(scene, STABILITY)[0] == "scalar"  # the straight-line loop of RK4 on planar4
+    assert warm_one(scene, STABILITY) >= 0.0
+    assert fast.solve.warmed(model, get_method("rk4"))
