@@ -6,7 +6,8 @@ process. With several worker processes and a cold cache, every worker used
 to compile the same loops at the same time (each loop's compile time paid
 once per worker). :func:`warm_pools` instead hands each *distinct* loop the
 plan needs -- a fixed-step method on a force structure, or the compiled
-right-hand side DOP853 and CVODE call -- to one worker, the loops spread over
+right-hand side DOP853 and CVODE call, or a stability study's method on the
+scene's model -- to one worker, the loops spread over
 all workers, and waits; the runs after it load the loops from the cache
 (about 0.2 s per process for all of them).
 
@@ -29,8 +30,25 @@ _SOLVER_PURPOSES = ("run", "confirm", "order", "figure")
 #: Reference adapters (``Method.adapter``) that call the model's compiled right-hand side.
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
 #: The adapters that call the compiled right-hand side on a read-only state
-#: (scikit-sundae hands CVODE's state over read-only: a second numba signature).
+#: (scikit-sundae hands CVODE's state over read-only). Since round 3 of the
+#: cold start the right-hand side is compiled for that one signature only
+#: (``rk4h.fast.solve._one_signature``); CVODE's job is still preferred.
 _READONLY_STATE = ("cvode-adams", "cvode-bdf")
+
+
+#: The ``solver`` of a job that prepares a stability study's loop: the scene's
+#: ``stability.method`` on its model (a stability spec names no solver; the
+#: studies other than ``boundary`` integrate that method, on the scene's model
+#: or on others, e.g. a linearized one, that are not prepared here).
+STABILITY = "<stability.method>"
+
+
+def _stability_tableau(scene):
+    """The tableau of ``scene``'s ``stability.method``."""
+    from .stability.params import validate_params
+    from .stability.studies import context_method
+
+    return context_method(scene, validate_params(dict(scene.stability or {})))[1]
 
 
 def _adapter(scene, solver) -> str:
@@ -51,11 +69,15 @@ def _loop_key(scene, solver):
     kern = fast.force_kernel(model)
     if kern is None:
         return None
-    method = scene.method(solver)
-    if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
+    if solver == STABILITY:
+        tab = _stability_tableau(scene)
+    else:
+        method = scene.method(solver)
+        tab = method.tableau if method.kind in (Kind.TABLEAU, Kind.PARTITIONED) else None
+    if tab is not None:
         if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
-            return ("scalar",) + _cache_key(method.tableau) + (kern.scalar_key(),)
-        return ("array",) + _cache_key(method.tableau) + (kern.key(),)
+            return ("scalar",) + _cache_key(tab) + (kern.scalar_key(),)
+        return ("array",) + _cache_key(tab) + (kern.key(),)
     if method.runner_key in _COMPILED_REFERENCES:
         return ("rhs", kern.key())
     return None
@@ -85,7 +107,9 @@ def loop_jobs(jobs) -> list:
     batched = _batched_keys(jobs)
     for scene, spec in jobs:
         solver = getattr(spec, "solver", "")
-        if getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
+        if getattr(spec, "purpose", "") == "stability":
+            solver = STABILITY  # the study's loop on the scene's model (stability_planar4's RK4 on planar4)
+        elif getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
             continue
         if getattr(spec, "key", None) in batched:  # runs in a sweep's batch loop, not this one
             continue
@@ -100,8 +124,8 @@ def loop_jobs(jobs) -> list:
             out.append((scene, solver))
         elif (key[0] == "rhs" and _adapter(scene, solver) in _READONLY_STATE
               and _adapter(*out[seen[key]]) not in _READONLY_STATE):
-            # one job per module: CVODE's job compiles both signatures of its right-hand side
-            # (two jobs on one module, in two workers, would race on numba's index file)
+            # one job per module (two jobs on one module, in two workers, would race on
+            # numba's index file); CVODE's, which also calls the read-only form
             out[seen[key]] = (scene, solver)
     return out
 
@@ -118,6 +142,9 @@ def warm_one(scene, solver) -> float:
         from .execute import problem
 
         model, y0 = problem(scene)
+        if solver == STABILITY:
+            fast.warm_up(model, _stability_tableau(scene))
+            return time.perf_counter() - start
         method = scene.method(solver)
         if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
             fast.warm_up(model, method.tableau)
@@ -133,8 +160,9 @@ def warm_one(scene, solver) -> float:
 
 
 def _warm_readonly(rhs, y0) -> None:
-    """Compile ``rhs``'s entry point for a read-only state, the form CVODE's
-    callback calls (the computed values are discarded)."""
+    """Call ``rhs``'s entry point on a read-only state, the form CVODE's
+    callback calls (the computed values are discarded): the one signature
+    :class:`rk4h.fast.CompiledRHS` compiles, so nothing more is compiled."""
     import numpy as np
 
     z = np.array(y0, dtype=float)

@@ -91,7 +91,8 @@ class CompiledRHS:
 
     def __init__(self, model, kern):
         module = model_module(kern)
-        self._perm = module.rhs_permuted  # one compiled entry point (identity order for DOP853)
+        # one compiled entry point (identity order for DOP853), for one signature
+        self._perm = _one_signature(module.rhs_permuted)
         self.fp = np.ascontiguousarray(kern.fp, dtype=float)
         self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
         self.mass = np.ascontiguousarray(model.mass, dtype=float)
@@ -99,19 +100,35 @@ class CompiledRHS:
         self.n_state = 2 * model.n_dof
         self._identity = np.arange(self.n_state, dtype=np.int64)
         self._buf = np.zeros((3, self.n_state))
-        # Each entry point is compiled (or loaded from the disk cache) on its
-        # first call: call it once before a timed run (the references do).
+        # The entry point is compiled (or loaded from the disk cache) here,
+        # once per force structure and process (:func:`_one_signature`).
 
     def __call__(self, t, y):
         out = np.empty(self.n_state)
-        self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        try:
+            self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        except TypeError:
+            self._any(y, out, self._identity, self._buf)
         return out
 
     def checked(self, y):
         """``(dy/dt, bad)``: ``bad`` is True when ``y`` is finite and ``dy/dt`` is not."""
         out = np.empty(self.n_state)
-        bad = self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        try:
+            bad = self._perm(self.fp, self.ip, self.mass, y, out, self._identity, self._buf, self.w)
+        except TypeError:
+            bad = self._any(y, out, self._identity, self._buf)
         return out, bad
+
+    def _any(self, z, zp, perm, buf):
+        """The entry point for a state ``z`` or an output ``zp`` that is not
+        a C-contiguous float64 vector (the one compiled signature's): through
+        copies of that type, the same numbers."""
+        zc = np.ascontiguousarray(z, dtype=np.float64)
+        out = np.empty(self.n_state)
+        bad = self._perm(self.fp, self.ip, self.mass, zc, out, perm, buf, self.w)
+        zp[...] = out
+        return bad
 
     def permuted(self, perm):
         """``fun(z, zp) -> bad``: writes ``zp = (dy/dt)[perm]`` for the state
@@ -120,10 +137,13 @@ class CompiledRHS:
         perm = np.ascontiguousarray(perm, dtype=np.int64)
         buf = np.zeros((3, self.n_state))
         fn, fp, ip, mass, w = self._perm, self.fp, self.ip, self.mass, self.w
-        fn(fp, ip, mass, np.zeros(self.n_state), np.zeros(self.n_state), perm, buf, w)  # compile now
+        any_type = self._any
 
         def fun(z, zp):
-            return fn(fp, ip, mass, z, zp, perm, buf, w)
+            try:
+                return fn(fp, ip, mass, z, zp, perm, buf, w)
+            except TypeError:
+                return any_type(z, zp, perm, buf)
 
         return fun
 
@@ -143,6 +163,37 @@ class CompiledRHS:
             z.setflags(write=False)
             fn(self.fp, self.ip, self.mass, z, np.zeros(self.n_state), perm, buf, self.w)
         return fn, self.fp, self.ip, self.mass, perm, buf, self.w
+
+
+def _one_signature(dispatcher):
+    """``dispatcher`` (a model module's ``rhs_permuted``) compiled, or loaded
+    from numba's on-disk cache, for one signature only: the state ``z``
+    read-only, the other arrays writable, all C-contiguous float64 (``ip``
+    and ``perm`` int64; ``buf`` 2-D).
+
+    scikit-sundae hands CVODE's state over read-only, DOP853's is writable:
+    numba converts a writable array to the read-only type at call time (a
+    safe conversion, no copy), but compiles a second specialization instead
+    while compiling is allowed. Compiling is switched off once this one is
+    there, so both references run the same machine code and the module is
+    compiled once (issue 29, cold start). A call with other types then raises
+    ``TypeError``; :class:`CompiledRHS` catches it (``_any``). Should numba's
+    dispatcher lack these hooks, it is left as it was (compiled per call
+    signature)."""
+    try:
+        if not dispatcher._can_compile:
+            return dispatcher
+        from numba import types
+
+        f = types.Array(types.float64, 1, "C")
+        i = types.Array(types.int64, 1, "C")
+        sig = (f, i, f, types.Array(types.float64, 1, "C", readonly=True), f, i,
+               types.Array(types.float64, 2, "C"), f)
+    except (AttributeError, ImportError, TypeError):
+        return dispatcher
+    dispatcher.compile(sig)
+    dispatcher.disable_compile()
+    return dispatcher
 
 
 def compiled_rhs(model) -> CompiledRHS | None:

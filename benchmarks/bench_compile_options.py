@@ -1,0 +1,105 @@
+"""What a numba option or a variant of a generated loop's text does to its
+compile time and its speed (issue 29, cold start round 3).
+
+    python benchmarks/bench_compile_options.py METHOD N VARIANT
+    NUMBA_OPT=2 python benchmarks/bench_compile_options.py rk4 3 base
+
+Generates the loop ``rk4h.fast.codegen`` would generate for ``METHOD`` on a
+chain of ``N`` masses (``N <= 2``: the straight-line loop; more: the array
+loop), applies ``VARIANT`` to its text, compiles it in memory (no cache: a
+cold compile every time) in this fresh process and prints the CPU seconds of
+the first call (compile plus one short run), the best of five timed runs in
+ns per step and a digest of the final state (equal digests: the same numbers
+bit for bit). Variants: ``base`` (the text as generated); ``noinline`` (the
+slope and the rhs wrapper inlined by LLVM instead of numba's
+``inline="always"``); ``nonrt`` and ``nocfunc`` (``_nrt=False``,
+``no_cfunc_wrapper=True`` on a straight-line loop), ``both``;
+``nocfunc_arr`` (the latter on an array loop); ``dense_call`` (an array
+loop's dense-output slopes through a called, not inlined, wrapper). Run each
+variant several times, interleaved: one compile's CPU time varies by
+20-40% on a loaded machine.
+"""
+from __future__ import annotations
+
+import hashlib
+import sys
+import time
+
+import numpy as np
+
+import rk4h.fast as fast
+from rk4h.fast import codegen
+from rk4h.methods import get_method
+from rk4h.models import Chain
+
+VARIANTS = ("base", "noinline", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
+
+
+def model(N):
+    return Chain([1.0 + 0.1*i for i in range(N)], [1.0]*(N+1))
+
+
+def variant(text, v):
+    if v == "base":
+        return text
+    if v == "noinline":   # slope/rhs inlined by LLVM instead of numba's IR inliner
+        return text.replace('@njit(inline="always", error_model="numpy")', '@njit(error_model="numpy")')
+    if v == "nonrt":
+        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", _nrt=False)  # on-disk')
+    if v == "nocfunc":
+        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", no_cfunc_wrapper=True)  # on-disk')
+    if v == "both":
+        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", _nrt=False, no_cfunc_wrapper=True)  # on-disk')
+    if v == "nocfunc_arr":
+        return text.replace('@njit(error_model="numpy")\ndef integrate', '@njit(error_model="numpy", no_cfunc_wrapper=True)\ndef integrate')
+    if v == "dense_call":
+        a = text.replace("                    rhs(fp, ip, mass, y, f0, 0, nq, w)", "                    rhs_dense(fp, ip, mass, y, f0, 0, nq, w)")
+        a = a.replace("                    rhs(fp, ip, mass, y_new, f1, 0, nq, w)", "                    rhs_dense(fp, ip, mass, y_new, f1, 0, nq, w)")
+        assert a != text
+        return a.replace('@njit(error_model="numpy")\ndef integrate', '@njit(error_model="numpy")\ndef rhs_dense(fp, ip, mass, y, out, r, n, w):\n    rhs(fp, ip, mass, y, out, r, n, w)\n\n\n@njit(error_model="numpy")\ndef integrate')
+    raise KeyError(v)
+
+
+def run(fn, m, kern, unrolled, nsteps):
+    fp = np.ascontiguousarray(kern.fp, float); ip = np.ascontiguousarray(kern.ip, np.int64)
+    mass = np.ascontiguousarray(m.mass, float)
+    d = 2*m.n_dof
+    y = np.linspace(0.01, 0.02, d)
+    idx = np.array([0, nsteps-1, nsteps], np.int64); theta = np.array([0.0, 0.5, 0.0])
+    ys = np.empty((3, d)); bound = np.full(d, 1e300); yf = np.empty(d)
+    if unrolled:
+        args = (fp, ip, mass, y, 0.0, 1e-3, nsteps, idx, theta, ys, bound, 0.0, yf)
+    else:
+        args = (fp, ip, mass, np.zeros(kern.work_size), y, 0.0, 1e-3, nsteps, idx, theta, ys, bound, 0.0, yf)
+    t0 = time.process_time(); fn(*args); tc = time.process_time() - t0
+    best = 1e9
+    for _ in range(5):
+        t0 = time.perf_counter(); fn(*args); best = min(best, time.perf_counter() - t0)
+    return tc, best / nsteps * 1e9, ys[-1].copy()
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if len(argv) != 3 or argv[2] not in VARIANTS or not argv[1].isdigit() or int(argv[1]) < 1:
+        print(f"usage: bench_compile_options.py METHOD N VARIANT (N >= 1, VARIANT one of {', '.join(VARIANTS)}), "
+              f"got {' '.join(argv)!r}", file=sys.stderr)
+        return 2
+    method, N, v = argv[0], int(argv[1]), argv[2]
+    try:
+        tab = get_method(method)
+    except ValueError as e:
+        print(e, file=sys.stderr)
+        return 2
+    m = model(N)
+    kern = fast.force_kernel(m)
+    unrolled = 2 * N <= codegen.MAX_UNROLLED_DIM and kern.has_scalar()
+    text = codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern)
+    text = variant(text, v) + f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
+    mod = codegen._in_memory(codegen.module_name(text), text)
+    tc, ns, yend = run(mod.integrate, m, kern, unrolled, 200000 if unrolled else 50000)
+    print(f"{method} N={N} {v}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
+          f"y_end {hashlib.sha1(yend.tobytes()).hexdigest()[:10]}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
