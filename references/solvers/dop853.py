@@ -155,8 +155,13 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         # numba entry point (CVODE's glue; rk4h.references.solvers.cvode)
         with np.errstate(all="ignore"):
             disp, fp, ip, mass, ident, buf, w = fast_rhs.permuted_parts(np.arange(n_state), readonly=False)
-        yc = np.ascontiguousarray(y0, dtype=float)
+        # looked up for a read-only state: the one signature the references'
+        # right-hand side is compiled for (rk4h.fast.solve._one_signature);
+        # the entry point reads a writable state of that layout alike
+        yc = np.array(y0, dtype=float)
+        yc.setflags(write=False)
         entry = _compiled_entry(disp, (fp, ip, mass, yc, np.empty(n_state), ident, buf, w))
+        entry = None if entry is disp else entry
     else:
         entry = None
     ndarray, f64 = np.ndarray, _F64
@@ -169,12 +174,11 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         if not math.isfinite(t):
             raise _Stop(Status.FAILED, f"dop853: the step size became non-finite (right-hand side asked "
                                        f"for at t = {t!r})")
-        if entry is not None:
+        # the entry point takes C-contiguous float64 vectors only (scipy's
+        # stages are; anything else goes through CompiledRHS.checked)
+        if entry is not None and type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous:
             f = np.empty(n_state)
-            # the entry point takes C-contiguous float64 vectors only (scipy's
-            # stages are; anything else goes through numba's dispatcher)
-            call = entry if type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous else disp
-            if call(fp, ip, mass, yy, f, ident, buf, w) and not bad:
+            if entry(fp, ip, mass, yy, f, ident, buf, w) and not bad:
                 bad.append(float(t))
             return f
         if fast_rhs is not None:
