@@ -4,8 +4,11 @@ pool's start-up (a fresh interpreter per worker, numba and heyoka imports)
 costs seconds per run and tests nothing a small scene needs. The tests of the
 pool itself (``test_kill.py``, ``test_pipeline.py``, ``test_dask.py``) ask for
 it explicitly."""
+import gc
 import os
 import sys
+
+import pytest
 
 os.environ.setdefault("RK4H_WORKERS", "1")
 
@@ -35,3 +38,19 @@ def pytest_collection_modifyitems(config, items):
     """Move the modules in ``LONG_FIRST`` to the front (a stable sort: every module's own order is kept)."""
     rank = {name: i for i, name in enumerate(LONG_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_unconfigure(config):
+    """End of the session: one full garbage collection, then ``gc.freeze()``.
+
+    pytest then collects garbage five times more (``gc_collect_harder``, to
+    report exceptions raised in finalizers), and the interpreter tears down
+    what the tests built (numba and JAX compilations, heyoka's JIT, figures);
+    each full pass walked the whole heap again, about 10 s in all at load 5,
+    long enough that pytest-xdist's controller waited its 10 s limit for each
+    worker to exit and then killed it. The one collection here still runs
+    every finalizer of the garbage there is at the end; the frozen objects
+    are only skipped by the later passes."""
+    gc.collect()
+    gc.freeze()
