@@ -4,6 +4,7 @@ test) imports neither ``rk4h.references`` nor ``rk4h.validation``;
 import each other (at any depth of the function bodies: a lazy import is
 still an edge)."""
 import ast
+import functools
 import itertools
 from pathlib import Path
 
@@ -25,6 +26,7 @@ def layer(module: str) -> str:
     return "rk4core"
 
 
+@functools.cache
 def _modules() -> dict:
     mods = {}
     for folder, name0 in PACKAGES.items():
@@ -57,23 +59,32 @@ def _targets(name: str, path: Path, node, mods) -> list[str]:
     return out
 
 
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """The parsed source of ``path`` (parsed once per process; the tests only read it)."""
+    return ast.parse(path.read_text(), str(path))
+
+
 def import_graph() -> dict[str, set[str]]:
     """Module -> the harness modules it imports anywhere in its source."""
     mods = _modules()
     graph = {}
     for name, path in mods.items():
         deps = set()
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, (ast.Import, ast.ImportFrom)):
                 deps.update(_targets(name, path, node, mods))
         graph[name] = deps
     return graph
 
 
-GRAPH = import_graph()
+@pytest.fixture(scope="module")
+def GRAPH():
+    """The import graph, built when a test needs it (not at collection: parsing every module is seconds)."""
+    return import_graph()
 
 
-def test_the_graph_sees_the_known_edges():
+def test_the_graph_sees_the_known_edges(GRAPH):
     # the check can fail: it finds edges that exist
     assert "rk4h.validation.scenes" in GRAPH["rk4h.validation.budget"]
     assert "rk4h.references.dispersion" in GRAPH["rk4h.references.wavepacket"]
@@ -84,21 +95,21 @@ def test_no_old_import_names_remain():
     """The folders' own names are not import names: a stray ``import
     validation`` would work only inside a checkout."""
     old = [f"{path}: {node.lineno}" for path in _modules().values()
-           for node in ast.walk(ast.parse(path.read_text()))
+           for node in ast.walk(_tree(path))
            if isinstance(node, (ast.Import, ast.ImportFrom)) and not getattr(node, "level", 0)
            and any(n.split(".")[0] in PACKAGES for n in
                    ([a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]))]
     assert not old, old
 
 
-@pytest.mark.parametrize("module", sorted(GRAPH))
-def test_no_import_crosses_a_layer_upwards(module):
+@pytest.mark.parametrize("module", sorted(_modules()))   # the keys of GRAPH
+def test_no_import_crosses_a_layer_upwards(module, GRAPH):
     allowed = ALLOWED[layer(module)]
     up = sorted(d for d in GRAPH[module] if layer(d) not in allowed)
     assert not up, f"{module} imports {up}"
 
 
-def test_no_two_modules_import_each_other():
+def test_no_two_modules_import_each_other(GRAPH):
     pairs = [(a, b) for a, b in itertools.combinations(sorted(GRAPH), 2) if b in GRAPH[a] and a in GRAPH[b]]
     assert not pairs, pairs
 
@@ -134,7 +145,7 @@ def test_the_cycle_search_finds_a_long_cycle():
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": set()}) == []
 
 
-def test_no_import_cycle_of_any_length():
+def test_no_import_cycle_of_any_length(GRAPH):
     """No circle, not only no pair: a -> b -> c -> a is refused too."""
     assert not _cycle(GRAPH), " -> ".join(_cycle(GRAPH))
 
@@ -149,7 +160,7 @@ def test_no_private_name_of_the_figures_package_is_used_outside_its_module():
     mods = _modules()
     hits = []
     for name, path in mods.items():
-        tree = ast.parse(path.read_text(), str(path))
+        tree = _tree(path)
         aliases = {}
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
