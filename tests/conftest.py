@@ -6,20 +6,10 @@ pool itself (``test_kill.py``, ``test_pipeline.py``, ``test_dask.py``) ask for
 it explicitly."""
 import gc
 import os
-import sys
 
 import pytest
 
 os.environ.setdefault("RK4H_WORKERS", "1")
-
-# Bytecode: with PYTHONDONTWRITEBYTECODE set (as on the shared development machine), every test session
-# re-compiled the package's sources and pytest re-did its assertion rewriting of every test module, in each
-# worker (about 10 s of a 17 s collection per worker, load 5) and in every process a test starts (about
-# 0.25-0.8 s each). The test session writes Python's usual __pycache__ (ignored by git) for itself and for the
-# processes it starts; outside the tests the setting is the user's.
-if sys.dont_write_bytecode:
-    sys.dont_write_bytecode = False
-    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 #: Test modules holding the suite's longest tests (a fresh quick run, the process-level safety tests,
 #: exact-arithmetic data checks, numba compiles; listed by hand from the times that
