@@ -27,10 +27,6 @@ confirmation, timing repeats) with its RHS calls, the first run of each
 method apart (imports it triggers, numba's cache load, heyoka's JIT), and
 the (method, setting) pairs run more than once outside the timing repeats
 (none expected: a confirmation at a setting already run reuses that run).
-Sampled runs made in forked workers (``advise._prefetch``) are the phase
-"confirmation, forked": the workers' CPU (``RUSAGE_CHILDREN``, a run stopped
-after a miss included) shared equally among the runs recorded, and counted
-in the total.
 
 ``--loop``: RK4's CPU ns per step on planar4-case2 through
 ``rk4h.references.solvers.integrate`` (the advisor's runs) beside a
@@ -119,30 +115,8 @@ def ledger_child(scene: str, target: float) -> dict:
         problem_s[0] = time.process_time() - a
 
     adv_mod._Problem.run, adv_mod._Problem.__init__ = run, init
-    real_prefetch = adv_mod._prefetch
-
-    def prefetch(p, method, steps, target):
-        """Sampled runs in forked workers (advise._prefetch): their CPU is the
-        workers' (RUSAGE_CHILDREN, runs stopped after a miss included), shared
-        equally among the runs recorded."""
-        import resource
-
-        before, c0, w0 = set(p.runs), resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
-        n_rows = len(rows)
-        real_prefetch(p, method, steps, target)
-        c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        here = {(r[0], r[1]) for r in rows[n_rows:]}  # run in this process (the sample's largest step)
-        new = [k for k in p.runs if k not in before and k not in here]
-        cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
-        wall = time.perf_counter() - w0 - sum(r[5] for r in rows[n_rows:])
-        for k in new:
-            rows.append([k[0], k[1], "confirmation, forked", float(p.runs[k][1]), cpu / len(new), wall / len(new)])
-
-    adv_mod._prefetch = prefetch
     advice = adv_mod.advise(sc, target)
     t_end = time.process_time()
-    forked = [r[4] for r in rows if r[2] == "confirmation, forked"]
-    t_end += sum(forked)  # the forked workers' CPU, not in this process' clock
     return {"scene": scene, "target": target, "start": t_start, "import": t_import - t_start,
             "scene_load": t_scene - t_import, "problem": problem_s[0], "advise": t_end - t_scene,
             "total": t_end, "rows": rows, "answer": f"{advice.method} {advice.setting_name} = {advice.setting:.4g}",

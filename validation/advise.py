@@ -48,13 +48,9 @@ How (all plain data):
    :data:`SAMPLE_STEPS` steps in ``[h/2, h]`` on the output grid
    (:func:`sample_steps`) meet the target; a run that misses shrinks the
    step below it by the error ratio (at least 10 %), at most
-   :data:`CONFIRM_ROUNDS` rounds. Sampled runs predicted to take over
-   :data:`SAMPLE_FORK_MIN_S` each run side by side in forked workers on the
-   cores left free (:func:`_prefetch`), recorded in the sample's order up to
-   the first miss: the same evidence, in less wall time. On planar4-case2
-   RK4's error is erratic in ``h`` (623 steps per 0.02 s miss 1e-3 with
-   2.4e-3, 624 meet it with 6.0e-4): the advisor says so and the sampled
-   runs are the evidence.
+   :data:`CONFIRM_ROUNDS` rounds. On planar4-case2 RK4's error is erratic in
+   ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
+   6.0e-4): the advisor says so and the sampled runs are the evidence.
    ``confirmed_error`` is the largest error of the runs that confirm the
    setting; ``cost_rhs`` the RHS calls of the run at it (heyoka: Taylor steps
    x order); ``cost_s`` the median wall time of up to
@@ -116,7 +112,7 @@ from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step 
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
-           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "SAMPLE_FORK_MIN_S", "sample_steps"]
+           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
@@ -147,15 +143,6 @@ TIMING_REPEATS = 3
 #: this factor.
 SKIP_FACTOR = 10.0
 SKIP_MIN_S = 0.2
-#: Sampled confirmation runs (:func:`sample_steps`) not yet run are run side
-#: by side, in forked copies of this process (:func:`_prefetch`, results
-#: taken in the sample's order, as one after the other), when each is
-#: predicted (its method's best rate times its RHS calls) to take at least
-#: this many seconds; at most one per core this process may use and not
-#: taken by other work (the cores less the 1-minute load average, this
-#: process counted once: on a busy machine forked runs would only wait), or
-#: ``RK4H_WORKERS`` when set (1: one after the other).
-SAMPLE_FORK_MIN_S = 0.2
 #: References whose right-hand side is a Python callback per call (CVODE
 #: through scikit-sundae, about 10 us a call): calibrated after every other
 #: candidate is confirmed, and only as far as they can still win
@@ -423,8 +410,6 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     h = cand["setting"]
     for _ in range(CONFIRM_ROUNDS):
         steps = sample_steps(p, h) if why else [h]
-        if why:
-            _prefetch(p, method, steps, target)
         miss = None
         for s in steps:
             err, rhs, wall, status = run(s)
@@ -445,89 +430,6 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     err, rhs, wall, _ = run(s)
     return {"status": "not-met", "setting": s, "error": err, "rhs": rhs, "wall": wall, "sample": [],
             "evidence": sorted(([k, v[0]] for k, v in cache.items()), reverse=True), "why": why}
-
-
-_FORKED = None  # (problem, method) that a forked worker of _prefetch runs
-
-
-def _forked_run(setting):
-    """One run in a forked worker: :meth:`_Problem.run`'s result and what that
-    run recorded (its method's best rate, its compile time, the compiled
-    loop), which the parent records again (:func:`_prefetch`)."""
-    p, method = _FORKED
-    out = p.run(method, setting)
-    return (out, p.rate.get(method.name), p.compile.get((method.name, float(setting)), 0.0),
-            p.implementation.get(method.name))
-
-
-def _sample_workers(p, method, steps) -> int:
-    """How many forked workers :func:`_prefetch` uses for ``steps`` (1: none);
-    see :data:`SAMPLE_FORK_MIN_S`."""
-    import multiprocessing
-    import os
-
-    rate = getattr(p, "rate", {}).get(method.name)
-    if len(steps) < 2 or not rate or "fork" not in multiprocessing.get_all_start_methods():
-        return 1
-    t_end = p.scene.t_end
-    if min(rate * trust.fixed_rhs(method, math.ceil(t_end / s * (1 - 1e-12))) for s in steps) < SAMPLE_FORK_MIN_S:
-        return 1
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    env = os.environ.get("RK4H_WORKERS", "")
-    if env.isdigit() and int(env) >= 1:
-        cap = int(env)
-    else:  # the cores other work leaves (this process counted once in the load): none on a busy machine
-        cap = int(cores - max(0.0, os.getloadavg()[0] - 1.0) + 0.5) if hasattr(os, "getloadavg") else cores
-    return max(1, min(len(steps), cores, cap))
-
-
-def _prefetch(p, method, steps, target) -> None:
-    """Run the fixed-step ``steps`` of a sample not run yet (up to the first
-    run already known to miss) side by side (forked copies of this process,
-    :func:`_sample_workers`), and record their results in the sample's
-    order (the sample's largest step, when not run yet, first and alone in
-    this process: it misses most often, and a miss there forks nothing), as
-    :meth:`_Problem.run` would one after the other, up to and including the
-    first that misses ``target``: the later ones, which a sample run in
-    order would not have reached, are dropped (their workers stopped), so
-    the evidence is the same as one run after the other. The runs are
-    deterministic: a forked run gives the error and calls the parent would.
-    Does nothing when one worker is chosen, or fewer than two runs are left
-    (:func:`_confirm_fixed` then runs them one after the other)."""
-    global _FORKED
-    import multiprocessing
-
-    known, todo = getattr(p, "runs", {}), []
-    for s in steps:  # up to the first run already known to miss
-        hit = known.get((method.name, float(s)))
-        if hit is None:
-            todo.append(s)
-        elif not (hit[3] == "ok" and hit[0] <= target):
-            break
-    w = _sample_workers(p, method, todo)
-    if w < 2:
-        return
-    if todo[0] == steps[0]:  # the largest step, the likeliest to miss and the cheapest: here first, alone
-        err, _, _, status = getattr(p, "measured", p.run)(method, todo.pop(0))
-        if not (status == "ok" and err <= target) or len(todo) < 2:
-            return
-    _FORKED = (p, method)
-    pool = multiprocessing.get_context("fork").Pool(min(w, len(todo)))
-    try:
-        for s, (out, rate, compile_s, impl) in zip(todo, pool.imap(_forked_run, todo, chunksize=1)):
-            p.runs.setdefault((method.name, float(s)), out)
-            if rate is not None:
-                p.rate[method.name] = min(p.rate.get(method.name, math.inf), rate)
-            for key in ((method.name, float(s)), method.name):
-                p.compile[key] = max(p.compile.get(key, 0.0), float(compile_s or 0.0))
-            if impl:
-                p.implementation[method.name] = impl
-            if not (out[3] == "ok" and out[0] <= target):
-                break
-    finally:
-        pool.terminate()
-        pool.join()
-        _FORKED = None
 
 
 def _confirm_adaptive(p, method, cand, target) -> dict:
