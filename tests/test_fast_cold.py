@@ -131,3 +131,29 @@ def test_a_stability_studys_loop_is_handed_out():
     assert _loop_key(scene, STABILITY)[0] == "scalar"  # the straight-line loop of RK4 on planar4
     assert warm_one(scene, STABILITY) >= 0.0
     assert fast.solve.warmed(model, get_method("rk4"))
+
+
+def test_read_only_constants_of_a_model_still_run(monkeypatch):
+    """The one signature takes writable constants: a model whose masses or
+    force parameters are read-only arrays (frozen, memory-mapped) still runs,
+    because :class:`CompiledRHS` keeps its own writable copies of them."""
+    from rk4h.fast.solve import CompiledRHS
+
+    model = _chain()
+    kern = force_kernel(model)
+    ro_kern = type("K", (), {})()
+    for name in dir(kern):
+        if not name.startswith("__"):
+            setattr(ro_kern, name, getattr(kern, name))
+    ro_kern.fp, ro_kern.ip = _readonly(kern.fp), np.array(kern.ip, dtype=np.int64)
+    ro_kern.ip.flags.writeable = False
+    ro_model = type("M", (), {"mass": _readonly(model.mass), "n_dof": model.n_dof})()
+    rhs = CompiledRHS(ro_model, ro_kern)
+    assert rhs.fp.flags.writeable and rhs.ip.flags.writeable and rhs.mass.flags.writeable
+    y = np.linspace(-0.1, 0.2, 2 * model.n_dof)
+    assert np.array_equal(rhs(0.0, y), model.rhs(0.0, y))
+    perm = _readonly(np.arange(y.shape[0])[::-1]).astype(np.int64)
+    perm.flags.writeable = False
+    zp = np.empty(y.shape[0])
+    assert not rhs.permuted(perm)(_readonly(y[perm]), zp)
+    assert np.array_equal(zp, model.rhs(0.0, y)[perm])

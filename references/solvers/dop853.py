@@ -164,7 +164,7 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         entry = None if entry is disp else entry
     else:
         entry = None
-    ndarray, f64 = np.ndarray, _F64
+    ndarray, f64, shape = np.ndarray, _F64, (n_state,)
 
     def fun(t, yy):
         calls[0] += 1
@@ -174,9 +174,11 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         if not math.isfinite(t):
             raise _Stop(Status.FAILED, f"dop853: the step size became non-finite (right-hand side asked "
                                        f"for at t = {t!r})")
-        # the entry point takes C-contiguous float64 vectors only (scipy's
-        # stages are; anything else goes through CompiledRHS.checked)
-        if entry is not None and type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous:
+        # the entry point takes C-contiguous float64 vectors of the state's
+        # length only, unchecked (scipy's stages are; anything else goes
+        # through CompiledRHS.checked)
+        if (entry is not None and type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous
+                and yy.shape == shape):
             f = np.empty(n_state)
             if entry(fp, ip, mass, yy, f, ident, buf, w) and not bad:
                 bad.append(float(t))

@@ -93,9 +93,11 @@ class CompiledRHS:
         module = model_module(kern)
         # one compiled entry point (identity order for DOP853), for one signature
         self._perm = _one_signature(module.rhs_permuted)
-        self.fp = np.ascontiguousarray(kern.fp, dtype=float)
-        self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
-        self.mass = np.ascontiguousarray(model.mass, dtype=float)
+        # own writable copies: the one compiled signature takes writable
+        # constants (a caller's read-only or memory-mapped array would not match)
+        self.fp = np.array(kern.fp, dtype=float, order="C")
+        self.ip = np.array(kern.ip, dtype=np.int64, order="C")
+        self.mass = np.array(model.mass, dtype=float, order="C")
         self.w = np.zeros(kern.work_size)
         self.n_state = 2 * model.n_dof
         self._identity = np.arange(self.n_state, dtype=np.int64)
@@ -134,7 +136,7 @@ class CompiledRHS:
         """``fun(z, zp) -> bad``: writes ``zp = (dy/dt)[perm]`` for the state
         ``y[perm] = z`` (CVODE's interleaved order) and says whether ``dy/dt``
         is non-finite at a finite state."""
-        perm = np.ascontiguousarray(perm, dtype=np.int64)
+        perm = np.array(perm, dtype=np.int64, order="C")  # an own writable copy (the signature's)
         buf = np.zeros((3, self.n_state))
         fn, fp, ip, mass, w = self._perm, self.fp, self.ip, self.mass, self.w
         any_type = self._any
@@ -154,7 +156,7 @@ class CompiledRHS:
         (one Python frame less per call: CVODE's glue). ``fn`` is compiled
         here for a writable ``z`` and, with ``readonly``, a read-only one
         (scikit-sundae passes the state read-only), so that no call compiles."""
-        perm = np.ascontiguousarray(perm, dtype=np.int64)
+        perm = np.array(perm, dtype=np.int64, order="C")  # an own writable copy (the signature's)
         buf = np.zeros((3, self.n_state))
         fn = self._perm
         z = np.zeros(self.n_state)
@@ -214,9 +216,11 @@ class _Prepared:
         self.tab = tab  # kept: the cache key is id(tab)
         self.unrolled = 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar()
         self.loop = kernel(tab, kern) if self.unrolled else array_kernel(tab, kern)
-        self.fp = np.ascontiguousarray(kern.fp, dtype=float)
-        self.ip = np.ascontiguousarray(kern.ip, dtype=np.int64)
-        self.mass = np.ascontiguousarray(model.mass, dtype=float)
+        # own writable copies: the one compiled signature takes writable
+        # constants (a caller's read-only or memory-mapped array would not match)
+        self.fp = np.array(kern.fp, dtype=float, order="C")
+        self.ip = np.array(kern.ip, dtype=np.int64, order="C")
+        self.mass = np.array(model.mass, dtype=float, order="C")
         self.work_size = kern.work_size
 
 
