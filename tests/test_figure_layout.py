@@ -569,8 +569,9 @@ def test_the_layout_from_cheaper_inputs_is_the_constrained_layout(kind, tmp_path
 
 def test_log_axes_draw_their_minor_grid_as_lines_not_ticks(built):
     """The unlabelled minor ticks of a log axis (2 and 5 x 10^k) are drawn as
-    one faint line collection at every such value inside the view, and no
-    minor tick objects are left to lay out and draw."""
+    one faint line collection at every such value inside the view that is
+    not a major tick (as matplotlib's minor ticks were), and no minor tick
+    objects are left to lay out and draw."""
     from matplotlib.collections import LineCollection
 
     (fig, _, _), = built("convergence")
@@ -581,7 +582,32 @@ def test_log_axes_draw_their_minor_grid_as_lines_not_ticks(built):
         assert len(axis.get_minorticklocs()) == 0
         lo, hi = sorted(axis.get_view_interval())
         values = np.array([seg[0][col] for seg in grid.get_segments()])
+        major = list(axis.get_majorticklocs())
         want = [m * 10.0 ** e for e in range(math.floor(math.log10(lo)), math.ceil(math.log10(hi)) + 1)
-                for m in figures.style.MINOR_SUBS if lo <= m * 10.0 ** e <= hi]
+                for m in figures.style.MINOR_SUBS if lo <= m * 10.0 ** e <= hi
+                and not any(math.isclose(m * 10.0 ** e, v, rel_tol=1e-9) for v in major)]
+        assert want
         np.testing.assert_allclose(np.sort(values), np.sort(want), rtol=1e-12)
         assert 0 < grid.get_alpha() < 0.5
+
+
+def test_log_minor_grid_leaves_out_the_major_ticks():
+    """A log axis of under two decades has major ticks at 2 and 5 x 10^k:
+    the minor grid draws no second line there (matplotlib's minor ticks did
+    not either); on a wide axis it draws at every 2 and 5 x 10^k."""
+    from matplotlib.collections import LineCollection
+
+    fig = figures.style.new_figure()
+    ax = fig.add_subplot()
+    ax.plot([1.0, 50.0], [1e-8, 1e2])
+    ax.set_xlim(1.0, 50.0)
+    ax.set_ylim(1e-8, 1e2)
+    figures.style.log_axes(ax)
+    figures.style.finish(fig)
+    grids = [c for c in ax.collections if isinstance(c, LineCollection)]
+    # x (1 to 50): majors at 1, 2, 5 x 10^k, so every 2 and 5 x 10^k is a major: no minor line
+    xmajor = [v for v in ax.xaxis.get_majorticklocs() if 1.0 <= v <= 50.0]
+    assert all(any(math.isclose(v, m) for v in xmajor) for m in (2.0, 5.0, 20.0, 50.0))
+    assert len(grids) == 1 and len(ax.xaxis.get_minorticklocs()) == 0
+    ys = sorted(seg[0][1] for seg in grids[0].get_segments())
+    assert len(ys) == 2 * 10  # 2 and 5 x 10^k for k = -8 ... 1

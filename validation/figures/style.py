@@ -328,7 +328,12 @@ def minor_grid_lines(fig):
                     or not isinstance(axis.get_minor_formatter(), ticker.NullFormatter)):
                 continue
             lo, hi = sorted(axis.get_view_interval())
-            found.append((ax, axis, to_axes, [v for v in locator() if lo <= v <= hi]))
+            # matplotlib leaves out minor ticks on a major one (a log axis of under
+            # two decades has majors at 2 and 5 x 10^k): so does the grid
+            major = np.log10(np.asarray([v for v in axis.get_majorticklocs() if v > 0], dtype=float))
+            tol = 1e-5 * max(1.0, math.log10(hi / lo)) if lo > 0 else 0.0
+            found.append((ax, axis, to_axes, [v for v in locator() if lo <= v <= hi and v > 0
+                                              and not np.any(np.abs(major - math.log10(v)) <= tol)]))
     for ax, axis, to_axes, locs in found:  # located first: shared axes share one locator
         tick = axis.get_minor_ticks(1)[0] if locs else None  # its gridline carries ax.grid's settings
         if tick is not None and tick.gridline.get_visible():
@@ -386,24 +391,28 @@ def finish(fig):
             t.set_fontsize(FONT_MIN)
     minor_grid_lines(fig)
     engine = fig.get_layout_engine()
-    lay_out(fig, engine)
-    fig.canvas.draw()
-    for _ in range(3):
-        renderer = fig.canvas.get_renderer()
-        crowded = []
-        for ax in fig.axes:
-            if not ax.get_visible():
-                continue
-            for axis in (ax.xaxis, ax.yaxis):
-                ext = tick_labels(ax, axis, renderer)
-                if overlapping(ext):
-                    crowded.append((ax, axis, len(ext)))
-        if not crowded:
-            return
-        for ax, axis, n in crowded:
-            thin_ticks(ax, axis, n)
+    try:
         lay_out(fig, engine)
         fig.canvas.draw()
+        for _ in range(3):
+            renderer = fig.canvas.get_renderer()
+            crowded = []
+            for ax in fig.axes:
+                if not ax.get_visible():
+                    continue
+                for axis in (ax.xaxis, ax.yaxis):
+                    ext = tick_labels(ax, axis, renderer)
+                    if overlapping(ext):
+                        crowded.append((ax, axis, len(ext)))
+            if not crowded:
+                return
+            for ax, axis, n in crowded:
+                thin_ticks(ax, axis, n)
+            lay_out(fig, engine)
+            fig.canvas.draw()
+    finally:  # the figure keeps its engine: a later draw lays out what was added since
+        if engine is not None:
+            fig.set_layout_engine(engine)
 
 
 def save(fig, out_dir, stem) -> Path:
