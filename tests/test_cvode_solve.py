@@ -4,26 +4,10 @@ difference-quotient calls in ``nfev``, and the total step cap."""
 import numpy as np
 import pytest
 
-import rk4h
 from rk4h.references.solvers import Status, absolute_tolerance
 from rk4h.references.solvers import cvode
 
-CASES = {
-    "chain-2dof": ("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]},
-                   [0.005, 0.005], [0.0, 0.0]),  # dense solver, analytic Jacobian
-    "chain-12": ("chain", {"masses": [1.0 + 0.1 * i for i in range(12)],
-                           "springs": [40.0 + 3.0 * i for i in range(13)]},
-                 [0.004 * np.sin(0.5 * i) for i in range(12)], [0.0] * 12),  # band solver, DQ Jacobian
-    "pendulums": ("pendulums", {"m": 1.0, "length": 1.0, "g": 9.81, "k": 2.0},
-                  [0.3, 0.0], [0.0, 0.5]),  # nonlinear: dense, model.jacobian
-}
-T = np.linspace(0.0, 5.0, 51)
-
-
-def case(name):
-    model_name, params, x0, v0 = CASES[name]
-    model = rk4h.make_model(model_name, params)
-    return model, model.state(x0, v0)
+from _cvode_cases import CASES, T, case
 
 
 def both(solver, model, y0, t, rtol, max_steps=cvode.DEFAULT_MAX_STEPS):
