@@ -80,6 +80,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the repository, installed or not
 
 from rk4h.references.solvers import absolute_tolerance  # noqa: E402
+from rk4h.fast.solve import compiled_entry  # noqa: E402
 from rk4h.references.solvers import cvode  # noqa: E402
 from rk4h.references.truth import reference_solution  # noqa: E402
 from rk4h.validation import metrics  # noqa: E402
@@ -212,7 +213,7 @@ def per_call(args):
         fast = compiled_rhs(model)
         parts = fast.permuted_parts(perm)
         cargs = (parts[1], parts[2], parts[3], z, zp) + parts[4:]
-        entry = cvode._compiled_entry(parts[0], cargs)
+        entry = compiled_entry(parts[0], cargs)
         njev = ref.extra["njev"]
         cases = [("empty", empty, (0.0, z, zp)), ("replay frame", replay_frame, (0.0, z, zp)),
                  ("dispatch", parts[0], cargs), ("entry", entry, cargs)]

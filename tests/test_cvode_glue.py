@@ -9,6 +9,7 @@ import sksundae.cvode as skc
 
 from rk4h.references.solvers import Status, absolute_tolerance
 from rk4h.references.solvers import cvode
+from rk4h.fast.solve import compiled_entry
 from rk4h.references.solvers.base import compiled_rhs
 
 from _cvode_cases import CASES, T, case
@@ -137,7 +138,7 @@ def test_compiled_entry_only_for_the_types_it_was_compiled_for():
     z = y0[perm].copy()
     z.setflags(write=False)  # as scikit-sundae passes the state
     zp_entry, zp_disp = np.empty(4), np.empty(4)
-    entry = cvode._compiled_entry(fn, (fp, ip, mass, z, zp_entry, p64, buf, w))
+    entry = compiled_entry(fn, (fp, ip, mass, z, zp_entry, p64, buf, w))
     assert entry is not fn and callable(entry)
     assert entry(fp, ip, mass, z, zp_entry, p64, buf, w) == fn(fp, ip, mass, z, zp_disp, p64, buf, w)
     np.testing.assert_array_equal(zp_entry, zp_disp)
@@ -145,13 +146,13 @@ def test_compiled_entry_only_for_the_types_it_was_compiled_for():
     # types never compiled: the dispatcher itself, also after the entry above
     # was kept (the kept answers are per argument types)
     z32 = z.astype(np.float32)
-    assert cvode._compiled_entry(fn, (fp, ip, mass, z32, zp_entry, p64, buf, w)) is fn
+    assert compiled_entry(fn, (fp, ip, mass, z32, zp_entry, p64, buf, w)) is fn
     swapped = z.astype(">f8")
-    assert cvode._compiled_entry(fn, (fp, ip, mass, swapped, zp_entry, p64, buf, w)) is fn
+    assert compiled_entry(fn, (fp, ip, mass, swapped, zp_entry, p64, buf, w)) is fn
     # a writable state: no version of its own (one compiled signature,
     # rk4h.fast.solve._one_signature): the dispatcher, which converts it
-    assert cvode._compiled_entry(fn, (fp, ip, mass, z.copy(), zp_entry, p64, buf, w)) is fn
-    assert cvode._compiled_entry(fn, (fp, ip, mass, z, zp_entry, p64, buf, w)) is entry
+    assert compiled_entry(fn, (fp, ip, mass, z.copy(), zp_entry, p64, buf, w)) is fn
+    assert compiled_entry(fn, (fp, ip, mass, z, zp_entry, p64, buf, w)) is entry
 
 
 @pytest.mark.parametrize("solver", ["cvode-adams", "cvode-bdf"])

@@ -44,7 +44,7 @@ What is ours per call is kept small: one Python frame (``rhsfn_compiled``:
 the count, the step-cap test, the call) that calls the model's compiled
 right-hand side (:meth:`rk4h.fast.CompiledRHS.permuted_parts`) through the
 numba entry point of the argument types scikit-sundae passes, picked at the
-run's first call (:func:`_compiled_entry`: numba's per-call type resolution
+run's first call (:func:`rk4h.fast.solve.compiled_entry`: numba's per-call type resolution
 of 8 arguments skipped). The constant dense Jacobian of a linear model is
 written once into the array scikit-sundae passes (it is the same array at
 every call and is only copied into CVODE's matrix). The numbers are those of
@@ -139,6 +139,8 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from rk4h.fast.solve import compiled_entry, plain_vector
+
 from .base import SolverRun, Status, compiled_rhs
 
 __all__ = ["run_cvode", "interleave", "linear_jacobian", "DEFAULT_MAX_STEPS"]
@@ -153,50 +155,6 @@ _STATS = ("CVodeGetNumSteps", "CVodeGetNumRhsEvals", "CVodeGetNumLinRhsEvals", "
 #: the Cython vtable pointer.
 _LAYOUT = ("mem", "ctx", "atol", "constraints", "yy", "A", "LS", "NEQ", "aux", "_size", "_malloc",
            "_options", "_initialized")
-
-
-def _plain_vector(a, n: int) -> bool:
-    """Whether ``a`` is a C-contiguous float64 vector of length ``n`` (what
-    scikit-sundae passes the right-hand side: views of CVODE's vectors)."""
-    return type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (n,) and a.flags.c_contiguous
-
-
-#: numpy's array flags that numba's type of an array depends on: C_CONTIGUOUS,
-#: F_CONTIGUOUS, ALIGNED, WRITEABLE.
-_TYPE_FLAGS = 0x1 | 0x2 | 0x100 | 0x400
-#: :func:`_compiled_entry`'s answers, by ``(id(dispatcher), the arrays' type key)``;
-#: each value keeps its dispatcher, so that the id is not reused.
-_ENTRIES: dict = {}
-
-
-def _compiled_entry(dispatcher, args):
-    """The compiled entry point of the numba ``dispatcher`` for exactly the
-    types of ``args`` (numba's per-call type resolution skipped: about 0.6 us
-    of a call with 8 array arguments), or ``dispatcher`` itself when it has
-    no such compiled version. The entry point converts its arguments without
-    checking their types (only the item size of arrays): a caller passes
-    arrays of the types of ``args`` on every later call. ``args`` are
-    ndarrays; the answer is kept per dispatcher and argument types (numba's
-    ``typeof`` of 8 arrays takes about 0.1-0.2 ms, the key 2-3 us)."""
-    # numba's type of an array: its dtype (byte order included), ndim, layout
-    # (C/F contiguous), alignment and whether it is writable
-    key = (id(dispatcher),) + tuple((a.dtype, a.ndim, a.flags.num & _TYPE_FLAGS) for a in args)
-    hit = _ENTRIES.get(key)
-    if hit is not None:
-        return hit[1]
-    try:
-        from numba import typeof
-
-        cres = dispatcher.overloads.get(tuple(typeof(a) for a in args))
-        entry = getattr(cres, "entry_point", None)
-    except Exception:  # noqa: BLE001 - another numba: its dispatcher
-        return dispatcher
-    entry = dispatcher if entry is None else entry
-    if entry is not dispatcher:
-        if len(_ENTRIES) > 256:
-            _ENTRIES.clear()
-        _ENTRIES[key] = (dispatcher, entry)
-    return entry
 
 
 class _NonFiniteStart(Exception):
@@ -414,12 +372,12 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
         """Reads CVODE's step count when it may have reached ``max_steps``
         (every step makes >= 1 call; module docstring, "Step cap"). At the
         first call of the compiled path, first picks the compiled entry for
-        the arrays scikit-sundae passes (:func:`_compiled_entry`)."""
+        the arrays scikit-sundae passes (:func:`rk4h.fast.solve.compiled_entry`)."""
         nonlocal next_check, capped, call
         if calls == 1 and next_check == 1:
             next_check = max_steps
-            if call is not None and _plain_vector(z, n2) and _plain_vector(zp, n2):
-                call = _compiled_entry(call, (fp, ip, mass, z, zp, perm64, buf, w))
+            if call is not None and plain_vector(z, n2) and plain_vector(zp, n2):
+                call = compiled_entry(call, (fp, ip, mass, z, zp, perm64, buf, w))
             if calls < next_check:
                 return False
         if capped:

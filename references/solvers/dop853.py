@@ -45,8 +45,9 @@ import warnings
 
 import numpy as np
 
+from rk4h.fast.solve import compiled_entry, plain_vector
+
 from .base import SolverRun, Status, compiled_rhs
-from .cvode import _compiled_entry
 
 __all__ = ["run_dop853", "run_dop853_compiled", "first_step", "RTOL_MIN", "EVALS_PER_STEP", "DEFAULT_MAX_STEPS"]
 
@@ -57,8 +58,6 @@ RTOL_MIN = 100 * np.finfo(float).eps
 EVALS_PER_STEP = 30
 #: Default cap on accepted DOP853 steps in one run (as CVODE's).
 DEFAULT_MAX_STEPS = 5_000_000
-#: The native float64 dtype (the compiled entry point's, :func:`run_dop853`).
-_F64 = np.dtype(np.float64)
 #: DOP853's error estimator order (scipy: ``DOP853.error_estimator_order``).
 _ORDER = 7
 
@@ -160,11 +159,10 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         # the entry point reads a writable state of that layout alike
         yc = np.array(y0, dtype=float)
         yc.setflags(write=False)
-        entry = _compiled_entry(disp, (fp, ip, mass, yc, np.empty(n_state), ident, buf, w))
+        entry = compiled_entry(disp, (fp, ip, mass, yc, np.empty(n_state), ident, buf, w))
         entry = None if entry is disp else entry
     else:
         entry = None
-    ndarray, f64, shape = np.ndarray, _F64, (n_state,)
 
     def fun(t, yy):
         calls[0] += 1
@@ -177,8 +175,7 @@ def run_dop853(model, y0: np.ndarray, t_eval: np.ndarray, rtol: float, atol: np.
         # the entry point takes C-contiguous float64 vectors of the state's
         # length only, unchecked (scipy's stages are; anything else goes
         # through CompiledRHS.checked)
-        if (entry is not None and type(yy) is ndarray and yy.dtype is f64 and yy.flags.c_contiguous
-                and yy.shape == shape):
+        if entry is not None and plain_vector(yy, n_state):
             f = np.empty(n_state)
             if entry(fp, ip, mass, yy, f, ident, buf, w) and not bad:
                 bad.append(float(t))
