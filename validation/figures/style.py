@@ -350,32 +350,19 @@ def lay_out(fig, engine):
     """Lay ``fig`` out once with ``engine`` (its constrained layout engine)
     and keep the result: the draw that follows runs no layout of its own.
 
-    The layout is computed from cheaper inputs that give the same margins:
-    spines out of it (:func:`layout_on_edges_only`), and no minor ticks on
-    axes whose minor ticks carry no label (``NullFormatter``: the log axes'
-    faint grid) while it runs; they are located again for the draw. Any
-    other engine (or none) is left to the draw."""
-    from matplotlib import ticker
+    The layout leaves the spines out (:func:`layout_on_edges_only`: the same
+    margins, half the tick updates); the log axes' unlabelled minor ticks are
+    already gone when :func:`finish` calls it (:func:`minor_grid_lines`).
+    Any other engine (or none) is left to the draw."""
     from matplotlib.layout_engine import ConstrainedLayoutEngine
 
     if not isinstance(engine, ConstrainedLayoutEngine):
         return
     layout_on_edges_only(fig)
-    unlabelled = []
-    for ax in fig.axes:
-        for axis in (ax.xaxis, ax.yaxis):
-            locator = axis.get_minor_locator()
-            if isinstance(axis.get_minor_formatter(), ticker.NullFormatter) and not isinstance(
-                    locator, ticker.NullLocator):  # a shared axis' locator is met once: the first puts it aside
-                unlabelled.append((axis, locator, axis.isDefault_minloc))
-                axis.set_minor_locator(ticker.NullLocator())
     fig.set_layout_engine(engine)
     try:
         engine.execute(fig)
     finally:
-        for axis, locator, default in reversed(unlabelled):
-            axis.set_minor_locator(locator)
-            axis.isDefault_minloc = default
         fig.set_layout_engine("none")  # the positions just computed stand for the draw
 
 
