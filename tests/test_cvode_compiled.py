@@ -252,3 +252,19 @@ def test_registered_for_untimed_work_only(monkeypatch):
     monkeypatch.setattr(cc, "_solve", boom)
     assert integrate("cvode-adams", model, y0, T, 1e-8).status.value == "ok"
     assert integrate_compiled("cvode-adams", model, y0, T, 1e-8).status.value == "failed"
+
+
+@pytest.mark.parametrize("solver, timed", [("cvode-bdf", "scikit-sundae's"), ("dop853", "scipy's")])
+def test_the_trust_note_names_what_the_scene_runs_time(solver, timed):
+    import math
+
+    from rk4h.references.registry import BUILTIN
+    from rk4h.validation import trust
+
+    rk4 = [dict(solver="rk4", setting=h, error_rel=1e3 * h**4, nfev=4 * round(100 / h), n_steps=round(100 / h),
+                wall_s=1e-3, wall_min=1e-3, wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0)
+           for h in (0.1, 0.05, 0.025, 0.0125)]
+    alt = dict(solver=solver, setting=1e-12, error_rel=4e-13, nfev=5000, n_steps=400, wall_s=1e-3, wall_min=1e-3,
+               wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0, implementation="compiled")
+    note = trust.trust_rows("s", rk4, BUILTIN["rk4"], 100.0, math.inf, [1e-12], confirmations=[alt])[0]["note"]
+    assert f"(its compiled loop, a confirmation run; the scene's runs time {timed})" in note
