@@ -331,17 +331,6 @@ def cv_jac(t, y, fy, J, ud, tmp1, tmp2, tmp3):
             jj[b * n2 + a] = jy[perm[a]]
     return 0
 
-
-def cv_jac_constant(t, y, fy, J, ud, tmp1, tmp2, tmp3):
-    # CVLsJacFn: the constant Jacobian of a linear model, already permuted and column-major
-    sz = carray(ud[0], 7, np.int64)
-    n2 = sz[0]
-    src = carray(ud[8], n2 * n2, np.float64)
-    jj = carray(J[0][1], n2 * n2)
-    sz[6] += 1
-    for a in range(n2 * n2):
-        jj[a] = src[a]
-    return 0
 '''
 
 #: The callbacks of each force kernel structure built in this process, by ``kern.key()``.
@@ -382,9 +371,21 @@ def _callback(module, name: str, sig):
 def _callbacks(kern, kind: str):
     """The C callback ``kind`` (``"rhs"``, ``"jac"``, ``"jac_constant"``) for
     force kernel ``kern``: the model's generated force and right-hand side
-    (:func:`rk4h.fast.codegen.model_source`'s text) with :data:`_CALLBACKS`."""
-    key = (kern.key(), kind)
+    (:func:`rk4h.fast.codegen.model_source`'s text) with :data:`_CALLBACKS`;
+    the constant Jacobian's is :mod:`rk4h.references.solvers._cvode_jac`'s,
+    one for every model."""
+    key = (kern.key(), kind) if kind != "jac_constant" else kind
     cf = _CALLBACK_CACHE.get(key)
+    if cf is None and kind == "jac_constant":  # the same for every model: compiled once per machine
+        from numba.core.ccallback import CFunc
+
+        from . import _cvode_jac
+
+        cf = CFunc(_cvode_jac.cv_jac_constant, (_signatures()[1].args, _signatures()[1].return_type), {},
+                   {"error_model": "numpy"})
+        cf.enable_caching()
+        cf.compile()
+        _CALLBACK_CACHE[key] = cf
     if cf is None:
         from rk4h.fast import codegen
 
@@ -393,8 +394,7 @@ def _callbacks(kern, kind: str):
                          + codegen._HEADER + codegen._rhs_lines(kern)) + _CALLBACKS
         module = codegen.load_generated(text)
         rhs_sig, jac_sig = _signatures()
-        cf = _callback(module, {"rhs": "cv_rhs", "jac": "cv_jac", "jac_constant": "cv_jac_constant"}[kind],
-                       rhs_sig if kind == "rhs" else jac_sig)
+        cf = _callback(module, {"rhs": "cv_rhs", "jac": "cv_jac"}[kind], rhs_sig if kind == "rhs" else jac_sig)
         _CALLBACK_CACHE[key] = cf
     return cf
 
