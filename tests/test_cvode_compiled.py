@@ -268,3 +268,30 @@ def test_the_trust_note_names_what_the_scene_runs_time(solver, timed):
                wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0, implementation="compiled")
     note = trust.trust_rows("s", rk4, BUILTIN["rk4"], 100.0, math.inf, [1e-12], confirmations=[alt])[0]["note"]
     assert f"(its compiled loop, a confirmation run; the scene's runs time {timed})" in note
+
+
+def test_a_first_order_model_runs_scikit_sundae():
+    """A plain fun(t, y) has no compiled right-hand side: scikit-sundae's run, said so."""
+    y0 = np.array([1.0, 0.5, -0.25])
+    run = integrate_compiled("cvode-bdf", lambda t, y: -y, y0, T, 1e-8)
+    ref = integrate("cvode-bdf", lambda t, y: -y, y0, T, 1e-8)
+    assert run.status.value == "ok" and run.extra["implementation"] == "scikit-sundae"
+    assert "compiled right-hand side" in run.extra["compiled_error"]
+    np.testing.assert_array_equal(run.y, ref.y)
+    np.testing.assert_allclose(run.y[:, -1], y0 * np.exp(-T[-1]), rtol=1e-5)
+
+
+def test_the_benchmark_compares_both_on_one_scene():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_cvode.py"), "--compiled", "--tiny",
+                           "--compiled-scenes", "thesis_2dof_case1"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = proc.stdout
+    assert out.count("thesis-2dof-case1 ") == 4  # two methods x rtol 1e-8, 1e-12
+    assert "ratio compiled/scikit-sundae whole run (sum of the medians): " in out
+    assert "check same states (bit for bit), n_steps, nfev and status: True" in out
+    assert "fell back" not in out and "DIFFERENT" not in out

@@ -469,7 +469,7 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
     if jac_kind is None:
         extra.update(lband=lband, uband=uband)
 
-    t0, t1 = float(t_eval[0]), float(t_eval[-1])
+    t0 = float(t_eval[0])
     status, message, t_fail = Status.OK, f"{solver_name}: reached the end of the interval", None
     n_steps = nfev_cvode = njev = nfev_dq = 0
     k = 1
