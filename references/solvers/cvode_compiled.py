@@ -383,7 +383,10 @@ def _callbacks(kern, kind: str):
 
         cf = CFunc(_cvode_jac.cv_jac_constant, (_signatures()[1].args, _signatures()[1].return_type), {},
                    {"error_model": "numpy"})
-        cf.enable_caching()
+        try:
+            cf.enable_caching()
+        except Exception:  # noqa: BLE001 - no usable cache location: compiled in this process only
+            pass
         cf.compile()
         _CALLBACK_CACHE[key] = cf
     if cf is None:
