@@ -64,6 +64,19 @@ so the ``check`` lines must show equal counters and identical trajectories
 ``t_end`` rather than at the first output time, the first step differs and so
 do the counters, a little, and the trajectories, within the tolerance.
 Timings are machine- and load-dependent and never asserted.
+
+``--compiled`` (issue 29) compares, in one run with the load, scikit-sundae's
+CVODE (``cvode.run_cvode``: a Python callback per evaluation, the timed rows)
+with the same CVODE driven through ``ctypes`` with compiled callbacks
+(``cvode_compiled.run_cvode_compiled``: untimed work) on ``--compiled-scenes``
+(default ``chain10_mode2 planar4_case2 thesis_2dof_case1``) at rtol 1e-8 and
+1e-12, both CVODE methods, ``--repeats`` interleaved runs after one untimed
+warm-up each. Per row: steps, nfev, the median wall time of each, the
+microseconds per right-hand-side call (``wall_s / nfev``) and the ratio
+compiled/scikit-sundae; then the whole-run ratio (sum of the medians) and the
+check that states, steps and nfev are equal (bit for bit):
+
+    python benchmarks/bench_cvode.py --compiled
 """
 from __future__ import annotations
 
@@ -283,6 +296,55 @@ def dop853_per_call(args, model, y0, t, n):
               f"{run - g:.2f}")
 
 
+COMPILED_SCENES = ("chain10_mode2", "planar4_case2", "thesis_2dof_case1")
+
+
+def compiled_table(args, repeats):
+    """The ``--compiled`` table (module docstring)."""
+    from rk4h.references.solvers.cvode_compiled import run_cvode_compiled, sundials_library
+
+    paths, version = sundials_library()
+    print(f"scikit-sundae: cvode.run_cvode (timed rows)\ncompiled: cvode_compiled.run_cvode_compiled, SUNDIALS "
+          f"{version if paths else '(unavailable: ' + str(version) + ')'}\nrepeats: {repeats} (median), interleaved")
+    print(f"\n{'scene':18s} {'solver':12s} {'rtol':>7s} {'steps':>7s} {'nfev':>7s} {'sundae s':>9s} "
+          f"{'compiled s':>10s} {'us/call sundae':>14s} {'us/call compiled':>16s} {'compiled/sundae':>15s}")
+    rows = []
+    for name in args.compiled_scenes:
+        scene = load_scene(SCENE_DIR / f"{name}.toml")
+        model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
+        if args.tiny:
+            t = t[t <= 5.0]
+        for solver in CVODE:
+            for rtol in (1e-8, 1e-12):
+                atol = absolute_tolerance(model, y0, rtol)
+                runners = {"sundae": lambda: cvode.run_cvode(solver, model, y0, t, rtol, atol),
+                           "compiled": lambda: run_cvode_compiled(solver, model, y0, t, rtol, atol)}
+                first = {w: fn() for w, fn in runners.items()}  # warm-up, untimed (compiles, builds)
+                walls = {w: [] for w in runners}
+                for _ in range(repeats):
+                    for w, fn in runners.items():
+                        walls[w].append(fn().wall_s)
+                med = {w: float(np.median(v)) for w, v in walls.items()}
+                a, b = first["sundae"], first["compiled"]
+                same = (a.n_steps == b.n_steps and a.nfev == b.nfev and a.status == b.status
+                        and np.array_equal(a.y, b.y, equal_nan=True))
+                rows.append(dict(sundae=med["sundae"], compiled=med["compiled"], same=same,
+                                 impl=b.extra.get("implementation")))
+                print(f"{scene.name:18s} {solver:12s} {rtol:7.0e} {a.n_steps:7d} {a.nfev:7d} {med['sundae']:9.4f} "
+                      f"{med['compiled']:10.4f} {med['sundae'] / a.nfev * 1e6:14.2f} "
+                      f"{med['compiled'] / max(b.nfev, 1) * 1e6:16.2f} {med['compiled'] / med['sundae']:15.3f}"
+                      + ("" if same else "  DIFFERENT") + ("" if rows[-1]["impl"] == "compiled" else
+                                                          f"  fell back: {b.extra.get('compiled_error')}"),
+                      flush=True)
+    ratios = [r["compiled"] / r["sundae"] for r in rows]
+    print()
+    print(f"ratio compiled/scikit-sundae whole run (sum of the medians): "
+          f"{sum(r['compiled'] for r in rows) / sum(r['sundae'] for r in rows):.3f}")
+    print(f"ratio compiled/scikit-sundae per row: median {np.median(ratios):.3f}, min {min(ratios):.3f}, "
+          f"max {max(ratios):.3f}")
+    print(f"check same states (bit for bit), n_steps, nfev and status: {all(r['same'] for r in rows)}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
@@ -292,8 +354,12 @@ def main(argv=None):
     ap.add_argument("--per-call", action="store_true", help="where one RHS call's time goes (docstring)")
     ap.add_argument("--rtol", type=float, default=1e-7, help="the --per-call tolerance")
     ap.add_argument("--old-dop853", default=None, help="--per-call: an older dop853.py whose run_dop853 is 'old'")
+    ap.add_argument("--compiled", action="store_true", help="compiled callbacks vs scikit-sundae (docstring)")
+    ap.add_argument("--compiled-scenes", nargs="+", default=list(COMPILED_SCENES))
     args = ap.parse_args(argv)
     repeats = 2 if args.tiny else args.repeats
+    if args.compiled:
+        return compiled_table(args, repeats)
     if args.per_call:
         args.repeats = repeats
         return per_call(args)

@@ -289,13 +289,15 @@ def test_dop853_is_run_and_timed_as_its_compiled_loop_and_said_so(monkeypatch):
     listed = {c["method"]: c for c in adv.candidates}
     dop = listed["dop853"]
     assert dop["implementation"] == "compiled"
-    assert all(c["implementation"] == "" for n, c in listed.items() if n != "dop853")
+    compiled = ("dop853", "cvode-adams", "cvode-bdf")  # CVODE: compiled callbacks (test_cvode_compiled.py)
+    assert all(c["implementation"] == ("compiled" if n in compiled else "") for n, c in listed.items())
     model, y0 = problem(scene)
     t = scene.t_eval()
     run = integrate_compiled(scene.method("dop853"), model, y0, t, dop["setting"])
     assert run.extra["implementation"] == "compiled" and run.nfev == dop["cost_rhs"]
     assert _error(scene, "dop853", dop["setting"]) <= target      # scipy's, at the listed rtol
     assert "dop853: run and timed as its compiled loop" in advise_mod._text(adv)
+    assert "cvode-adams: run and timed as SUNDIALS CVODE with compiled callbacks" in advise_mod._text(adv)
     # heyoka's predicted rtol is one it was calibrated at: the confirming run is that run, the rest timing repeats
     hey = listed["heyoka"]
     assert any(s == hey["setting"] for s, _ in hey["calibration"])

@@ -76,7 +76,9 @@ How (all plain data):
    and timed as that loop (:func:`rk4h.references.solvers.integrate_compiled`,
    equal to scipy's DOP853 to round-off; scipy's ``solve_ivp`` steps in
    Python and is not run): its candidate says ``implementation =
-   "compiled"``. A confirmation at a setting a calibration run already ran
+   "compiled"``. So are CVODE-Adams and CVODE-BDF: SUNDIALS CVODE driven
+   through ``ctypes`` with compiled callbacks, equal to scikit-sundae's run
+   (:mod:`rk4h.references.solvers.cvode_compiled`). A confirmation at a setting a calibration run already ran
    reuses that run (the runs are deterministic); timing repeats are new runs.
 4. *Model.* A linear model has a closed form (its modal solution: no
    integration needed for the answer); a nonlinear one with a linearization
@@ -707,6 +709,11 @@ def _text(adv: Advice) -> str:
     lines.append(f"  time: {adv.timing}")
     for c in adv.candidates:
         if c.get("implementation") == "compiled":
+            if c["method"].startswith("cvode"):  # CVODE with compiled callbacks (references/solvers/cvode_compiled.py)
+                lines.append(f"  {c['method']}: run and timed as SUNDIALS CVODE with compiled callbacks "
+                             f"(rk4h.references.solvers.integrate_compiled, equal to scikit-sundae's run); "
+                             f"scikit-sundae, which calls a Python function per evaluation, was not run")
+                continue
             lines.append(f"  {c['method']}: run and timed as its compiled loop "
                          f"(rk4h.references.solvers.integrate_compiled, equal to scipy's to round-off); scipy's "
                          f"solve_ivp, which steps in Python, was not run")

@@ -511,7 +511,8 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
         reached = (f"{alt['solver']} {setting_name(alt['solver'])} {alt['setting']:g} reached "
                    f"{alt['error_rel']:.2g}")
         if alt.get("implementation") == "compiled":
-            reached += " (its compiled loop, a confirmation run; the scene's runs time scipy's)"
+            timed = "scikit-sundae's" if str(alt["solver"]).startswith("cvode") else "scipy's"
+            reached += f" (its compiled loop, a confirmation run; the scene's runs time {timed})"
         if got is None:
             why = (f"{name} predicted h = {h:.3g} s ({source}), not confirmed by a run" if math.isfinite(h)
                    else f"{name}: {source}")

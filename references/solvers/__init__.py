@@ -17,6 +17,9 @@ A scene's ``python`` and ``command`` methods
 ``cvode-adams``, ``cvode-bdf``
     SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
     DOP853), analytic Jacobian, banded for chains; ``setting`` is ``rtol``.
+    :func:`integrate_compiled` drives the same CVODE library through
+    ``ctypes`` with compiled callbacks (:mod:`rk4h.references.solvers.cvode_compiled`),
+    equal to scikit-sundae's run, for untimed work; timed rows keep scikit-sundae's.
 ``heyoka``
     heyoka's Taylor integrator, double precision, on ``model.heyoka_system()``
     (the same ``_force`` code as ``model.rhs``); ``setting`` is ``rtol``.
@@ -66,6 +69,7 @@ from rk4h.validate import check_model_y0, check_output_times, positive
 from ..registry import BUILTIN, Kind, Method, resolve
 from .base import ADAPTIVE, FIXED_STEP, SOLVER_NAMES, SolverRun, Status
 from .cvode import DEFAULT_MAX_STEPS, run_cvode
+from .cvode_compiled import run_cvode_compiled
 from .dop853 import run_dop853, run_dop853_compiled
 from .fixed import run_fixed, run_fixed_short
 from .stepper import run_python
@@ -248,7 +252,9 @@ def _fixed_short(solver, model, y0, t_eval, setting, max_steps):
 
 
 #: Reference adapters with a compiled loop for untimed work (:func:`integrate_compiled`).
-COMPILED_RUNNERS = {"dop853": run_dop853_compiled}
+COMPILED_RUNNERS = {"dop853": run_dop853_compiled,
+                    "cvode-adams": lambda *a: run_cvode_compiled("cvode-adams", *a),
+                    "cvode-bdf": lambda *a: run_cvode_compiled("cvode-bdf", *a)}
 
 
 def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
@@ -256,7 +262,9 @@ def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
     """:func:`integrate` for untimed work (confirmation runs): a reference
     with a compiled loop (:data:`COMPILED_RUNNERS`: DOP853 stepped by
     :func:`rk4h.references.solvers.dop853.run_dop853_compiled`, equal to scipy's
-    to round-off) runs it; every other solver, and a model without a
+    to round-off; CVODE driven through ``ctypes`` with compiled callbacks by
+    :func:`rk4h.references.solvers.cvode_compiled.run_cvode_compiled`, equal to
+    scikit-sundae's) runs it; every other solver, and a model without a
     compiled right-hand side, runs as :func:`integrate` runs it.
     ``run.extra["implementation"]`` is ``"compiled"`` where the compiled
     loop ran. Same arguments, checks and result."""
