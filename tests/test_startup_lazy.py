@@ -7,6 +7,7 @@ import pickle
 import subprocess
 import sys
 import tomllib
+from fractions import Fraction
 
 import pytest
 from pydantic import ValidationError
@@ -106,3 +107,31 @@ def _by_variant(doc):
 def test_validating_by_the_variant_answers_as_the_union(doc):
     assert _by_variant(doc) == _by_union(doc)
 
+
+
+# -- the shipped geometric methods' irrational coefficients: data, checked here ---------------------------------
+def test_importing_rk4h_does_not_load_mpmath():
+    assert _fresh("import sys, rk4h, rk4h.references.registry; print('mpmath' in sys.modules)") == "False"
+
+
+def test_stored_irrational_coefficients_are_those_evaluated(monkeypatch):
+    from rk4h import geometric as G
+
+    stored = dict(G._EVALUATED)
+    assert len(stored) == 6
+    with_table = {text: G.coefficient(text) for text in stored}
+    monkeypatch.setattr(G, "_EVALUATED", {})
+    for text, scaled in stored.items():
+        value, bound = G.coefficient(text)  # parsed and evaluated with mpmath
+        assert value == Fraction(scaled, 2**G.BITS) and (value, bound) == with_table[text], text
+        assert value.denominator != 1 and bound > 0  # irrational: kept to BITS bits, with a bound
+
+
+def test_every_irrational_coefficient_of_the_shipped_methods_is_stored():
+    """Building the shipped methods evaluates no expression (mpmath cannot even be
+    imported here): each irrational coefficient they hold is stored, so with the test
+    above they are the tableaux evaluated before."""
+    code = ("import sys; sys.modules['mpmath'] = None; import rk4h; "
+            "from rk4h.geometric import GEOMETRIC; print(sorted(GEOMETRIC))")
+    assert _fresh(code) == str(sorted(["yoshida4", "yoshida6", "suzuki4", "forest-ruth", "blanes-moan4",
+                                       "blanes-moan6"]))
