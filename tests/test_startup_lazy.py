@@ -40,10 +40,12 @@ def test_unpickling_a_scene_loads_neither_pydantic_nor_the_schema(tmp_path):
 
 
 def test_loading_a_scene_builds_only_its_models_variant():
-    code = ("from rk4h.validation.scenes import load_scenes; from rk4h.validation import scene_schema as SS; "
-            "load_scenes(['thesis-2dof-case1']); "
-            "print(sorted(SS.SCENE_MODELS._built), sorted(SS.BUILTIN_MODELS._built))")
-    assert _fresh(code) == "['chain'] ['chain']"
+    """... and a scene without an [ensemble] table does not import the ensemble module."""
+    code = ("import sys; from rk4h.validation.scenes import load_scenes; "
+            "from rk4h.validation import scene_schema as SS; load_scenes(['thesis-2dof-case1']); "
+            "print(sorted(SS.SCENE_MODELS._built), sorted(SS.BUILTIN_MODELS._built), "
+            "'rk4h.validation.ensemble' in sys.modules)")
+    assert _fresh(code) == "['chain'] ['chain'] False"
 
 
 def test_the_lazy_names_are_those_of_the_schema():

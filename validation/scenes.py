@@ -518,13 +518,13 @@ def _ensemble(path, table, outputs, model, x, v):
     stability map's keys), or the :class:`SceneError` naming its field."""
     import re
 
-    from .ensemble import draw_instances, map_settings
-
     wants = [o for o in ("ensemble", "stability_map", "amplitude_ensemble") if o in outputs]
     if table is None:
         if wants:
             raise SceneError(path, "run.outputs", f"`{wants[0]}` needs an [ensemble] table", wants[0])
         return None
+    from .ensemble import draw_instances, map_settings  # only for a scene with an [ensemble] table
+
     try:
         draw_instances(table, model, x, v, probe=True)  # the run draws all `size` instances
         if "stability_map" in outputs:
