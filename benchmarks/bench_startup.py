@@ -10,9 +10,14 @@ rk4h.references.registry``, importing ``rk4h.validation.scenes``,
 loading thesis-2dof-case1 (``load_one``: the scene an advisor call loads,
 with the schema's first use) and then ``load_scenes(quick=True)``
 (``load_quick``: the other quick scenes' models and variants). A second
-fresh interpreter unpickles the quick scenes (``unpickle``: what a worker
-process of ``run_all.py`` pays to receive its jobs' scenes; the pickle is
-written by the same Python first, untimed).
+fresh interpreter does what a spawned worker process of ``run_all.py`` does
+before its first run: imports what ``run_all.py`` imports at its top
+(``worker_main``: the spawn start method runs the parent's main module
+again), ``engine._worker_init()`` and ``engine._warm()`` (``worker_warm``:
+the modules a run needs, heyoka's start), then unpickles the quick scenes
+(``unpickle``: its jobs' scenes; the pickle is written by the same Python
+first, untimed); ``worker`` is that process's CPU time in all, its
+interpreter's start included.
 
 ``--before PY``: a Python whose ``rk4h`` is the tree to compare with (a
 virtual environment with that checkout installed); rounds alternate before
@@ -59,11 +64,19 @@ open(sys.argv[1], "wb").write(pickle.dumps(load_scenes(quick=True)))
 UNPICKLE = r"""
 import json, pickle, sys, time
 t0 = time.process_time()
+import rk4h.validation.runner
+t1 = time.process_time()
+from rk4h.validation import engine
+engine._worker_init()
+engine._warm()
+t2 = time.process_time()
 s = pickle.loads(open(sys.argv[1], "rb").read())
-print(json.dumps({"unpickle": time.process_time() - t0}))
+t3 = time.process_time()
+print(json.dumps({"worker_main": t1 - t0, "worker_warm": t2 - t1, "unpickle": t3 - t2, "worker": t3}))
 """
 
-KEYS = ("numpy", "registry", "scenes_import", "load_one", "load_quick", "total", "unpickle")
+KEYS = ("numpy", "registry", "scenes_import", "load_one", "load_quick", "total", "worker_main", "worker_warm",
+        "unpickle", "worker")
 
 
 def _round(python: str, blob: str) -> dict:
