@@ -79,6 +79,21 @@ _MAX_LOG2 = 4096
 _DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
 
+#: The irrational coefficients of the shipped methods below, as this module
+#: evaluates them (text -> the integer ``round(value * 2**BITS)`` of mpmath's
+#: value at :data:`DIGITS` digits): data, so that importing rk4h neither
+#: imports mpmath nor parses and evaluates them (about 0.03 s CPU in every
+#: process). ``tests/test_startup_lazy.py`` evaluates each again and holds it equal.
+_EVALUATED = {
+    "1/(2 - 2^(1/3))": 2070718996464094436956569525680530486015564304294558673,
+    "-2^(1/3)/(2 - 2^(1/3))": -2608942452062300015554792024210751788412389486405515171,
+    "1/(4 - 4^(1/3))": 635205259504941555443972100145849546355998462218780983,
+    "1 - 4/(4 - 4^(1/3))": -1008325497153877363417541373433089001805254726691521756,
+    "1/(2*(2 - 2^(1/3)))": 1035359498232047218478284762840265243007782152147279337,
+    "(1 - 2^(1/3))/(2*(2 - 2^(1/3)))": -269111727799102789299111249265110651198412591055478249,
+}
+
+
 class _Bad(ValueError):
     pass
 
@@ -200,6 +215,8 @@ def coefficient(x, where: str = "coefficient") -> tuple[Fraction, Fraction]:
     if _DECIMAL.fullmatch(text):
         f = Fraction(text)
         return f, _decimal_bound(text, f)
+    if text in _EVALUATED:
+        return _irrational(_EVALUATED[text])
     from . import expr as E
 
     try:
@@ -222,6 +239,11 @@ def coefficient(x, where: str = "coefficient") -> tuple[Fraction, Fraction]:
         raise ValueError(f"{where} = {text!r:.60} {e}") from None
     except (ZeroDivisionError, ValueError, OverflowError) as e:
         raise ValueError(f"{where} = {text!r:.60} cannot be evaluated ({type(e).__name__})") from None
+    return _irrational(scaled)
+
+
+def _irrational(scaled: int) -> tuple[Fraction, Fraction]:
+    """``(value, bound)`` of an irrational coefficient evaluated to ``scaled / 2**BITS``."""
     f = Fraction(scaled, 2**BITS)
     return f, Fraction(1, 2**(BITS - 8)) * max(1, abs(f))
 

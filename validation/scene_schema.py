@@ -28,8 +28,10 @@ declared from :data:`rk4h.validation.stability.params.PARAMS` and validated by i
 """
 from __future__ import annotations
 
+import functools
 import json
 import sys
+from collections.abc import Mapping
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, Tag, TypeAdapter, ValidationError,
@@ -45,7 +47,8 @@ from rk4h.validation.plan import EULER_THETAS, RK4_THETAS
 from rk4h.validation.stability.params import MAX_LIST, PARAMS, STUDIES, StabilityParamError, validate_params
 
 __all__ = ["SCENE", "SCENE_MODELS", "BUILTIN_MODELS", "params_table", "params_error", "OUTPUTS", "OUTPUT_HELP",
-           "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown"]
+           "TOP_KEYS", "INITIAL_KEYS", "NAME_PATTERN", "NAME_MAX", "IDENT", "WORD", "first_error", "json_schema", "reference_markdown",
+           "validate", "validation_error"]
 
 #: What a scene may ask for in ``run.outputs``: the output registry's names
 #: (:mod:`rk4h.validation.outputs`) when this module was imported; the schema
@@ -203,8 +206,43 @@ def params_table(model_cls) -> type[BaseModel]:
     return table
 
 
-#: Built-in model name -> its ``[params]`` table, generated from rk4core's model registry.
-BUILTIN_MODELS: dict[str, type[BaseModel]] = {cls.name: params_table(cls) for cls in BUILTIN_CLASSES}
+class _Built(Mapping):
+    """A read-only mapping of fixed keys whose values are built on first
+    access and kept: a process builds the pydantic models of the scenes it
+    validates, not those of every model (each costs milliseconds of schema
+    generation). Iterating over ``values()`` or ``items()`` builds them all."""
+
+    def __init__(self, keys, build):
+        self._keys = tuple(dict.fromkeys(keys))
+        self._build = build
+        self._built = {}
+
+    def __getitem__(self, key):
+        try:
+            return self._built[key]
+        except (KeyError, TypeError):
+            if not isinstance(key, str) or key not in self._keys:
+                raise KeyError(key) from None
+        value = self._built[key] = self._build(key)
+        return value
+
+    def __iter__(self):
+        return iter(self._keys)
+
+    def __len__(self):
+        return len(self._keys)
+
+    def __contains__(self, key):
+        return isinstance(key, str) and key in self._keys
+
+    def __repr__(self):
+        return f"<{len(self._keys)} scene tables, built on first use: {', '.join(self._keys)}>"
+
+
+_BUILTIN_CLASS = {cls.name: cls for cls in BUILTIN_CLASSES}
+#: Built-in model name -> its ``[params]`` table, generated from rk4core's model registry
+#: (each table is generated when first asked for).
+BUILTIN_MODELS: Mapping[str, type[BaseModel]] = _Built(_BUILTIN_CLASS, lambda name: params_table(_BUILTIN_CLASS[name]))
 
 
 # -- the other tables ----------------------------------------------------------------
@@ -408,11 +446,14 @@ def _scene(tag: str, model_type, params_type) -> type[BaseModel]:
 _USER_MODEL = Annotated[str, Field(json_schema_extra={"pattern": _TARGET})]
 
 
-#: tag -> the scene variant (the user's model under "user").
-SCENE_MODELS: dict[str, type[BaseModel]] = {
-    **{name: _scene(name, Literal[name], params) for name, params in BUILTIN_MODELS.items()},
-    "user": _scene("user", _USER_MODEL, dict[str, Any]),
-}
+def _variant(tag: str) -> type[BaseModel]:
+    if tag == "user":
+        return _scene("user", _USER_MODEL, dict[str, Any])
+    return _scene(tag, Literal[tag], BUILTIN_MODELS[tag])
+
+
+#: tag -> the scene variant (the user's model under "user"); each is generated when first asked for.
+SCENE_MODELS: Mapping[str, type[BaseModel]] = _Built([*BUILTIN_MODELS, "user"], _variant)
 
 
 def _which(doc) -> str:
@@ -420,11 +461,45 @@ def _which(doc) -> str:
     return model if isinstance(model, str) and model in BUILTIN_MODELS else "user"
 
 
-#: The scene document: validate with ``SCENE.validate_python(doc)``.
-SCENE = TypeAdapter(Annotated[Union[tuple(Annotated[cls, Tag(tag)] for tag, cls in SCENE_MODELS.items())],
-                              Discriminator(_which)])
-TOP_KEYS = tuple(SCENE_MODELS["user"].model_fields)
+@functools.cache
+def _scene_adapter() -> TypeAdapter:
+    return TypeAdapter(Annotated[Union[tuple(Annotated[cls, Tag(tag)] for tag, cls in SCENE_MODELS.items())],
+                                 Discriminator(_which)])
+
+
+#: The scene document: ``SCENE.validate_python(doc)`` (every variant is built
+#: with it, on first use); :func:`validate` validates the same way, building
+#: only the variant ``doc`` selects.
+SCENE: TypeAdapter
+#: The top-level keys of a scene file (built with the user's variant on first use).
+TOP_KEYS: tuple
 INITIAL_KEYS = tuple(Initial.model_fields)
+_LAZY = {"SCENE": _scene_adapter, "TOP_KEYS": lambda: tuple(SCENE_MODELS["user"].model_fields)}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        return _LAZY[name]()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def validate(doc):
+    """``doc`` validated as ``SCENE.validate_python(doc)`` validates it: by the
+    variant of its model (:data:`SCENE_MODELS`, the one ``SCENE``'s
+    discriminator picks), building only that variant.
+
+    Raises
+    ------
+    pydantic.ValidationError
+        Give it to :func:`first_error` with ``variant=SCENE_MODELS[_which(doc)]``
+        (its locations lack the union's tag); :func:`validation_error` does.
+    """
+    return SCENE_MODELS[_which(doc)].model_validate(doc)
+
+
+def validation_error(exc, doc) -> tuple[str, str, object]:
+    """:func:`first_error` of a :func:`validate` failure of ``doc``."""
+    return first_error(exc, doc, variant=SCENE_MODELS[_which(doc)])
 
 
 # -- errors -----------------------------------------------------------------------------
@@ -580,7 +655,7 @@ def json_schema() -> dict:
         read it too) and ``null`` defaults dropped (TOML has no null: an
         absent key takes the default the reference gives).
     """
-    schema = SCENE.json_schema()
+    schema = _scene_adapter().json_schema()
 
     def clean(node):
         if isinstance(node, dict):

@@ -79,6 +79,7 @@ pass ``allow_code=False``.
 """
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -88,18 +89,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydantic import ValidationError
 
 from rk4h.references.registry import MethodError, methods_from_tables, names, resolve
 from rk4h.solver import _SLACK as _STEP_SLACK
 
-from . import scene_schema, sweeps
+from . import sweeps
 from .scene_checks import SceneError
 from .scene_checks import check_model as _check_model
 from .scene_checks import figure_stem as _figure_stem
 from .scene_checks import show as _show
 from .scene_checks import unknown_keys as _unknown_keys
-from .scene_schema import OUTPUTS
 from .sweeps import MAX_SWEEP_POINTS, SWEEP_RUN_KEYS
 
 __all__ = ["Scene", "SceneError", "load_scene", "load_scene_points", "load_scenes", "resolve_scene",
@@ -117,9 +116,9 @@ SCENE_DIR = Path(__file__).resolve().parent / "scenes"
 #: (value ``1``; the command-line flag is ``--allow-code``).
 ALLOW_CODE_ENV = "RK4H_ALLOW_CODE"
 
-_TOP = set(scene_schema.TOP_KEYS)
-_NAME = re.compile(scene_schema.NAME_PATTERN.strip("^$"))  # used with fullmatch: no trailing newline slips through
-_NAME_MAX = scene_schema.NAME_MAX
+# The schema (rk4h.validation.scene_schema, with pydantic) is imported when a
+# scene is validated, not with this module: a process that only receives
+# scenes (a worker unpickling its jobs) never builds it.
 #: Relative slack when checking that one step divides another: the slack of
 #: rk4core's step count (``ceil((t1 - t0) / h)``), so a step that passes here
 #: is the step used, and every output time is a grid point of every run.
@@ -247,13 +246,37 @@ def _divides(small: float, big: float) -> bool:
     return abs(r - round(r)) <= _DIVIDES * max(1.0, r)
 
 
+def _schema():
+    """:mod:`rk4h.validation.scene_schema`, imported on first use (it loads pydantic)."""
+    from . import scene_schema
+
+    return scene_schema
+
+
+def __getattr__(name):
+    # names read from the schema on first use: OUTPUTS (the output names when the schema was
+    # imported), the scene-name pattern and length, the top-level keys
+    if name == "OUTPUTS":
+        return _schema().OUTPUTS
+    if name == "_NAME":
+        return _name_pattern()
+    if name == "_NAME_MAX":
+        return _schema().NAME_MAX
+    if name == "_TOP":
+        return set(_schema().TOP_KEYS)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def _validated(path, doc: dict):
     """``doc`` validated by :data:`rk4h.validation.scene_schema.SCENE` (the variant of
     its model), or the :class:`SceneError` of its first error."""
+    from pydantic import ValidationError
+
+    scene_schema = _schema()
     try:
-        return scene_schema.SCENE.validate_python(doc)
+        return scene_schema.validate(doc)  # as SCENE.validate_python(doc), building only doc's variant
     except ValidationError as e:
-        fld, problem, value = scene_schema.first_error(e, doc)
+        fld, problem, value = scene_schema.validation_error(e, doc)
         raise SceneError(path, fld, problem, value) from None
 
 
@@ -495,13 +518,13 @@ def _ensemble(path, table, outputs, model, x, v):
     stability map's keys), or the :class:`SceneError` naming its field."""
     import re
 
-    from .ensemble import draw_instances, map_settings
-
     wants = [o for o in ("ensemble", "stability_map", "amplitude_ensemble") if o in outputs]
     if table is None:
         if wants:
             raise SceneError(path, "run.outputs", f"`{wants[0]}` needs an [ensemble] table", wants[0])
         return None
+    from .ensemble import draw_instances, map_settings  # only for a scene with an [ensemble] table
+
     try:
         draw_instances(table, model, x, v, probe=True)  # the run draws all `size` instances
         if "stability_map" in outputs:
@@ -587,6 +610,7 @@ def _build_model(path, model_name, params):
     from rk4h import MODELS, make_model
     from rk4h.models import resolve_model
 
+    scene_schema = _schema()
     if model_name not in scene_schema.BUILTIN_MODELS:
         err = scene_schema.params_error(MODELS[resolve_model(model_name)], params)
         if err is not None:
@@ -654,8 +678,14 @@ def scene_points_from_dict(doc: dict, path="<scene>", *, allow_code: bool = True
         _refuse_code(path, doc)
     if not isinstance(doc, dict) or "sweep" not in doc:
         return [_scene_from_dict(doc, path)]
-    _unknown_keys(path, "", doc, _TOP)
+    _unknown_keys(path, "", doc, set(_schema().TOP_KEYS))
     return sweeps.expand(doc, path, lambda point_doc: _scene_from_dict(point_doc, path))
+
+
+@functools.cache
+def _name_pattern():
+    """The scene-name pattern, for ``fullmatch`` (no trailing newline slips through)."""
+    return re.compile(_schema().NAME_PATTERN.strip("^$"))
 
 
 def resolve_scene(arg) -> Path:
@@ -666,7 +696,7 @@ def resolve_scene(arg) -> Path:
         return p
     stem = str(arg).replace("-", "_")
     candidate = SCENE_DIR / f"{stem}.toml"
-    if _NAME.fullmatch(stem) and len(stem) <= _NAME_MAX and candidate.is_file():
+    if _name_pattern().fullmatch(stem) and len(stem) <= _schema().NAME_MAX and candidate.is_file():
         return candidate
     for f in sorted(SCENE_DIR.glob("*.toml")):
         try:

@@ -75,12 +75,12 @@ one its point makes alone.
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 import math
 import re
 from dataclasses import dataclass
 
-from . import scene_schema
 from .scene_checks import Raw as _Raw
 from .scene_checks import SceneError
 from .scene_checks import check_model as _check_model
@@ -98,11 +98,19 @@ SWEEP_RUN_KEYS = ("t_end",)
 #: Longest point name ``BASE@TOKEN=VALUE...`` (file-name stems stay well below 255 bytes).
 _POINT_NAME_MAX = 200
 _POINT_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*(?:@[a-z0-9_.]+=[a-z0-9_.-]+)+")
-_IDENT = scene_schema.IDENT
-_SWEEP_PATH = re.compile(rf"({_IDENT})((?:\.{_IDENT}|\[(?:0|[1-9][0-9]*)\])+)")
-_SWEEP_STEP = re.compile(rf"\.({_IDENT})|\[(0|[1-9][0-9]*)\]")
-_WORD = re.compile(scene_schema.WORD)
-_INITIAL = set(scene_schema.INITIAL_KEYS)
+
+
+@functools.cache
+def _patterns():
+    """``(IDENT, path pattern, step pattern, word pattern, initial keys)`` of a
+    ``[sweep]`` key, from the scene schema, imported on first use: it loads
+    pydantic, which a process that only receives scenes never needs."""
+    from . import scene_schema
+
+    ident = scene_schema.IDENT
+    return (ident, re.compile(rf"({ident})((?:\.{ident}|\[(?:0|[1-9][0-9]*)\])+)"),
+            re.compile(rf"\.({ident})|\[(0|[1-9][0-9]*)\]"), re.compile(scene_schema.WORD),
+            set(scene_schema.INITIAL_KEYS))
 
 
 # -- expansion --------------------------------------------------------------------
@@ -206,6 +214,7 @@ def _key_field(key) -> str:
 
 
 def _sweep_axes(path, doc) -> list[_Axis]:
+    _IDENT, _SWEEP_PATH, _SWEEP_STEP, _WORD, _ = _patterns()
     sweep = doc["sweep"]
     if not isinstance(sweep, dict):
         raise SceneError(path, "sweep", 'must be a table of "PATH" = [values]', sweep)
@@ -266,6 +275,7 @@ def _sweep_axes(path, doc) -> list[_Axis]:
 
 def _check_target(path, fld, doc, key, table, steps):
     """Refuse a path that does not address a sweepable place of ``doc``."""
+    _INITIAL = _patterns()[4]
     allowed = {"params": None, "initial": _INITIAL, "run": set(SWEEP_RUN_KEYS)}
     if table not in allowed:
         run_keys = SWEEP_RUN_KEYS[0] if len(SWEEP_RUN_KEYS) == 1 else f"{{{', '.join(SWEEP_RUN_KEYS)}}}"
