@@ -137,7 +137,6 @@ import os
 import time
 
 import numpy as np
-import scipy.sparse as sp
 
 from rk4h.fast.solve import compiled_entry, plain_vector
 
@@ -169,6 +168,11 @@ def interleave(n_dof: int) -> np.ndarray:
     return p
 
 
+#: Up to this many degrees of freedom :func:`linear_jacobian` builds the
+#: Jacobian dense (no scipy.sparse import); above it, sparse.
+_DENSE_JACOBIAN_MAX = 64
+
+
 def linear_jacobian(model, perm: np.ndarray):
     """Constant Jacobian of a linear model in the order ``perm``.
 
@@ -180,6 +184,21 @@ def linear_jacobian(model, perm: np.ndarray):
         Lower and upper bandwidths.
     """
     n = model.n_dof
+    if n <= _DENSE_JACOBIAN_MAX:
+        # dense: the same products (1/m_i) K_ij, without scipy.sparse
+        K = np.asarray(model.stiffness_matrix(), dtype=float)
+        J = np.zeros((2 * n, 2 * n))
+        J[:n, n:] = np.eye(n)
+        J[n:, :n] = -((1.0 / model.mass)[:, None] * K)
+        r, c = np.nonzero(J)
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(perm.size)
+        rows, cols, vals = inv[r], inv[c], J[r, c]
+        lband = int(max(0, np.max(rows - cols))) if rows.size else 0
+        uband = int(max(0, np.max(cols - rows))) if rows.size else 0
+        return rows, cols, vals, lband, uband
+    import scipy.sparse as sp
+
     try:
         K = model.stiffness_matrix(sparse=True)
     except TypeError:

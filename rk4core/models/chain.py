@@ -187,16 +187,36 @@ class Chain(Model):
         lo = [v for v in lo if v > 1e-12 * hi]
         return math.sqrt(lo[0]), math.sqrt(hi)
 
-    def stiffness_matrix(self, sparse: bool = False):
-        """Tridiagonal K (N/m): each spring's stiffness ``E''(0)`` from the
-        spring-energy template (``k``); ``sparse=True`` gives a scipy.sparse
-        matrix (O(N) memory)."""
-        import scipy.sparse as sp
-
+    def _bands(self):
+        """``(off, diag)``: K's off-diagonal (length N-1, the same below and
+        above) and diagonal (N/m), from each spring's ``E''(0)``."""
         N = self.n_dof
         k0 = np.asarray(_np_stiffness(0.0, self.k, self.alpha, self.beta), dtype=float) * np.ones_like(self.k)
         kpad = np.concatenate([[] if self._left else [0.0], k0, [] if self._right else [0.0]])
-        diag = kpad[:N] + kpad[1:]  # left spring + right spring of each mass
-        off = -kpad[1:N]
-        K = sp.diags([off, diag, off], [-1, 0, 1], format="csr")
-        return K if sparse else K.toarray()
+        return -kpad[1:N], kpad[:N] + kpad[1:]  # diag: left spring + right spring of each mass
+
+    def stiffness_matrix(self, sparse: bool = False):
+        """Tridiagonal K (N/m): each spring's stiffness ``E''(0)`` from the
+        spring-energy template (``k``); ``sparse=True`` gives a scipy.sparse
+        matrix (O(N) memory), else a dense array (built without scipy)."""
+        off, diag = self._bands()
+        if not sparse:
+            K = np.diag(diag)
+            i = np.arange(off.shape[0])
+            K[i + 1, i] = off
+            K[i, i + 1] = off
+            return K
+        import scipy.sparse as sp
+
+        return sp.diags([off, diag, off], [-1, 0, 1], format="csr")
+
+    def _compute_gershgorin_w2(self) -> float:
+        """:meth:`_gershgorin_w2` from the bands, without scipy: each row's
+        ``|K_i,i-1| + (|K_ii| + |K_i,i+1|)``, the grouping of scipy's sparse
+        row sum (so the bound is the one the sparse matrix gives, to the bit)."""
+        off, diag = self._bands()
+        a = np.abs(off)
+        row = np.abs(diag)
+        row[:-1] = row[:-1] + a
+        row[1:] = a + row[1:]
+        return float(np.max(row / self.mass))
