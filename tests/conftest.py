@@ -24,14 +24,6 @@ LONG_FIRST = ("test_verdict.py", "test_reports_committed.py", "test_startup.py",
               "test_scene_facts.py", "test_captions_tables.py", "test_trust.py", "test_stability_units.py")
 
 
-#: The collector's thresholds during the tests (Python's default: 700, 10, 10). A young-generation
-#: pass every 10,000 net allocations instead of every 700: the tests allocate in bursts (figures, frames,
-#: ASTs) that are mostly freed by reference counting, and each pass walks every young container. On
-#: test_hostile_api.py and test_geometric.py (`-n 0`, load 3): 1276 passes (10 full) in 1.87 s of 20.4 s
-#: user, against 89 passes (1 full) in 0.67 s of 18.3 s. Cyclic garbage is still freed, later.
-GC_THRESHOLD = (10_000, 10, 10)
-
-
 @pytest.hookimpl(wrapper=True)
 def pytest_collection(session):
     """No cyclic garbage collection while the tests are collected; then one full
@@ -45,9 +37,8 @@ def pytest_collection(session):
     with this. The one collection at the end runs every finalizer of the
     collection's garbage. What is left (imported modules, the collected items)
     lives for the whole session; frozen, the full collections during the tests
-    no longer walk it. The thresholds are then set to ``GC_THRESHOLD``. (On an
-    xdist controller, which collects nothing, this wraps a hook that returns at
-    once.)"""
+    no longer walk it. (On an xdist controller, which collects nothing, this
+    wraps a hook that returns at once.)"""
     enabled = gc.isenabled()
     gc.disable()
     try:
@@ -55,7 +46,6 @@ def pytest_collection(session):
     finally:
         gc.collect()
         gc.freeze()
-        gc.set_threshold(*GC_THRESHOLD)
         if enabled:
             gc.enable()
 
