@@ -24,6 +24,32 @@ LONG_FIRST = ("test_verdict.py", "test_reports_committed.py", "test_startup.py",
               "test_scene_facts.py", "test_captions_tables.py", "test_trust.py", "test_stability_units.py")
 
 
+@pytest.hookimpl(wrapper=True)
+def pytest_collection(session):
+    """No cyclic garbage collection while the tests are collected; then one full
+    collection, ``gc.freeze()`` and the collector back on.
+
+    Collecting imports every test module (pytest's assertion rewriting builds and
+    compiles an AST per module) and the libraries they import; the allocations
+    triggered about 25 full collections, each walking the whole growing heap of
+    numpy, scipy, pandas and the package: 5.6 of 10.1 s of CPU of a
+    ``--collect-only -n 0`` (load 3.5), paid again by every xdist worker; 0.35 s
+    with this. The one collection at the end runs every finalizer of the
+    collection's garbage. What is left (imported modules, the collected items)
+    lives for the whole session; frozen, the full collections during the tests
+    no longer walk it. (On an xdist controller, which collects nothing, this
+    wraps a hook that returns at once.)"""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return (yield)
+    finally:
+        gc.collect()
+        gc.freeze()
+        if enabled:
+            gc.enable()
+
+
 def pytest_collection_modifyitems(config, items):
     """Move the modules in ``LONG_FIRST`` to the front (a stable sort: every module's own order is kept)."""
     rank = {name: i for i, name in enumerate(LONG_FIRST)}

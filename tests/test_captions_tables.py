@@ -45,21 +45,21 @@ NUM = r"[-+]?\d[\d.]*(?:e[-+]?\d+)?"
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    import os
+    # an empty truth cache (the truths are computed, not read from the user's); the compiled loops keep
+    # the user's cache (a fresh RK4H_CACHE compiled them cold in every run)
+    from rk4h.references import truth as T
 
     tmp = tmp_path_factory.mktemp("captions")
-    old = os.environ.get("RK4H_CACHE")
-    os.environ["RK4H_CACHE"] = str(tmp / "cache")
+    real = T.cache_dir
+    fresh = tmp / "cache" / "truth"
+    T.cache_dir = lambda path=None: real(path if path is not None else fresh)
     try:
         scene = tmp / "cost_2dof.toml"
         scene.write_text(SCENE)
         out = tmp / "out"
         rc = run_all.main(["--scene", str(scene), "--out", str(out), "--quick", "--repeats", "1", "--workers", "1"])
     finally:
-        if old is None:
-            os.environ.pop("RK4H_CACHE", None)
-        else:
-            os.environ["RK4H_CACHE"] = old
+        T.cache_dir = real
     assert rc == 0
     index = (out / "index.md").read_text()
     return index, pd.read_csv(out / "stability.csv")

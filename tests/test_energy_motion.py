@@ -34,7 +34,16 @@ outputs = ["state", "energy"]
 
 @pytest.fixture
 def tmp_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("RK4H_CACHE", str(tmp_path / "cache"))
+    """An empty truth cache (``tmp_path/cache/truth``): the truths here are
+    computed, not read from the user's. Only the truth's: the compiled loops of
+    the two potentials keep the user's cache (a fresh ``RK4H_CACHE`` compiled
+    both numba loops cold in every run, most of the test's 7 s)."""
+    from rk4h.references import truth as T
+
+    real = T.cache_dir
+    fresh = tmp_path / "cache" / "truth"
+    monkeypatch.setattr(T, "cache_dir", lambda path=None: real(path if path is not None else fresh))
+    return tmp_path / "cache"
 
 
 def _records(tmp_path, offset, tag):
