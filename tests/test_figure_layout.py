@@ -611,3 +611,29 @@ def test_log_minor_grid_leaves_out_the_major_ticks():
     assert len(grids) == 1 and len(ax.xaxis.get_minorticklocs()) == 0
     ys = sorted(seg[0][1] for seg in grids[0].get_segments())
     assert len(ys) == 2 * 10  # 2 and 5 x 10^k for k = -8 ... 1
+
+
+def test_the_renderer_gives_matplotlibs_own_line_metrics():
+    """``style._Renderer`` answers a text's line metrics (ascent, descent,
+    line gap) from a per-font memo; every text's extent is then the one
+    matplotlib computes from the font's tables (a plain Agg renderer), to the
+    last bit, for one- and two-line texts, other sizes, weights and rotations,
+    and the memo holds one entry per font, not per text."""
+    from matplotlib.backends.backend_agg import RendererAgg
+
+    fig = figures.style.new_figure()
+    renderer = fig.canvas.get_renderer()
+    assert isinstance(renderer, figures.style._Renderer)
+    w, h = fig.canvas.get_width_height()
+    plain = RendererAgg(w, h, fig.dpi)
+    assert not hasattr(plain, "_get_font_height_metrics")  # the plain renderer measures from the tables
+    texts = [fig.text(0.1, 0.1, "0.5"), fig.text(0.2, 0.3, "10\u207b\u2076", fontsize=8),
+             fig.text(0.5, 0.5, "a title\nof two lines", fontsize=10, weight="bold"),
+             fig.text(0.4, 0.6, "Im z", rotation=90), fig.text(0.3, 0.2, "g", fontsize=13)]
+    for t in texts:
+        a = t.get_window_extent(renderer).bounds
+        b = t.get_window_extent(plain).bounds
+        assert a == b, (t.get_text(), a, b)
+    assert len(renderer._line_metrics) == 4  # 10 pt, 10 pt bold, 8 pt, 13 pt: "0.5" and "Im z" share one
+    for key, (ascent, descent, gap) in renderer._line_metrics.items():
+        assert ascent > 0 and descent > 0 and gap >= 0, key

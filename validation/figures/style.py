@@ -12,7 +12,8 @@ Conventions
 * Rendering is by matplotlib's Agg canvas on :class:`matplotlib.figure.Figure`
   objects created without pyplot, so no figure is ever registered with pyplot
   (nothing to close, nothing left open, no display needed) and the caller's
-  pyplot backend is left alone.
+  pyplot backend is left alone. The canvas's renderer (:class:`_Renderer`)
+  looks each font's line metrics up once instead of once per text extent.
 * Layout: a figure is laid out once by matplotlib's constrained layout
   engine just before it is drawn (:func:`lay_out`, from :func:`finish`);
   the legend sits outside the axes, below them (:func:`legend_below`,
@@ -42,7 +43,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.figure import Figure
 from PIL import Image
 
@@ -132,9 +133,62 @@ def order_of(solver):
         return None
 
 
+class _Renderer(RendererAgg):
+    """Matplotlib's Agg renderer that looks each font's line metrics up once.
+
+    Every extent of a text (``Text._get_layout``: the constrained layout
+    measures each tick label about four times, the draw once more) resolves
+    the font files of its properties and reads two of the font's tables
+    (``OS/2`` or ``hhea``, and ``head``) to find its ascent, descent and line
+    gap, unless the renderer answers ``_get_font_height_metrics``, as the
+    PDF/PS renderers do. This one answers with the same numbers, computed as
+    ``Text._get_layout`` computes them, once per font properties and kept
+    for the renderer's life (one figure at one size, so one dpi and one set
+    of rcParams). In pixels: ``(ascent, descent, line_gap)``, or Nones (the
+    caller then measures the text) when the font has neither table."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._line_metrics = {}
+
+    def _get_font_height_metrics(self, prop):
+        from matplotlib.font_manager import fontManager, get_font
+
+        key = (tuple(prop.get_family()), prop.get_slant(), prop.get_variant(), prop.get_weight(),
+               prop.get_stretch(), prop.get_size_in_points(), prop.get_file(), prop.get_math_fontfamily())
+        found = self._line_metrics.get(key)
+        if found is None:
+            found = (None, None, None)
+            font = get_font(fontManager._find_fonts_by_props(prop))
+            for table_name, gap_key, ascent_key, descent_key in (
+                    ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
+                    ("hhea", "lineGap", "ascent", "descent")):
+                table = font.get_sfnt_table(table_name)
+                if table is None:
+                    continue
+                # the expression of Text._get_layout, so the numbers are its numbers to the last bit
+                scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * self.dpi / 72
+                found = (table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale)
+                break
+            self._line_metrics[key] = found
+        return found
+
+
+class _Canvas(FigureCanvasAgg):
+    """The Agg canvas, drawing with :class:`_Renderer`."""
+
+    def get_renderer(self):
+        w, h = self.get_width_height(physical=True)
+        key = w, h, self.figure.dpi
+        if self._lastKey != key:
+            self.renderer = _Renderer(w, h, self.figure.dpi)
+            self._lastKey = key
+        return self.renderer
+
+
 def new_figure(size=SIZE, **kw) -> Figure:
     fig = Figure(figsize=size, dpi=DPI, layout="constrained", **kw)
-    FigureCanvasAgg(fig)
+    _Canvas(fig)
     return fig
 
 
