@@ -637,3 +637,42 @@ def test_the_renderer_gives_matplotlibs_own_line_metrics():
     assert len(renderer._line_metrics) == 4  # 10 pt, 10 pt bold, 8 pt, 13 pt: "0.5" and "Im z" share one
     for key, (ascent, descent, gap) in renderer._line_metrics.items():
         assert ascent > 0 and descent > 0 and gap >= 0, key
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_one_layout_pass_is_the_two_pass_layout_within_its_pad(kind, tmp_path, monkeypatch):
+    """Where :func:`style.one_pass_fits`, ``style.lay_out`` runs one pass of
+    the constrained layout (``style.constrained_layout_once``), elsewhere
+    (colorbars, fixed aspect) matplotlib's two. After one pass every axes
+    edge lies within the layout's pad (``w_pad``/``h_pad``, 3 pt) of where
+    the two passes put it, so no decoration reaches into a neighbour's pad."""
+    import matplotlib
+    from matplotlib import _constrained_layout as cl
+
+    passes = []
+    real_margins = cl.make_layout_margins
+    monkeypatch.setattr(cl, "make_layout_margins", lambda *a, **k: (passes.append(1), real_margins(*a, **k))[1])
+    ran = []
+    real_lay_out = figures.style.lay_out
+
+    def counted(fig, engine):
+        fits, n = figures.style.one_pass_fits(fig), len(passes)
+        real_lay_out(fig, engine)
+        ran.append((fits, len(passes) - n))
+
+    monkeypatch.setattr(figures.style, "lay_out", counted)
+    seen = []
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append(fig))
+    BUILDERS[kind](tmp_path)
+    assert ran and all(n == (1 if fits else 2) for fits, n in ran), (kind, ran)
+    pad_px = matplotlib.rcParams["figure.constrained_layout.w_pad"] * figures.DPI
+    assert pad_px == pytest.approx(3.0 / 72.0 * figures.DPI, rel=0.01)
+    for fig in seen:
+        if not figures.style.one_pass_fits(fig):
+            continue
+        size = np.array(fig.canvas.get_width_height() * 2, float)
+        drawn = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        fig.get_layout_engine().execute(fig)  # matplotlib's two passes, the spines left out as lay_out does
+        full = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        edges = lambda b: np.column_stack([b[:, 0], b[:, 1], b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]])
+        assert np.abs(edges(drawn) - edges(full)).max() <= pad_px, (kind, edges(drawn) - edges(full))
