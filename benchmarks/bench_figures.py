@@ -9,7 +9,11 @@ before and after. Each kind is drawn once first (imports, fonts, caches).
 ``--against REV`` draws the same kinds with the code of commit ``REV``
 (``git archive`` into a temporary directory) in a second process, rounds
 alternating between the two trees so machine drift hits both alike, and
-prints both medians and their ratio. Each process imports ``rk4h`` from the
+prints both medians and their ratio, and per kind the number of full
+(generation-2) garbage collections that fell in its timed rounds on each
+side: one costs about 0.15 s and lands on whichever kind crosses the
+collector's threshold, so a kind's ratio with a collection on one side only
+shows the collector, not the drawing. Each process imports ``rk4h`` from the
 tree it measures (a finder of its own ahead of an editable install's, which
 would map ``rk4h`` to this checkout in both processes) and checks that it did. CPU seconds are the figure to read on
 a shared machine; wall seconds include what the neighbours take.
@@ -65,6 +69,9 @@ if minor != "default":
 if passes != "default":
     from rk4h.validation.figures import style
     style.ONE_PASS = passes == "one"
+import gc
+full = [0]  # generation-2 (full) collections: ~0.15 s each, landing on whichever kind crosses the threshold
+gc.callbacks.append(lambda phase, info: full.__setitem__(0, full[0] + (phase == "stop" and info["generation"] == 2)))
 out = {}
 with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
     tmp = Path(tmp)
@@ -73,9 +80,9 @@ with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
             build(tmp)
     for _ in range(rounds):
         for kind, build in layout.BUILDERS.items():
-            c0, w0 = time.process_time(), time.perf_counter()
+            c0, w0, g0 = time.process_time(), time.perf_counter(), full[0]
             build(tmp)
-            out.setdefault(kind, []).append([time.process_time() - c0, time.perf_counter() - w0])
+            out.setdefault(kind, []).append([time.process_time() - c0, time.perf_counter() - w0, full[0] - g0])
 print(json.dumps(out))
 """
 
@@ -138,7 +145,8 @@ def main(argv=None) -> int:
     names = list(sides)
     kinds = list(times[names[-1]])
     cols = "".join(f" {n[:16] + ' cpu':>21s} {'wall':>7s}" for n in names)
-    print(f"{'figure kind':24s}{cols}" + (f" {'cpu ratio':>9s}" if len(names) == 2 else ""))
+    print(f"{'figure kind':24s}{cols}" + (f" {'cpu ratio':>9s}" if len(names) == 2 else "")
+          + "  full gc")
     total = {n: [0.0, 0.0] for n in names}
     for kind in kinds:
         line = f"{kind:24s}"
@@ -154,6 +162,9 @@ def main(argv=None) -> int:
             line += f" {med[n][0]:21.3f} {med[n][1]:7.3f}"
         if len(names) == 2 and len(med) == 2:
             line += f" {med[names[1]][0] / med[names[0]][0]:9.2f}"
+        # full collections in all rounds of the kind, per side: a kind that had one on one side only
+        # differs by that (~0.15 s), not by its drawing
+        line += "  " + "/".join(str(sum(r[2] for r in times[n].get(kind, []) if len(r) > 2)) for n in names)
         print(line)
     line = f"{'sum of medians':24s}" + "".join(f" {total[n][0]:21.2f} {total[n][1]:7.2f}" for n in names)
     if len(names) == 2:
