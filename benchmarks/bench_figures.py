@@ -9,15 +9,21 @@ before and after. Each kind is drawn once first (imports, fonts, caches).
 ``--against REV`` draws the same kinds with the code of commit ``REV``
 (``git archive`` into a temporary directory) in a second process, rounds
 alternating between the two trees so machine drift hits both alike, and
-prints both medians and their ratio. Each process imports ``rk4h`` from the
+prints both medians and their ratio, and per kind the number of full
+(generation-2) garbage collections that fell in its timed rounds on each
+side: one costs about 0.15 s and lands on whichever kind crosses the
+collector's threshold, so a kind's ratio with a collection on one side only
+shows the collector, not the drawing. Each process imports ``rk4h`` from the
 tree it measures (a finder of its own ahead of an editable install's, which
 would map ``rk4h`` to this checkout in both processes) and checks that it did. CPU seconds are the figure to read on
 a shared machine; wall seconds include what the neighbours take.
 ``--minor-ticks`` instead compares the log axes' minor ticks at 2 and 5 of
 each decade (``rk4h.validation.figures.style.MINOR_SUBS``, the default) with
-matplotlib's 2..9 in this tree. Run::
+matplotlib's 2..9 in this tree; ``--two-pass`` compares matplotlib's two
+constrained-layout passes (``rk4h.validation.figures.style.ONE_PASS = False``)
+with one pass where it fits (the default) in this tree. Run::
 
-    python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks]
+    python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks | --two-pass]
 """
 from __future__ import annotations
 
@@ -40,7 +46,7 @@ REPO = Path(__file__).resolve().parent.parent
 _CHILD = r"""
 import importlib.util, json, sys, tempfile, time
 from pathlib import Path
-root, rounds, minor = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+root, rounds, minor, passes = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[5]
 # rk4h from the tree under test, not from the installed one: an editable install maps rk4h to its
 # own checkout whatever sys.path says, so the other commit's figures would be this checkout's
 _DIRS = {"rk4h": root / "rk4core", "rk4h.references": root / "references", "rk4h.validation": root / "validation"}
@@ -60,6 +66,12 @@ import test_figure_layout as layout
 if minor != "default":
     from rk4h.validation.figures import style
     style.MINOR_SUBS = None if minor == "2..9" else (2.0, 5.0)
+if passes != "default":
+    from rk4h.validation.figures import style
+    style.ONE_PASS = passes == "one"
+import gc
+full = [0]  # generation-2 (full) collections: ~0.15 s each, landing on whichever kind crosses the threshold
+gc.callbacks.append(lambda phase, info: full.__setitem__(0, full[0] + (phase == "stop" and info["generation"] == 2)))
 out = {}
 with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
     tmp = Path(tmp)
@@ -68,16 +80,17 @@ with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
             build(tmp)
     for _ in range(rounds):
         for kind, build in layout.BUILDERS.items():
-            c0, w0 = time.process_time(), time.perf_counter()
+            c0, w0, g0 = time.process_time(), time.perf_counter(), full[0]
             build(tmp)
-            out.setdefault(kind, []).append([time.process_time() - c0, time.perf_counter() - w0])
+            out.setdefault(kind, []).append([time.process_time() - c0, time.perf_counter() - w0, full[0] - g0])
 print(json.dumps(out))
 """
 
 
-def _child(root: Path, minor: str = "default", rounds: int = 1, warm: bool = True) -> dict:
+def _child(root: Path, minor: str = "default", rounds: int = 1, warm: bool = True, passes: str = "default") -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
-    res = subprocess.run([sys.executable, "-c", _CHILD, str(root), str(rounds), minor, "warm" if warm else "cold"],
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(root), str(rounds), minor, "warm" if warm else "cold",
+                          passes],
                          cwd=root, env=env, capture_output=True, text=True, check=False)
     if res.returncode != 0:
         raise SystemExit(f"the figure builds of {root} failed:\n{res.stderr[-2000:]}")
@@ -105,6 +118,8 @@ def main(argv=None) -> int:
     group = ap.add_mutually_exclusive_group()
     group.add_argument("--against", metavar="REV", help="compare with the figures of commit REV")
     group.add_argument("--minor-ticks", action="store_true", help="compare minor ticks at 2,5 with 2..9")
+    group.add_argument("--two-pass", action="store_true",
+                       help="compare two constrained-layout passes with one where it fits")
     args = ap.parse_args(argv)
     head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
                           text=True, check=False).stdout.strip() or "?"
@@ -112,22 +127,26 @@ def main(argv=None) -> int:
           f"{args.rounds} rounds, load average before {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
         if args.against:
-            sides = {args.against: (_export(args.against, Path(tmp)), "default"), "this tree": (REPO, "default")}
+            sides = {args.against: (_export(args.against, Path(tmp)), "default", "default"),
+                     "this tree": (REPO, "default", "default")}
         elif args.minor_ticks:
-            sides = {"minor 2..9": (REPO, "2..9"), "minor 2,5": (REPO, "2,5")}
+            sides = {"minor 2..9": (REPO, "2..9", "default"), "minor 2,5": (REPO, "2,5", "default")}
+        elif args.two_pass:
+            sides = {"two passes": (REPO, "default", "two"), "one pass": (REPO, "default", "one")}
         else:
-            sides = {"this tree": (REPO, "default")}
+            sides = {"this tree": (REPO, "default", "default")}
         times = {name: {} for name in sides}
         if len(sides) == 1:  # one process: warm once, then the rounds
             _merge(times["this tree"], _child(REPO, rounds=args.rounds))
         else:
             for r in range(args.rounds):  # alternate the sides, each round in a fresh process
-                for name, (root, minor) in (sides.items() if r % 2 == 0 else reversed(sides.items())):
-                    _merge(times[name], _child(root, minor))
+                for name, (root, minor, passes) in (sides.items() if r % 2 == 0 else reversed(sides.items())):
+                    _merge(times[name], _child(root, minor, passes=passes))
     names = list(sides)
     kinds = list(times[names[-1]])
     cols = "".join(f" {n[:16] + ' cpu':>21s} {'wall':>7s}" for n in names)
-    print(f"{'figure kind':24s}{cols}" + (f" {'cpu ratio':>9s}" if len(names) == 2 else ""))
+    print(f"{'figure kind':24s}{cols}" + (f" {'cpu ratio':>9s}" if len(names) == 2 else "")
+          + "  full gc")
     total = {n: [0.0, 0.0] for n in names}
     for kind in kinds:
         line = f"{kind:24s}"
@@ -143,6 +162,9 @@ def main(argv=None) -> int:
             line += f" {med[n][0]:21.3f} {med[n][1]:7.3f}"
         if len(names) == 2 and len(med) == 2:
             line += f" {med[names[1]][0] / med[names[0]][0]:9.2f}"
+        # full collections in all rounds of the kind, per side: a kind that had one on one side only
+        # differs by that (~0.15 s), not by its drawing
+        line += "  " + "/".join(str(sum(r[2] for r in times[n].get(kind, []) if len(r) > 2)) for n in names)
         print(line)
     line = f"{'sum of medians':24s}" + "".join(f" {total[n][0]:21.2f} {total[n][1]:7.2f}" for n in names)
     if len(names) == 2:

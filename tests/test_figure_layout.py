@@ -611,3 +611,68 @@ def test_log_minor_grid_leaves_out_the_major_ticks():
     assert len(grids) == 1 and len(ax.xaxis.get_minorticklocs()) == 0
     ys = sorted(seg[0][1] for seg in grids[0].get_segments())
     assert len(ys) == 2 * 10  # 2 and 5 x 10^k for k = -8 ... 1
+
+
+def test_the_renderer_gives_matplotlibs_own_line_metrics():
+    """``style._Renderer`` answers a text's line metrics (ascent, descent,
+    line gap) from a per-font memo; every text's extent is then the one
+    matplotlib computes from the font's tables (a plain Agg renderer), to the
+    last bit, for one- and two-line texts, other sizes, weights and rotations,
+    and the memo holds one entry per font, not per text."""
+    from matplotlib.backends.backend_agg import RendererAgg
+
+    fig = figures.style.new_figure()
+    renderer = fig.canvas.get_renderer()
+    assert isinstance(renderer, figures.style._Renderer)
+    w, h = fig.canvas.get_width_height()
+    plain = RendererAgg(w, h, fig.dpi)
+    assert not hasattr(plain, "_get_font_height_metrics")  # the plain renderer measures from the tables
+    texts = [fig.text(0.1, 0.1, "0.5"), fig.text(0.2, 0.3, "10\u207b\u2076", fontsize=8),
+             fig.text(0.5, 0.5, "a title\nof two lines", fontsize=10, weight="bold"),
+             fig.text(0.4, 0.6, "Im z", rotation=90), fig.text(0.3, 0.2, "g", fontsize=13)]
+    for t in texts:
+        a = t.get_window_extent(renderer).bounds
+        b = t.get_window_extent(plain).bounds
+        assert a == b, (t.get_text(), a, b)
+    assert len(renderer._line_metrics) == 4  # 10 pt, 10 pt bold, 8 pt, 13 pt: "0.5" and "Im z" share one
+    for key, (ascent, descent, gap) in renderer._line_metrics.items():
+        assert ascent > 0 and descent > 0 and gap >= 0, key
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_one_layout_pass_is_the_two_pass_layout_within_its_pad(kind, tmp_path, monkeypatch):
+    """Where :func:`style.one_pass_fits`, ``style.lay_out`` runs one pass of
+    the constrained layout (``style.constrained_layout_once``), elsewhere
+    (colorbars, fixed aspect) matplotlib's two. After one pass every axes
+    edge lies within the layout's pad (``w_pad``/``h_pad``, 3 pt) of where
+    the two passes put it, so no decoration reaches into a neighbour's pad."""
+    import matplotlib
+    from matplotlib import _constrained_layout as cl
+
+    passes = []
+    real_margins = cl.make_layout_margins
+    monkeypatch.setattr(cl, "make_layout_margins", lambda *a, **k: (passes.append(1), real_margins(*a, **k))[1])
+    ran = []
+    real_lay_out = figures.style.lay_out
+
+    def counted(fig, engine):
+        fits, n = figures.style.one_pass_fits(fig), len(passes)
+        real_lay_out(fig, engine)
+        ran.append((fits, len(passes) - n))
+
+    monkeypatch.setattr(figures.style, "lay_out", counted)
+    seen = []
+    monkeypatch.setattr(figures.style, "SAVE_HOOK", lambda fig, path: seen.append(fig))
+    BUILDERS[kind](tmp_path)
+    assert ran and all(n == (1 if fits else 2) for fits, n in ran), (kind, ran)
+    pad_px = matplotlib.rcParams["figure.constrained_layout.w_pad"] * figures.DPI
+    assert pad_px == pytest.approx(3.0 / 72.0 * figures.DPI, rel=0.01)
+    for fig in seen:
+        if not figures.style.one_pass_fits(fig):
+            continue
+        size = np.array(fig.canvas.get_width_height() * 2, float)
+        drawn = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        fig.get_layout_engine().execute(fig)  # matplotlib's two passes, the spines left out as lay_out does
+        full = np.array([ax.get_position().bounds for ax in fig.axes]) * size
+        edges = lambda b: np.column_stack([b[:, 0], b[:, 1], b[:, 0] + b[:, 2], b[:, 1] + b[:, 3]])
+        assert np.abs(edges(drawn) - edges(full)).max() <= pad_px, (kind, edges(drawn) - edges(full))

@@ -74,8 +74,13 @@ def amplification(tab, z):
     -------
     ndarray of float, same shape as ``z``
     """
+    return _amplification(tab, _poly(tab), z)
+
+
+def _amplification(tab, P, z):
+    """:func:`amplification` with ``tab``'s polynomial(s) ``P`` (:func:`_poly`)
+    given: the exact polynomial costs more than evaluating it at one point."""
     z = np.asarray(z, dtype=complex)
-    P = _poly(tab)
     if not tab.partitioned:
         return np.abs(_horner(P, z))
     x = -z * z  # (h w)^2 of the oscillator form
@@ -95,7 +100,8 @@ def axis_crossing(tab, y_max: float = 10.0, n: int = 20001, tol: float = 1e-13) 
     when stable up to ``y_max``."""
     ys = np.linspace(0.0, y_max, n)[1:]
     slack = 1e-12 if tab.partitioned else 0.0
-    bad = amplification(tab, 1j * ys) - 1 > slack
+    P = _poly(tab)  # once, not once per bisection step
+    bad = _amplification(tab, P, 1j * ys) - 1 > slack
     if not bad.any():
         return math.inf
     k = int(np.argmax(bad))
@@ -104,7 +110,7 @@ def axis_crossing(tab, y_max: float = 10.0, n: int = 20001, tol: float = 1e-13) 
     lo, hi = float(ys[k - 1]), float(ys[k])
     while hi - lo > tol:
         mid = 0.5 * (lo + hi)
-        if float(amplification(tab, 1j * mid)) - 1 > slack:
+        if float(_amplification(tab, P, 1j * mid)) - 1 > slack:
             hi = mid
         else:
             lo = mid
