@@ -19,11 +19,9 @@ would map ``rk4h`` to this checkout in both processes) and checks that it did. C
 a shared machine; wall seconds include what the neighbours take.
 ``--minor-ticks`` instead compares the log axes' minor ticks at 2 and 5 of
 each decade (``rk4h.validation.figures.style.MINOR_SUBS``, the default) with
-matplotlib's 2..9 in this tree; ``--two-pass`` compares matplotlib's two
-constrained-layout passes (``rk4h.validation.figures.style.ONE_PASS = False``)
-with one pass where it fits (the default) in this tree. Run::
+matplotlib's 2..9 in this tree. Run::
 
-    python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks | --two-pass]
+    python benchmarks/bench_figures.py [--rounds 5] [--against REV | --minor-ticks]
 """
 from __future__ import annotations
 
@@ -46,7 +44,7 @@ REPO = Path(__file__).resolve().parent.parent
 _CHILD = r"""
 import importlib.util, json, sys, tempfile, time
 from pathlib import Path
-root, rounds, minor, passes = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[5]
+root, rounds, minor = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 # rk4h from the tree under test, not from the installed one: an editable install maps rk4h to its
 # own checkout whatever sys.path says, so the other commit's figures would be this checkout's
 _DIRS = {"rk4h": root / "rk4core", "rk4h.references": root / "references", "rk4h.validation": root / "validation"}
@@ -66,9 +64,6 @@ import test_figure_layout as layout
 if minor != "default":
     from rk4h.validation.figures import style
     style.MINOR_SUBS = None if minor == "2..9" else (2.0, 5.0)
-if passes != "default":
-    from rk4h.validation.figures import style
-    style.ONE_PASS = passes == "one"
 import gc
 full = [0]  # generation-2 (full) collections: ~0.15 s each, landing on whichever kind crosses the threshold
 gc.callbacks.append(lambda phase, info: full.__setitem__(0, full[0] + (phase == "stop" and info["generation"] == 2)))
@@ -87,10 +82,9 @@ print(json.dumps(out))
 """
 
 
-def _child(root: Path, minor: str = "default", rounds: int = 1, warm: bool = True, passes: str = "default") -> dict:
+def _child(root: Path, minor: str = "default", rounds: int = 1, warm: bool = True) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "MPLBACKEND": "Agg"}
-    res = subprocess.run([sys.executable, "-c", _CHILD, str(root), str(rounds), minor, "warm" if warm else "cold",
-                          passes],
+    res = subprocess.run([sys.executable, "-c", _CHILD, str(root), str(rounds), minor, "warm" if warm else "cold"],
                          cwd=root, env=env, capture_output=True, text=True, check=False)
     if res.returncode != 0:
         raise SystemExit(f"the figure builds of {root} failed:\n{res.stderr[-2000:]}")
@@ -118,8 +112,6 @@ def main(argv=None) -> int:
     group = ap.add_mutually_exclusive_group()
     group.add_argument("--against", metavar="REV", help="compare with the figures of commit REV")
     group.add_argument("--minor-ticks", action="store_true", help="compare minor ticks at 2,5 with 2..9")
-    group.add_argument("--two-pass", action="store_true",
-                       help="compare two constrained-layout passes with one where it fits")
     args = ap.parse_args(argv)
     head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True,
                           text=True, check=False).stdout.strip() or "?"
@@ -127,21 +119,18 @@ def main(argv=None) -> int:
           f"{args.rounds} rounds, load average before {os.getloadavg()[0]:.2f}")
     with tempfile.TemporaryDirectory(prefix="rk4h-bench-figures-") as tmp:
         if args.against:
-            sides = {args.against: (_export(args.against, Path(tmp)), "default", "default"),
-                     "this tree": (REPO, "default", "default")}
+            sides = {args.against: (_export(args.against, Path(tmp)), "default"), "this tree": (REPO, "default")}
         elif args.minor_ticks:
-            sides = {"minor 2..9": (REPO, "2..9", "default"), "minor 2,5": (REPO, "2,5", "default")}
-        elif args.two_pass:
-            sides = {"two passes": (REPO, "default", "two"), "one pass": (REPO, "default", "one")}
+            sides = {"minor 2..9": (REPO, "2..9"), "minor 2,5": (REPO, "2,5")}
         else:
-            sides = {"this tree": (REPO, "default", "default")}
+            sides = {"this tree": (REPO, "default")}
         times = {name: {} for name in sides}
         if len(sides) == 1:  # one process: warm once, then the rounds
             _merge(times["this tree"], _child(REPO, rounds=args.rounds))
         else:
             for r in range(args.rounds):  # alternate the sides, each round in a fresh process
-                for name, (root, minor, passes) in (sides.items() if r % 2 == 0 else reversed(sides.items())):
-                    _merge(times[name], _child(root, minor, passes=passes))
+                for name, (root, minor) in (sides.items() if r % 2 == 0 else reversed(sides.items())):
+                    _merge(times[name], _child(root, minor))
     names = list(sides)
     kinds = list(times[names[-1]])
     cols = "".join(f" {n[:16] + ' cpu':>21s} {'wall':>7s}" for n in names)
