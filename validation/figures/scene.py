@@ -571,9 +571,7 @@ def _plane_paths(title, d, q, labels, margin=0.06):
         ax.set_xlim(cx - w * (0.5 + margin), cx + w * (0.5 + margin))
         ax.set_ylim(cy - wy * (0.5 + margin), cy + wy * (0.5 + margin))
     kit.layout_on_edges_only(fig)
-    engine = fig.get_layout_engine()  # lays the panels out (no rendering); their sizes set the common scale
-    if not (kit.ONE_PASS and kit.constrained_layout_once(fig, engine)):
-        engine.execute(fig)
+    fig.get_layout_engine().execute(fig)  # lays the panels out (no rendering); their sizes set the common scale
     fw, fh = fig.get_size_inches()
     size = [(ax.get_position().width * fw, ax.get_position().height * fh) for ax in axes]
     scale = max(max(w * (1 + 2 * margin) / sw, wy * (1 + 2 * margin) / sh) for w, (sw, sh) in zip(wx, size))

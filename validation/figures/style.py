@@ -15,8 +15,7 @@ Conventions
   pyplot backend is left alone. The canvas's renderer (:class:`_Renderer`)
   looks each font's line metrics up once instead of once per text extent.
 * Layout: a figure is laid out once by matplotlib's constrained layout
-  engine just before it is drawn (:func:`lay_out`, from :func:`finish`;
-  one pass of it where that is the layout, :func:`one_pass_fits`);
+  engine just before it is drawn (:func:`lay_out`, from :func:`finish`);
   the legend sits outside the axes, below them (:func:`legend_below`,
   never over data).
 * One colour and marker per solver across all figures (:data:`SOLVER_STYLE`);
@@ -54,8 +53,7 @@ __all__ = ["SIZE", "SIZE_TALL", "DPI", "FONT_MIN", "FONT_SMALL", "FONT_TITLE", "
            "COORD_COLORS", "LINESTYLES", "GUIDE_STYLES", "LEGEND_ROWS", "slug", "scene_methods", "all_styles",
            "solver_style", "solver_of", "method_of", "order_of", "in_palette_order", "plt_colors",
            "new_figure", "suptitle", "legend_below", "log_tick_text", "log_decade_text", "log_axes",
-           "tick_labels", "overlapping", "thin_ticks", "texts", "layout_on_edges_only", "one_pass_fits",
-           "constrained_layout_once", "lay_out",
+           "tick_labels", "overlapping", "thin_ticks", "texts", "layout_on_edges_only", "lay_out",
            "finish", "save", "si", "fmt", "fmt_t", "sentence"]
 
 SIZE = (7.0, 4.5)        # inches
@@ -402,76 +400,9 @@ def minor_grid_lines(fig):
         axis.set_minor_locator(ticker.NullLocator())
 
 
-def one_pass_fits(fig) -> bool:
-    """Whether one pass of the constrained layout places ``fig``'s axes as
-    its two passes do: no colorbar (the first pass measures a colorbar where
-    matplotlib first put it, not where the layout puts it: 34 px off on the
-    space-time images), no axes of fixed aspect (the box shrinks after the
-    first pass: 35 px off on the stability regions), no subfigures. For the
-    others the second pass moves an axes edge by at most 1.1 px, the change
-    of the tick labels' overhang when the axes grow
-    (``tests/test_figure_layout.py``, every kind, measured 2026-11-27)."""
-    if fig.subfigs:
-        return False
-    for ax in fig.axes:
-        if getattr(ax, "_colorbars", None) or hasattr(ax, "_colorbar_info") or ax.get_aspect() != "auto":
-            return False
-    return True
-
-
-def constrained_layout_once(fig, engine) -> bool:
-    """One pass of matplotlib's constrained layout (``engine``'s pads and
-    spaces) instead of its two: each axes' decorations are measured once,
-    where the default subplot positions put them, and the axes placed.
-    Returns False, having done nothing, where one pass is not the layout
-    (:func:`one_pass_fits`), the engine compresses fixed-aspect axes, or
-    this matplotlib's layout functions are not the ones this was written
-    for; the caller then runs the engine."""
-    try:
-        from matplotlib import _constrained_layout as cl
-
-        steps = (cl.make_layoutgrids, cl.make_layout_margins, cl.make_margin_suptitles,
-                 cl.match_submerged_margins, cl.check_no_collapsed_axes, cl.reposition_axes, cl.reset_margins)
-        p = engine._params
-        pads = dict(h_pad=p["h_pad"], w_pad=p["w_pad"], hspace=p["hspace"], wspace=p["wspace"])
-        rect, compress = p["rect"], engine._compress
-    except (ImportError, AttributeError, KeyError, TypeError):
-        return False
-    if compress or not one_pass_fits(fig):
-        return False
-    (make_layoutgrids, make_layout_margins, make_margin_suptitles, match_submerged_margins,
-     check_no_collapsed_axes, reposition_axes, reset_margins) = steps
-    width, height = fig.get_size_inches()
-    h_pad, w_pad = pads["h_pad"] / height, pads["w_pad"] / width  # as ConstrainedLayoutEngine.execute
-    renderer = fig._get_renderer()
-    grids = make_layoutgrids(fig, None, rect=rect)
-    if not grids["hasgrids"]:
-        return False
-    # do_constrained_layout's loop body, once
-    make_layout_margins(grids, fig, renderer, h_pad=h_pad, w_pad=w_pad, hspace=pads["hspace"],
-                        wspace=pads["wspace"])
-    make_margin_suptitles(grids, fig, renderer, h_pad=h_pad, w_pad=w_pad)
-    match_submerged_margins(grids, fig)
-    grids[fig].update_variables()
-    placed = check_no_collapsed_axes(grids, fig)
-    if placed:
-        reposition_axes(grids, fig, renderer, h_pad=h_pad, w_pad=w_pad, hspace=pads["hspace"],
-                        wspace=pads["wspace"])
-    reset_margins(grids, fig)
-    return placed
-
-
-#: Lay figures out in one constrained-layout pass where that is the layout
-#: (:func:`constrained_layout_once`); False: always matplotlib's two passes.
-ONE_PASS = True
-
-
 def lay_out(fig, engine):
     """Lay ``fig`` out once with ``engine`` (its constrained layout engine)
     and keep the result: the draw that follows runs no layout of its own.
-    One pass of the layout where that is the layout
-    (:func:`constrained_layout_once`, :data:`ONE_PASS`), the engine's two
-    otherwise.
 
     The layout leaves the spines out (:func:`layout_on_edges_only`: the same
     margins, half the tick updates); the log axes' unlabelled minor ticks are
@@ -484,8 +415,7 @@ def lay_out(fig, engine):
     layout_on_edges_only(fig)
     fig.set_layout_engine(engine)
     try:
-        if not (ONE_PASS and constrained_layout_once(fig, engine)):
-            engine.execute(fig)
+        engine.execute(fig)
     finally:
         fig.set_layout_engine("none")  # the positions just computed stand for the draw
 
