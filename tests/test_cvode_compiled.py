@@ -254,8 +254,9 @@ def test_registered_for_untimed_work_only(monkeypatch):
     assert integrate_compiled("cvode-adams", model, y0, T, 1e-8).status.value == "failed"
 
 
-@pytest.mark.parametrize("solver, timed", [("cvode-bdf", "scikit-sundae's"), ("dop853", "scipy's")])
-def test_the_trust_note_names_what_the_scene_runs_time(solver, timed):
+@pytest.mark.parametrize("solver, how, timed", [("cvode-bdf", "compiled callbacks", "scikit-sundae's"),
+                                                ("dop853", "compiled loop", "scipy's")])
+def test_the_trust_note_names_what_the_scene_runs_time(solver, how, timed):
     import math
 
     from rk4h.references.registry import BUILTIN
@@ -267,7 +268,7 @@ def test_the_trust_note_names_what_the_scene_runs_time(solver, timed):
     alt = dict(solver=solver, setting=1e-12, error_rel=4e-13, nfev=5000, n_steps=400, wall_s=1e-3, wall_min=1e-3,
                wall_max=1e-3, compile_s=0.0, status="ok", taylor_order=0, implementation="compiled")
     note = trust.trust_rows("s", rk4, BUILTIN["rk4"], 100.0, math.inf, [1e-12], confirmations=[alt])[0]["note"]
-    assert f"(its compiled loop, a confirmation run; the scene's runs time {timed})" in note
+    assert f"(its {how}, a confirmation run; the scene's runs time {timed})" in note
 
 
 def test_a_first_order_model_runs_scikit_sundae():
@@ -295,3 +296,60 @@ def test_the_benchmark_compares_both_on_one_scene():
     assert "ratio compiled/scikit-sundae whole run (sum of the medians): " in out
     assert "check same states (bit for bit), n_steps, nfev and status: True" in out
     assert "fell back" not in out and "DIFFERENT" not in out
+
+
+def _stiff_quartic():
+    """A chain whose quartic springs blow up: CVODE warns "t + h = t" on its way down."""
+    from rk4h.models import make_model
+
+    model = make_model("chain", {"masses": [1.0, 1.0], "springs": [10.0, 10.0, 10.0], "beta": -1e6})
+    return model, np.array([1.0, -0.5, 0.0, 0.0]), np.linspace(0.0, 10.0, 101)
+
+
+def test_sundials_warnings_do_not_reach_stdout(capfd):
+    """The advisor's --json and the report's progress share stdout: the
+    library's own logger is switched off (the file descriptor is checked,
+    as SUNDIALS writes from C)."""
+    model, y0, t = _stiff_quartic()
+    run = integrate_compiled("cvode-adams", model, y0, t, 1e-8)
+    assert run.extra["implementation"] == "compiled" and run.status.value != "ok"
+    out, err = capfd.readouterr()
+    assert out == "" and "WARNING" not in err
+
+
+def test_a_raising_right_hand_side_is_a_status_not_an_exception(monkeypatch):
+    """As scikit-sundae's run: the model's error is the run's FAILED status."""
+    bad, y0 = case(sorted(CASES)[0])
+    assert cc.compiled_rhs(bad) is not None
+
+    def raising(t, y):
+        raise ValueError("no force here")
+
+    monkeypatch.setattr(bad, "rhs", raising)
+    atol = absolute_tolerance(bad, y0, 1e-8)
+    ref = run_cvode("cvode-bdf", bad, y0, T, 1e-8, atol, 10_000)
+    new = cc.run_cvode_compiled("cvode-bdf", bad, y0, T, 1e-8, atol, 10_000)
+    assert ref.status.value == "failed" and "no force here" in ref.message
+    assert (new.status, new.message) == (ref.status, ref.message)
+    assert "no force here" in new.extra["compiled_error"]
+
+
+def test_two_threads_on_one_model_give_the_serial_runs(monkeypatch):
+    """CVODE runs without the GIL: each run has its own work array (not the
+    model's shared one), so two threads integrating one model concurrently
+    get the serial results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model, y0 = case(sorted(CASES)[-1])
+    seen, solve = [], cc._solve
+    monkeypatch.setattr(cc, "_solve", lambda *a: seen.append(int(a[14][6])) or solve(*a))
+    integrate_compiled("cvode-bdf", model, y0, T, 1e-6)
+    assert seen and seen[0] != cc.compiled_rhs(model).w.ctypes.data
+    monkeypatch.setattr(cc, "_solve", solve)
+    serial = [integrate_compiled(s, model, y0, T, 1e-10) for s in SOLVERS * 2]
+    with ThreadPoolExecutor(2) as pool:
+        threaded = list(pool.map(lambda s: integrate_compiled(s, model, y0, T, 1e-10), SOLVERS * 2))
+    for a, b in zip(serial, threaded):
+        assert b.extra["implementation"] == "compiled"
+        np.testing.assert_array_equal(a.y, b.y)
+        assert (a.n_steps, a.nfev) == (b.n_steps, b.nfev)

@@ -69,3 +69,18 @@ def test_a_small_chain_and_its_cvode_jacobian_do_not_import_scipy_sparse():
             "print('scipy.sparse' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False", out.stderr
+
+
+def test_a_model_giving_a_sparse_stiffness_gets_the_dense_jacobian(monkeypatch):
+    """A user's model may return a scipy.sparse K from ``stiffness_matrix()``."""
+    import scipy.sparse as sp
+
+    model = make_model(*LINEAR[2])
+    perm = interleave(model.n_dof)
+    want = linear_jacobian(model, perm)
+    dense_k = model.stiffness_matrix()
+    monkeypatch.setattr(model, "stiffness_matrix", lambda sparse=False: sp.csr_matrix(dense_k))
+    got = linear_jacobian(model, perm)
+    for a, b in zip(got[:3], want[:3]):
+        np.testing.assert_array_equal(a, b)
+    assert got[3:] == want[3:]

@@ -511,8 +511,10 @@ def trust_rows(scene: str, rows, method, t_span: float, h_stab: float, targets, 
         reached = (f"{alt['solver']} {setting_name(alt['solver'])} {alt['setting']:g} reached "
                    f"{alt['error_rel']:.2g}")
         if alt.get("implementation") == "compiled":
-            timed = "scikit-sundae's" if str(alt["solver"]).startswith("cvode") else "scipy's"
-            reached += f" (its compiled loop, a confirmation run; the scene's runs time {timed})"
+            cvode = str(alt["solver"]).startswith("cvode")
+            how = "compiled callbacks" if cvode else "compiled loop"
+            timed = "scikit-sundae's" if cvode else "scipy's"
+            reached += f" (its {how}, a confirmation run; the scene's runs time {timed})"
         if got is None:
             why = (f"{name} predicted h = {h:.3g} s ({source}), not confirmed by a run" if math.isfinite(h)
                    else f"{name}: {source}")

@@ -186,7 +186,8 @@ def linear_jacobian(model, perm: np.ndarray):
     n = model.n_dof
     if n <= _DENSE_JACOBIAN_MAX:
         # dense: the same products (1/m_i) K_ij, without scipy.sparse
-        K = np.asarray(model.stiffness_matrix(), dtype=float)
+        K = model.stiffness_matrix()
+        K = np.asarray(K.toarray() if hasattr(K, "toarray") else K, dtype=float)  # a user's model may give sparse
         J = np.zeros((2 * n, 2 * n))
         J[:n, n:] = np.eye(n)
         J[n:, :n] = -((1.0 / model.mass)[:, None] * K)

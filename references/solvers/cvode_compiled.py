@@ -39,7 +39,12 @@ of the state scale, the same sums in the same order) for a nonlinear one. So
 the states, ``n_steps`` and ``nfev`` equal scikit-sundae's
 (``tests/test_cvode_compiled.py``: bit for bit on the shared cases and scene
 models; a nonlinear force differs only where numba's and numpy's elementary
-functions differ).
+functions differ, e.g. the last bits of the time CVODE reports when a
+run blows up).
+
+CVODE's warnings ("t + h = t ...") are switched off with its logger
+(scikit-sundae's run prints them on the C stdout, where they would mix with
+a report's progress or the advisor's ``--json``).
 
 Step cap
 --------
@@ -98,6 +103,8 @@ _SIGNATURES = {
     "SUNContext_Create": (_I, (_I, ctypes.POINTER(_P))),
     "SUNContext_Free": (_I, (ctypes.POINTER(_P),)),
     "SUNContext_ClearErrHandlers": (_I, (_P,)),
+    "SUNContext_GetLogger": (_I, (_P, ctypes.POINTER(_P))),
+    "SUNLogger_SetWarningFilename": (_I, (_P, ctypes.c_char_p)),
     "SUNMatDestroy": (None, (_P,)),
     "SUNLinSolFree": (_I, (_P,)),
     "N_VNew_Serial": (_P, (_I, _P)),
@@ -377,18 +384,9 @@ def _callbacks(kern, kind: str):
     key = (kern.key(), kind) if kind != "jac_constant" else kind
     cf = _CALLBACK_CACHE.get(key)
     if cf is None and kind == "jac_constant":  # the same for every model: compiled once per machine
-        from numba.core.ccallback import CFunc
-
         from . import _cvode_jac
 
-        cf = CFunc(_cvode_jac.cv_jac_constant, (_signatures()[1].args, _signatures()[1].return_type), {},
-                   {"error_model": "numpy"})
-        try:
-            cf.enable_caching()
-        except Exception:  # noqa: BLE001 - no usable cache location: compiled in this process only
-            pass
-        cf.compile()
-        _CALLBACK_CACHE[key] = cf
+        cf = _CALLBACK_CACHE[key] = _callback(_cvode_jac, "cv_jac_constant", _signatures()[1])
     if cf is None:
         from rk4h.fast import codegen
 
@@ -423,7 +421,11 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
     lib, why = _load_sundials()
     if lib is None:
         return _fallback(solver_name, model, y0, t_eval, rtol, atol, max_steps, why)
-    fast_rhs = compiled_rhs(model)
+    try:
+        fast_rhs = compiled_rhs(model)
+    except Exception as exc:  # noqa: BLE001 - scikit-sundae's run reports it as its status
+        return _fallback(solver_name, model, y0, t_eval, rtol, atol, max_steps,
+                         f"compiled right-hand side failed: {type(exc).__name__}: {exc}")
     if fast_rhs is None or getattr(model, "first_order", False):
         return _fallback(solver_name, model, y0, t_eval, rtol, atol, max_steps,
                          "the model has no compiled right-hand side")
@@ -434,7 +436,11 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
     lband = uband = None
     jac_kind = "jac"
     if model.linear:
-        rows, cols, vals, lband, uband = _linear_jacobian_once(model, perm)
+        try:
+            rows, cols, vals, lband, uband = _linear_jacobian_once(model, perm)
+        except Exception as exc:  # noqa: BLE001 - scikit-sundae's run reports it as its status
+            return _fallback(solver_name, model, y0, t_eval, rtol, atol, max_steps,
+                             f"constant Jacobian failed: {type(exc).__name__}: {exc}")
         if lband + uband + 1 < n2:
             jac_kind = None  # band solver, CVODE's difference-quotient Jacobian
         else:
@@ -459,12 +465,12 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
     buf = np.zeros((3, n2))
     info = np.full(1, np.nan)
     if jac_kind == "jac_constant":
-        dense = np.zeros((n2, n2))
-        dense[rows, cols] = vals
-        jdata = np.ascontiguousarray(dense.T).ravel()  # column-major, as SUNDIALS' dense matrix
+        jdata = np.zeros(n2 * n2)
+        jdata[cols * n2 + rows] = vals  # column-major, as SUNDIALS' dense matrix
     else:
         jdata = np.zeros((4, max(n, 1)))
-    keep = (sizes, fast_rhs.fp, fast_rhs.ip, fast_rhs.mass, perm64, buf, fast_rhs.w, info, jdata)
+    work = np.zeros_like(fast_rhs.w)  # per run: CVODE runs without the GIL, so two threads may share a model
+    keep = (sizes, fast_rhs.fp, fast_rhs.ip, fast_rhs.mass, perm64, buf, work, info, jdata)
     ud = np.array([a.ctypes.data for a in keep], dtype=np.int64)
     atol_z = np.ascontiguousarray(np.asarray(atol, dtype=float)[perm])
     extra = {"atol_state": atol, "max_steps": max_steps, "rhs": "compiled", "implementation": "compiled",
@@ -477,8 +483,12 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
     n_steps = nfev_cvode = njev = nfev_dq = 0
     k = 1
     start = time.perf_counter()
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        f0 = np.asarray(model.rhs(t0, y0), dtype=float)
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            f0 = np.asarray(model.rhs(t0, y0), dtype=float)
+    except Exception as exc:  # noqa: BLE001 - scikit-sundae's run reports it as its status
+        return _fallback(solver_name, model, y0, t_eval, rtol, atol, max_steps,
+                         f"the right-hand side raised at the initial state: {type(exc).__name__}: {exc}")
     if not np.all(np.isfinite(f0)):
         status, t_fail = Status.UNSTABLE, t0
         message = (f"{solver_name}: the right-hand side is not finite at the initial state "
@@ -490,7 +500,7 @@ def run_cvode_compiled(solver_name: str, model, y0: np.ndarray, t_eval: np.ndarr
                                jac_kind is None, lband, uband, ud, y0, info, sizes)
         except Exception as exc:  # noqa: BLE001 - a failure inside is a status, not an exception
             status, message = Status.FAILED, f"{solver_name}: {type(exc).__name__}: {exc}"
-            t_fail = float(t_eval[k - 1]) if k > 0 else t0
+            t_fail = float(t_eval[k - 1])
     wall = time.perf_counter() - start
     del keep
     if status is not Status.OK:
@@ -551,6 +561,9 @@ def _solve(lib, solver_name, n2, y, perm, t_eval, rtol, atol_z, max_steps, rhs_c
         check(lib.CVodeSetMaxNonlinIters(mem, 3), "CVodeSetMaxNonlinIters")
         check(lib.CVodeSetMaxConvFails(mem, 10), "CVodeSetMaxConvFails")
         lib.SUNContext_ClearErrHandlers(ctx)
+        logger = _P()  # CVODE's warnings ("t + h = t ...") go to the C stdout unless switched off
+        if lib.SUNContext_GetLogger(ctx, ctypes.byref(logger)) == 0 and logger.value:
+            lib.SUNLogger_SetWarningFilename(logger, b"")
         check(lib.CVodeSetInitStep(mem, 0.0), "CVodeSetInitStep")
         check(lib.CVodeSetMinStep(mem, 0.0), "CVodeSetMinStep")
         check(lib.CVodeSetMaxStep(mem, 0.0), "CVodeSetMaxStep")
