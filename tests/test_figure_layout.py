@@ -634,6 +634,25 @@ def test_the_renderer_gives_matplotlibs_own_line_metrics():
         a = t.get_window_extent(renderer).bounds
         b = t.get_window_extent(plain).bounds
         assert a == b, (t.get_text(), a, b)
+    import inspect
+
+    from matplotlib.text import Text
+
+    if "_get_font_height_metrics" not in inspect.getsource(Text._get_layout):
+        pytest.skip("this matplotlib does not ask the renderer for line metrics (the extents above still match)")
     assert len(renderer._line_metrics) == 4  # 10 pt, 10 pt bold, 8 pt, 13 pt: "0.5" and "Im z" share one
     for key, (ascent, descent, gap) in renderer._line_metrics.items():
         assert ascent > 0 and descent > 0 and gap >= 0, key
+
+
+def test_the_renderer_falls_back_to_matplotlibs_measure(monkeypatch):
+    """Where the matplotlib font internals it reads are gone, the renderer
+    answers Nones, which tells matplotlib to measure the text itself, as
+    without the renderer: a changed matplotlib never fails a figure here."""
+    from matplotlib import font_manager
+
+    fig = figures.style.new_figure()
+    renderer = fig.canvas.get_renderer()
+    t = fig.text(0.1, 0.1, "0.5 and more")
+    monkeypatch.delattr(font_manager.FontManager, "_find_fonts_by_props")
+    assert renderer._get_font_height_metrics(t.get_fontproperties()) == (None, None, None)

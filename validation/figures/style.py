@@ -159,17 +159,21 @@ class _Renderer(RendererAgg):
         found = self._line_metrics.get(key)
         if found is None:
             found = (None, None, None)
-            font = get_font(fontManager._find_fonts_by_props(prop))
-            for table_name, gap_key, ascent_key, descent_key in (
-                    ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
-                    ("hhea", "lineGap", "ascent", "descent")):
-                table = font.get_sfnt_table(table_name)
-                if table is None:
-                    continue
-                # the expression of Text._get_layout, so the numbers are its numbers to the last bit
-                scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * self.dpi / 72
-                found = (table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale)
-                break
+            try:
+                font = get_font(fontManager._find_fonts_by_props(prop))
+                for table_name, gap_key, ascent_key, descent_key in (
+                        ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
+                        ("hhea", "lineGap", "ascent", "descent")):
+                    table = font.get_sfnt_table(table_name)
+                    if table is None:
+                        continue
+                    # the expression of Text._get_layout, so the numbers are its numbers to the last bit
+                    scale = (1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points()
+                             * self.dpi / 72)
+                    found = (table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale)
+                    break
+            except Exception:  # noqa: BLE001 - matplotlib's internals moved: Nones, and it measures as before
+                found = (None, None, None)
             self._line_metrics[key] = found
         return found
 
@@ -180,7 +184,7 @@ class _Canvas(FigureCanvasAgg):
     def get_renderer(self):
         w, h = self.get_width_height(physical=True)
         key = w, h, self.figure.dpi
-        if self._lastKey != key:
+        if getattr(self, "_lastKey", None) != key:
             self.renderer = _Renderer(w, h, self.figure.dpi)
             self._lastKey = key
         return self.renderer
