@@ -139,3 +139,24 @@ def test_readme_own_scene_command_runs(tmp_path, monkeypatch, capsys):
     assert main(argv) == 0, capsys.readouterr().err[-2000:]
     index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
     assert tomllib.loads(full[0])["name"] in index
+
+
+def test_readme_quick_command_and_count_are_the_code():
+    """The tour's quick-run command is one ``run_all.py`` accepts as written
+    (its parser, no run), and the number of scenes the README gives for the
+    quick set is the number ``--quick`` loads."""
+    import shlex
+
+    from rk4h.validation.run_all import _parser
+    from rk4h.validation.scenes import load_scenes
+
+    text = README.read_text()
+    commands = [line for block in _blocks("") for line in block.splitlines()
+                if line.startswith("python validation/run_all.py --quick")]
+    assert commands, "the README shows no --quick command"
+    for line in commands:
+        args = _parser().parse_args(shlex.split(line)[2:])
+        assert args.quick and args.out
+    said = re.search(r"The quick set \((\d+) scenes\)", text)
+    assert said, "the README no longer says how many scenes the quick set has"
+    assert int(said.group(1)) == len(load_scenes(None, quick=True))
