@@ -218,6 +218,41 @@ def linear_jacobian(model, perm: np.ndarray):
     return rows, cols, vals, lband, uband
 
 
+def solve_outputs(solver_name: str, tt, zz, t_eval, t_call, success: bool, flag: int, flag_message, message: str):
+    """What CVODE's ``CV_NORMAL`` outputs ``tt``, ``zz`` (one row per time,
+    the times ``t_call``; on a failure the last row is CVODE's last internal
+    time and state, as scikit-sundae's ``solve`` returns them) say at the
+    output times ``t_eval``: the shared post-processing of :func:`run_cvode`
+    and the compiled runner's.
+
+    With two output times the interpolated midpoint asked for in ``t_call``
+    is dropped. Returns ``(zz, k, status, t_fail, message)``: ``k`` outputs
+    reached with finite states; ``UNSTABLE`` at the first non-finite one;
+    ``FAILED`` at CVODE's last time when it returned ``flag < 0``
+    (``message`` left for the caller to word), or at the last output
+    reached when CVODE stopped early (``flag_message()``, called only then,
+    gives CVODE's text for ``flag``)."""
+    m = t_eval.shape[0]
+    if m == 2 and tt.shape[0] >= 2 and tt[1] == t_call[1]:
+        tt, zz = np.delete(tt, 1), np.delete(zz, 1, axis=0)
+    status, t_fail = Status.OK, None
+    n_out = min(m, tt.shape[0] - (0 if success else 1))
+    at = tt[:n_out] == t_eval[:n_out]
+    k = n_out if at.all() else int(np.argmin(at))
+    finite = np.all(np.isfinite(zz[:k]), axis=1)
+    if not finite.all():
+        k = int(np.argmin(finite))
+        status, t_fail = Status.UNSTABLE, float(t_eval[k])
+        message = f"{solver_name}: state became non-finite at t = {t_fail:.6g}"
+    elif not success:
+        status, t_fail = Status.FAILED, float(tt[-1])
+    elif k < m:
+        status, t_fail = Status.FAILED, float(tt[k - 1])
+        message = (f"{solver_name}: CVODE stopped at t = {t_fail:.6g} before the last output "
+                   f"(flag {flag}: {flag_message()})")
+    return zz, k, status, t_fail, message
+
+
 def _linear_jacobian_once(model, perm: np.ndarray):
     """:func:`linear_jacobian` for the interleaved order (``perm`` =
     :func:`interleave`), built once per model (``Model.constant``); the
@@ -474,25 +509,10 @@ def _run_cvode(solver_name, model, y0, t_eval, rtol, atol, max_steps, one_step_l
                 t_call = t_eval if m > 2 else np.array([t0, t0 + 0.5 * (t1 - t0), t1])
                 res = solver.solve(t_call, y0[perm])
                 tt, zz = np.asarray(res.t, dtype=float), np.asarray(res.y, dtype=float)
-                if m == 2 and tt.shape[0] >= 2 and tt[1] == t_call[1]:
-                    tt, zz = np.delete(tt, 1), np.delete(zz, 1, axis=0)
-                # on a failure solve appends CVODE's last internal time and state
-                n_out = min(m, tt.shape[0] - (0 if res.success else 1))
-                at = tt[:n_out] == t_eval[:n_out]
-                k = n_out if at.all() else int(np.argmin(at))
-                finite = np.all(np.isfinite(zz[:k]), axis=1)
-                if not finite.all():
-                    k = int(np.argmin(finite))
-                    status, t_fail = Status.UNSTABLE, float(t_eval[k])
-                    message = f"{solver_name}: state became non-finite at t = {t_fail:.6g}"
-                elif not res.success:
-                    status, t_fail = Status.FAILED, float(tt[-1])
-                    # CV_TOO_MUCH_WORK: max_num_steps = max_steps steps in one output interval
-                    capped = capped or res.status == -1
-                elif k < m:
-                    status, t_fail = Status.FAILED, float(tt[k - 1])
-                    message = (f"{solver_name}: CVODE stopped at t = {t_fail:.6g} before the last output "
-                               f"(flag {res.status}: {res.message})")
+                zz, k, status, t_fail, message = solve_outputs(
+                    solver_name, tt, zz, t_eval, t_call, res.success, res.status, lambda: res.message, message)
+                # CV_TOO_MUCH_WORK: max_num_steps = max_steps steps in one output interval
+                capped = capped or (status is Status.FAILED and not res.success and res.status == -1)
                 y[perm, 1:k] = zz[1:k].T
                 n_steps = stats.steps()
                 nfev_cvode, njev = stats.get("CVodeGetNumRhsEvals"), stats.get("CVodeGetNumJacEvals")

@@ -81,7 +81,7 @@ import time
 import numpy as np
 
 from .base import SolverRun, Status, compiled_rhs
-from .cvode import DEFAULT_MAX_STEPS, _linear_jacobian_once, interleave, run_cvode
+from .cvode import DEFAULT_MAX_STEPS, _linear_jacobian_once, interleave, run_cvode, solve_outputs
 
 __all__ = ["run_cvode_compiled", "sundials_library", "SUNDIALS_ABI"]
 
@@ -601,25 +601,10 @@ def _solve(lib, solver_name, n2, y, perm, t_eval, rtol, atol_z, max_steps, rhs_c
                 break
         tt, zz = np.array(tt), np.array(zz)
         success = flag >= 0
-        if m == 2 and tt.shape[0] >= 2 and tt[1] == t_call[1]:
-            tt, zz = np.delete(tt, 1), np.delete(zz, 1, axis=0)
-        # the post-processing of run_cvode
-        status, message, t_fail = Status.OK, f"{solver_name}: reached the end of the interval", None
-        n_out = min(m, tt.shape[0] - (0 if success else 1))
-        at = tt[:n_out] == t_eval[:n_out]
-        k = n_out if at.all() else int(np.argmin(at))
-        finite = np.all(np.isfinite(zz[:k]), axis=1)
-        if not finite.all():
-            k = int(np.argmin(finite))
-            status, t_fail = Status.UNSTABLE, float(t_eval[k])
-            message = f"{solver_name}: state became non-finite at t = {t_fail:.6g}"
-        elif not success:
-            status, t_fail = Status.FAILED, float(tt[-1])
-            capped = capped or flag == CV_TOO_MUCH_WORK
-        elif k < m:
-            status, t_fail = Status.FAILED, float(tt[k - 1])
-            message = (f"{solver_name}: CVODE stopped at t = {t_fail:.6g} before the last output "
-                       f"(flag {flag}: {_cv_message(flag)})")
+        zz, k, status, t_fail, message = solve_outputs(
+            solver_name, tt, zz, t_eval, t_call, success, flag, lambda: _cv_message(flag),
+            f"{solver_name}: reached the end of the interval")
+        capped = capped or (status is Status.FAILED and not success and flag == CV_TOO_MUCH_WORK)
         y[perm, 1:k] = zz[1:k].T
         n_steps = stat("CVodeGetNumSteps")
         nfev_cvode, njev = stat("CVodeGetNumRhsEvals"), stat("CVodeGetNumJacEvals")
