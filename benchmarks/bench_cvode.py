@@ -103,6 +103,14 @@ SCENES = ("thesis_2dof_case1", "lattice100", "pendulums_beats")
 CVODE = ("cvode-adams", "cvode-bdf")
 
 
+def problem(name, tiny):
+    """``(scene, model, y0, t)`` of the shipped scene file ``name``; ``tiny``:
+    outputs up to t = 5 s only."""
+    scene = load_scene(SCENE_DIR / f"{name}.toml")
+    model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
+    return scene, model, y0, (t[t <= 5.0] if tiny else t)
+
+
 def load_old(path):
     """``run_cvode`` of an older ``references/solvers/cvode.py`` (its relative
     imports resolved inside ``rk4h.references.solvers``)."""
@@ -148,10 +156,7 @@ def per_call(args):
     runs = {"new": cvode.run_cvode}
     if args.old:
         runs["old"] = load_old(args.old)
-    scene = load_scene(SCENE_DIR / f"{args.scenes[0]}.toml")
-    model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
-    if args.tiny:
-        t = t[t <= 5.0]
+    scene, model, y0, t = problem(args.scenes[0], args.tiny)
     n2 = y0.size
     print(f"{scene.name}: {model.n_dof} DOF, {t.size} outputs to t = {t[-1]:g} s, rtol {args.rtol:g}; "
           f"least of {args.repeats} runs, microseconds per right-hand-side call")
@@ -310,10 +315,7 @@ def compiled_table(args, repeats):
           f"{'compiled s':>10s} {'us/call sundae':>14s} {'us/call compiled':>16s} {'compiled/sundae':>15s}")
     rows = []
     for name in args.compiled_scenes:
-        scene = load_scene(SCENE_DIR / f"{name}.toml")
-        model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
-        if args.tiny:
-            t = t[t <= 5.0]
+        scene, model, y0, t = problem(name, args.tiny)
         for solver in CVODE:
             for rtol in (1e-8, 1e-12):
                 atol = absolute_tolerance(model, y0, rtol)
@@ -377,10 +379,7 @@ def main(argv=None):
 
     rows = []
     for name in args.scenes:
-        scene = load_scene(SCENE_DIR / f"{name}.toml")
-        model, y0, t = scene.build_model(), scene.y0(), scene.t_eval()
-        if args.tiny:
-            t = t[t <= 5.0]
+        scene, model, y0, t = problem(name, args.tiny)
         y_ref = np.asarray(reference_solution(model, y0, t).y, float)
         scale = float(np.max(np.abs(y_ref)))
         print(f"\n{scene.name}: {model.n_dof} DOF, {t.size} outputs to t = {t[-1]:g} s")
