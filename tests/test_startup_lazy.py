@@ -50,8 +50,8 @@ def test_loading_a_scene_builds_only_its_models_variant():
 
 def test_the_lazy_names_are_those_of_the_schema():
     assert S.OUTPUTS == SS.OUTPUTS
-    assert S._TOP == set(SS.TOP_KEYS) == set(SS.SCENE_MODELS["user"].model_fields)
-    assert S._NAME.pattern == SS.NAME_PATTERN.strip("^$") and S._NAME_MAX == SS.NAME_MAX
+    assert set(SS.TOP_KEYS) == set(SS.SCENE_MODELS["user"].model_fields)
+    assert S._name_pattern().pattern == SS.NAME_PATTERN.strip("^$")
     assert list(SS.SCENE_MODELS) == [*SS.BUILTIN_MODELS, "user"]
     assert "chain" in SS.BUILTIN_MODELS and "user" not in SS.BUILTIN_MODELS and 3 not in SS.SCENE_MODELS
     with pytest.raises(KeyError):

@@ -313,7 +313,7 @@ def test_point_names_and_figure_stems_are_unique(values):
     assert len(set(names)) == len(set(map(scenes_mod._figure_stem, names))) == len(values)
     for n in names:
         assert re.fullmatch(r"tiny@x0=[a-z0-9.-]+", n), n
-        assert not scenes_mod._NAME.fullmatch(n)  # never a name a file may hold
+        assert not scenes_mod._name_pattern().fullmatch(n)  # never a name a file may hold
     # the name's value reads back as the value
     for p, v in zip(points, values):
         text = p.name.split("=", 1)[1]

@@ -254,16 +254,9 @@ def _schema():
 
 
 def __getattr__(name):
-    # names read from the schema on first use: OUTPUTS (the output names when the schema was
-    # imported), the scene-name pattern and length, the top-level keys
+    # OUTPUTS (the output names when the schema was imported), read from the schema on first use
     if name == "OUTPUTS":
         return _schema().OUTPUTS
-    if name == "_NAME":
-        return _name_pattern()
-    if name == "_NAME_MAX":
-        return _schema().NAME_MAX
-    if name == "_TOP":
-        return set(_schema().TOP_KEYS)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
