@@ -32,6 +32,8 @@ def test_chain_dense_stiffness_and_bound_equal_the_sparse_ones(n, walls):
         model = _random_chain(n, walls, **extra)
         sparse = model.stiffness_matrix(sparse=True)
         assert np.array_equal(model.stiffness_matrix(), sparse.toarray())
+        off, diag = model._bands()  # what frequency_range reads: the sparse matrix's diagonals
+        assert np.array_equal(sparse.diagonal(), diag) and np.array_equal(sparse.diagonal(1), off)
         # the base class's bound is the sparse row sum
         assert model._compute_gershgorin_w2() == Model._compute_gershgorin_w2(model)
 

@@ -175,13 +175,13 @@ class Chain(Model):
 
         from scipy.linalg import eigvalsh_tridiagonal
 
-        K = self.stiffness_matrix(sparse=True).tocsr()
+        off, diag = self._bands()
         m = np.asarray(self.mass, float)
-        d = K.diagonal() / m
+        d = diag / m
         n = d.shape[0]
         if n == 1:
             return math.sqrt(d[0]), math.sqrt(d[0])
-        e = K.diagonal(1) / np.sqrt(m[:-1] * m[1:])
+        e = off / np.sqrt(m[:-1] * m[1:])
         hi = float(eigvalsh_tridiagonal(d, e, select="i", select_range=(n - 1, n - 1))[0])
         lo = eigvalsh_tridiagonal(d, e, select="i", select_range=(0, 1))
         lo = [v for v in lo if v > 1e-12 * hi]
