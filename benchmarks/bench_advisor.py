@@ -3,6 +3,7 @@
     python benchmarks/bench_advisor.py --before /tmp/venv-base/bin/python          # this tree = after
     python benchmarks/bench_advisor.py --before PY --rounds 3 --scenes thesis-2dof-case1
     python benchmarks/bench_advisor.py --rounds 1                                    # this tree only
+    python benchmarks/bench_advisor.py --threads-vs-one --rounds 4                   # --threads 1 vs default
     python benchmarks/bench_advisor.py --ledger                                      # where the CPU goes
     python benchmarks/bench_advisor.py --loop                                        # planar4's RK4 ns/step
 
@@ -18,9 +19,13 @@ around the subprocess), CPU s (user + system of the child,
 ``resource.getrusage(RUSAGE_CHILDREN)``), the 1-minute load average before
 it, and the answer (method, setting). The last lines per scene are the
 medians and the ratios before/after of wall and CPU time.
+``--threads-vs-one``: "before" is ``--threads 1`` (the sampled runs one
+after the other), "after" the default (side by side on the cores this
+process may use), both in the ``--after`` tree.
 
 ``--ledger``: where one advisor call's CPU goes, per scene, in a fresh
-process each (``time.process_time``, which counts the interpreter's start):
+process each (``time.process_time``, which counts the interpreter's start),
+its runs one at a time (``advise(..., threads=1)``; the advice is the same):
 start-up, the advisor's import, the scene's load, the problem (model, truth,
 stability scale), each integration by method and phase (calibration,
 confirmation, timing repeats) with its RHS calls, the first run of each
@@ -50,12 +55,12 @@ import sys
 import time
 
 
-def _call(python: str, scene: str, target: str) -> tuple:
-    """``(wall s, cpu s, load, answer)`` of one advisor call."""
+def _call(python: str, scene: str, target: str, extra=()) -> tuple:
+    """``(wall s, cpu s, load, answer)`` of one advisor call (``extra``: more arguments)."""
     load = os.getloadavg()[0]
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    r = subprocess.run([python, "-m", "rk4h.validation.advise", scene, "--target", target, "--json"],
+    r = subprocess.run([python, "-m", "rk4h.validation.advise", scene, "--target", target, "--json", *extra],
                        capture_output=True, text=True)
     wall = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -109,13 +114,13 @@ def ledger_child(scene: str, target: float) -> dict:
         rows.append([method.name, float(setting), stack[-1], float(out[1]), time.process_time() - a, float(out[2])])
         return out
 
-    def init(self, scene_):
+    def init(self, scene_, *more):
         a = time.process_time()
-        real_init(self, scene_)
+        real_init(self, scene_, *more)
         problem_s[0] = time.process_time() - a
 
     adv_mod._Problem.run, adv_mod._Problem.__init__ = run, init
-    advice = adv_mod.advise(sc, target)
+    advice = adv_mod.advise(sc, target, threads=1)  # one run at a time: each run's CPU is its own
     t_end = time.process_time()
     return {"scene": scene, "target": target, "start": t_start, "import": t_import - t_start,
             "scene_load": t_scene - t_import, "problem": problem_s[0], "advise": t_end - t_scene,
@@ -259,6 +264,8 @@ def main(argv=None) -> int:
     ap.add_argument("--target", default="1e-3")
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--no-warm-up", action="store_true", help="skip the untimed first call (caches known warm)")
+    ap.add_argument("--threads-vs-one", action="store_true",
+                    help="compare --threads 1 (before) with the default (after), both in the --after tree")
     ap.add_argument("--ledger", action="store_true", help="where one call's CPU goes (a fresh process per scene)")
     ap.add_argument("--ledger-child", metavar="SCENE", help=argparse.SUPPRESS)
     ap.add_argument("--loop", action="store_true", help="planar4-case2's RK4 ns/step beside a hand-written loop")
@@ -273,22 +280,27 @@ def main(argv=None) -> int:
         if args.loop:
             _loop(args)
         return 0
-    sides = [("before", args.before), ("after", args.after)] if args.before else [("after", args.after)]
+    if args.threads_vs_one:
+        sides = [("before", args.after, ("--threads", "1")), ("after", args.after, ())]
+    elif args.before:
+        sides = [("before", args.before, ()), ("after", args.after, ())]
+    else:
+        sides = [("after", args.after, ())]
     for scene in args.scenes:
-        for _, py in ([] if args.no_warm_up else sides):  # warm-up: disk caches
-            _call(py, scene, args.target)
-        got = {name: [] for name, _ in sides}
+        for _, py, extra in ([] if args.no_warm_up else sides):  # warm-up: disk caches
+            _call(py, scene, args.target, extra)
+        got = {name: [] for name, _, _ in sides}
         for k in range(args.rounds):
             order = sides if k % 2 == 0 else sides[::-1]
-            for name, py in order:
-                wall, cpu, load, answer = _call(py, scene, args.target)
+            for name, py, extra in order:
+                wall, cpu, load, answer = _call(py, scene, args.target, extra)
                 got[name].append((wall, cpu))
                 print(f"{scene} {name:6} round {k}: {wall:7.2f} s wall {cpu:7.2f} s CPU  load {load:5.2f}  {answer}",
                       flush=True)
         med = {n: (statistics.median(w for w, _ in v), statistics.median(c for _, c in v)) for n, v in got.items()}
         for n, (w, c) in med.items():
             print(f"{scene} {n:6} median: {w:.2f} s wall, {c:.2f} s CPU")
-        if args.before:
+        if len(sides) == 2:
             (wb, cb), (wa, ca) = med["before"], med["after"]
             print(f"{scene} ratio before/after: wall {wb / wa:.2f}, CPU {cb / ca:.2f}")
     print(f"load average at the end: {os.getloadavg()[0]:.2f}")

@@ -145,14 +145,14 @@ def test_a_candidate_predicted_to_miss_is_not_listed_nor_run(monkeypatch):
         return {**c, "predicted_error": 10 * tgt} if method.name == "cvode-adams" else c
 
     runs = []
-    real_run = _Problem.run
+    real_run = _Problem.execute
 
     def spy(self, method, setting):
         runs.append((method.name, setting))
         return real_run(self, method, setting)
 
     monkeypatch.setattr(advise_mod, "_adaptive_candidate", fake)
-    monkeypatch.setattr(_Problem, "run", spy)
+    monkeypatch.setattr(_Problem, "execute", spy)  # every integration, side by side or not
     adv = advise(_scene("thesis-2dof-case1"), target)
     names = [c["method"] for c in adv.candidates]
     assert "cvode-adams" not in names and adv.candidates
@@ -178,8 +178,8 @@ def advised():
     seen = []
     real = advise_mod.advise
 
-    def spy(scene, target):
-        seen.append(real(scene, target))
+    def spy(*a, **k):
+        seen.append(real(*a, **k))
         return seen[-1]
 
     out = io.StringIO()
@@ -219,7 +219,7 @@ def test_every_listed_candidate_is_confirmed_and_both_choices_are_named(advised)
 def test_the_text_says_the_time_is_measured_here(advised, monkeypatch, capsys):
     """The text form of the same advice (``advised``): main prints it without
     running the advisor again."""
-    monkeypatch.setattr(advise_mod, "advise", lambda scene, target: advised[1])
+    monkeypatch.setattr(advise_mod, "advise", lambda scene, target, threads=None: advised[1])
     assert advise_mod.main(["thesis-2dof-case1", "--target", str(_TARGET)]) == 0
     out = capsys.readouterr().out
     assert "fewest RHS calls:" in out and "fastest here:" in out and "measured on this machine" in out
@@ -277,13 +277,13 @@ def test_dop853_is_run_and_timed_as_its_compiled_loop_and_said_so(monkeypatch):
 
     target = 1e-3
     runs = []
-    real_run = _Problem.run
+    real_run = _Problem.execute
 
     def spy(self, method, setting):
         runs.append((method.name, float(setting)))
         return real_run(self, method, setting)
 
-    monkeypatch.setattr(_Problem, "run", spy)
+    monkeypatch.setattr(_Problem, "execute", spy)  # every integration, side by side or not
     scene = _scene("thesis-2dof-case1")
     adv = advise(scene, target)
     listed = {c["method"]: c for c in adv.candidates}
@@ -394,7 +394,7 @@ def test_no_setting_is_run_twice_except_the_timing_repeats(monkeypatch):
     ``timing_runs - 1`` per listed candidate; and every listed setting was
     run."""
     phase, runs = ["other"], []
-    real_run, real_timed = _Problem.run, advise_mod._timed
+    real_run, real_timed = _Problem.execute, advise_mod._timed
 
     def spy(self, method, setting):
         runs.append((method.name, float(setting), phase[0]))
@@ -407,7 +407,7 @@ def test_no_setting_is_run_twice_except_the_timing_repeats(monkeypatch):
         finally:
             phase[0] = "other"
 
-    monkeypatch.setattr(_Problem, "run", spy)
+    monkeypatch.setattr(_Problem, "execute", spy)  # every integration, side by side or not
     monkeypatch.setattr(advise_mod, "_timed", timed)
     adv = advise(_scene("thesis-2dof-case1"), 1e-3)
     evidence = [(m, s) for m, s, ph in runs if ph != "timing"]

@@ -2,7 +2,7 @@
 scene, whether a cheaper model would do, and what to watch out for -- without
 running the report.
 
-    python validation/advise.py SCENE --target REL [--json] [--allow-code]
+    python validation/advise.py SCENE --target REL [--json] [--threads N] [--allow-code]
 
 ``SCENE`` is a scene file or a shipped scene's name (``thesis-2dof-case1``);
 ``REL`` the target relative error (``error_max / max |y_ref|`` over the
@@ -48,7 +48,11 @@ How (all plain data):
    :data:`SAMPLE_STEPS` steps in ``[h/2, h]`` on the output grid
    (:func:`sample_steps`) meet the target; a run that misses shrinks the
    step below it by the error ratio (at least 10 %), at most
-   :data:`CONFIRM_ROUNDS` rounds. On planar4-case2 RK4's error is erratic in
+   :data:`CONFIRM_ROUNDS` rounds. A round's first step runs alone (its
+   wall time is the candidate's first timing); its other steps run side by
+   side on up to ``threads`` cores where the model's loop is compiled
+   (:func:`_first_miss`), recorded in their order up to the first miss, so
+   the advice is the same for any number of threads. On planar4-case2 RK4's error is erratic in
    ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
    6.0e-4): the advisor says so and the sampled runs are the evidence.
    ``confirmed_error`` is the largest error of the runs that confirm the
@@ -190,12 +194,14 @@ class Advice:
 class _Problem:
     """The scene's model, initial state, output grid and truth, built once."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, threads: int = 1):
+        import rk4h.fast
         from rk4h.validation.execute import problem
 
         from rk4h.references.truth import reference_solution
 
         self.scene = scene
+        self.threads = max(1, int(threads))  # at most this many sampled runs side by side (_first_miss)
         self.model, self.y0 = problem(scene)
         self.t = scene.t_eval()
         self.y_ref = np.asarray(reference_solution(self.model, self.y0, self.t).y, float)
@@ -205,6 +211,9 @@ class _Problem:
         self.compile = {}   # (method name, setting) and method name -> largest compile s (heyoka's JIT, numba)
         self.implementation = {}  # method name -> "compiled" where its compiled loop ran (see run)
         self.runs = {}      # (method name, setting) -> the first run's result (see measured)
+        # A tableau's runs on this model go through a compiled loop that holds no lock of Python's
+        # (rk4h.fast.codegen: nogil) and runs nothing of the user's: they may go side by side.
+        self.side_by_side = rk4h.fast.supports(self.model)
 
     def run(self, method, setting):
         """``(error_rel, rhs calls, wall s, status)`` of one run.
@@ -213,17 +222,29 @@ class _Problem:
         :func:`rk4h.references.solvers.integrate_compiled`, equal to scipy's
         to round-off) runs it, for its calibration, confirmation and timing
         alike; :attr:`implementation` records that it did."""
+        return self.commit(method, setting, self.execute(method, setting))
+
+    def execute(self, method, setting):
+        """The :class:`~rk4h.references.solvers.SolverRun` of one run, recorded
+        nowhere (:meth:`commit` records it); it changes nothing of ``self``,
+        so sampled runs may call it from threads side by side."""
         from rk4h.references.solvers import COMPILED_RUNNERS, integrate, integrate_compiled
 
         runner = integrate_compiled if method.runner_key in COMPILED_RUNNERS else integrate
         with np.errstate(all="ignore"):
-            run = runner(method, self.model, self.y0, self.t, setting)
+            return runner(method, self.model, self.y0, self.t, setting)
+
+    def commit(self, method, setting, run, alone: bool = True):
+        """Record ``run`` (:meth:`execute`'s at ``setting``) as :meth:`run` does
+        and return its ``(error_rel, rhs calls, wall s, status)``. A run that
+        went beside others (``alone`` False) gives no wall time per RHS call
+        (:attr:`rate`): the others shared the machine with it."""
         if (run.extra or {}).get("implementation") == "compiled":
             self.implementation[method.name] = "compiled"
         err = metrics.error_max(run.y, self.y_ref) / self.scale
         rhs = trust.rhs_calls({"nfev": run.nfev, "n_steps": run.n_steps, "taylor_order": run.taylor_order or 0})
         status = getattr(run.status, "value", str(run.status))
-        if rhs > 0 and status == "ok":
+        if rhs > 0 and status == "ok" and alone:
             self.rate[method.name] = min(self.rate.get(method.name, math.inf), run.wall_s / rhs)
         for key in ((method.name, float(setting)), method.name):
             self.compile[key] = max(self.compile.get(key, 0.0), float(run.compile_s or 0.0))
@@ -237,6 +258,10 @@ class _Problem:
         runs are deterministic, so the error and calls are the same."""
         hit = self.runs.get((method.name, float(setting)))
         return hit if hit is not None else self.run(method, setting)
+
+    def known(self, method, setting) -> bool:
+        """Whether :meth:`measured` at ``setting`` reuses a run already made."""
+        return (method.name, float(setting)) in self.runs
 
     def h_stab(self, method) -> float:
         return trust.stable_step(method, self.omega_max)
@@ -412,12 +437,7 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     h = cand["setting"]
     for _ in range(CONFIRM_ROUNDS):
         steps = sample_steps(p, h) if why else [h]
-        miss = None
-        for s in steps:
-            err, rhs, wall, status = run(s)
-            if not (status == "ok" and err <= target):
-                miss = (s, err, status)
-                break
+        miss = _first_miss(p, method, steps, target, cache)
         if miss is None:
             err, rhs, wall, _ = run(h)
             return {"status": "ok", "setting": h, "error": max(run(s)[0] for s in steps), "rhs": rhs, "wall": wall,
@@ -432,6 +452,53 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     err, rhs, wall, _ = run(s)
     return {"status": "not-met", "setting": s, "error": err, "rhs": rhs, "wall": wall, "sample": [],
             "evidence": sorted(([k, v[0]] for k, v in cache.items()), reverse=True), "why": why}
+
+
+def _first_miss(p, method, steps, target, cache):
+    """Run ``steps`` in their order until one misses ``target``: ``(step,
+    error, status)`` of the first that does, or None. Each result enters
+    ``cache`` (step -> ``(error, rhs, wall, status)``).
+
+    The first step runs alone: its wall time is the candidate's first timing
+    (:func:`_timed`). Where ``p`` allows it (:attr:`_Problem.side_by_side`, more
+    than one of :attr:`_Problem.threads`) the rest run side by side in
+    threads, and their results are recorded in the order of ``steps`` and
+    only up to the first miss: the answer, the evidence and every recorded
+    number are those of the runs one after the other. A run started beside
+    one that missed is waited for and thrown away, so nothing runs beside
+    the next round's first step."""
+    measured = getattr(p, "measured", None) or p.run
+
+    def outcome(s):
+        if s not in cache:
+            cache[s] = measured(method, s)
+        err, _, _, status = cache[s]
+        return None if status == "ok" and err <= target else (s, err, status)
+
+    miss = outcome(steps[0])
+    todo = [s for s in steps[1:] if s not in cache and not p.known(method, s)] \
+        if miss is None and getattr(p, "side_by_side", False) else []
+    threads = min(getattr(p, "threads", 1), len(todo))
+    if threads < 2:
+        for s in steps[1:]:
+            if miss is not None:
+                break
+            miss = outcome(s)
+        return miss
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(threads, thread_name_prefix="rk4h-advise")
+    try:
+        running = {s: pool.submit(p.execute, method, s) for s in todo}
+        for s in steps[1:]:
+            if s in running and s not in cache:
+                cache[s] = p.commit(method, s, running[s].result(), alone=False)
+            miss = outcome(s)
+            if miss is not None:
+                return miss
+        return None
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _confirm_adaptive(p, method, cand, target) -> dict:
@@ -577,10 +644,16 @@ def _late_candidate(p, m, target, listed, under) -> dict:
     return {**c, "calibration": [[float(x[0]), float(x[1])] for x in c["calibration"]]}
 
 
-def advise(scene, target: float) -> Advice:
+def advise(scene, target: float, threads: int | None = None) -> Advice:
     """Advice for ``scene`` (a :class:`rk4h.validation.scenes.Scene`) at the target
-    relative error ``target``; see the module docstring."""
-    p = _Problem(scene)
+    relative error ``target``; see the module docstring. ``threads``: at most
+    this many sampled runs side by side (:func:`_first_miss`; default the
+    cores this process may use); the advice is the same for any number."""
+    if threads is None:
+        from rk4h.validation.engine import default_workers
+
+        threads = default_workers()
+    p = _Problem(scene, threads)
     adv = Advice(scene.name, float(target))
     methods = [scene.method(s) for s in scene.solvers]
     late = [m for m in methods if not m.fixed_step and m.runner_key in PYTHON_CALLBACK]
@@ -756,6 +829,9 @@ def main(argv=None, *, prog="advise.py") -> int:
     horizon.add_argument("--periods", metavar="N", help="horizon in periods of the slowest mode (--energy-target)")
     horizon.add_argument("--horizon", metavar="T", help="horizon in s (--energy-target)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--threads", metavar="N",
+                        help="at most N sampled fixed-step runs side by side (default: the cores this process "
+                             "may use; the advice is the same for any N)")
     parser.add_argument("--allow-code", action="store_true",
                         help="run the programs and import the Python modules a scene not shipped with the "
                              "project names; read it first (default: refused; also RK4H_ALLOW_CODE=1)")
@@ -776,6 +852,16 @@ def main(argv=None, *, prog="advise.py") -> int:
     if not (math.isfinite(target) and 0 < target < 1):
         print(f"{args.prog}: --target: must lie in (0, 1), got {args.target!r}", file=sys.stderr)
         return 2
+    threads = None
+    if args.threads is not None:
+        try:
+            threads = int(args.threads)
+        except ValueError:
+            threads = 0
+        if not 1 <= threads <= 1024:
+            print(f"{args.prog}: --threads: must be an integer from 1 to 1024, got {args.threads!r}",
+                  file=sys.stderr)
+            return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
     except SceneError as e:
@@ -783,7 +869,7 @@ def main(argv=None, *, prog="advise.py") -> int:
         return 2
     t0 = time.perf_counter()
     for scene in scenes[:1]:
-        adv = advise(scene, target)
+        adv = advise(scene, target, threads)
         print(adv.to_json() if args.json else _text(adv) + f"\n  ({time.perf_counter() - t0:.1f} s)")
     return 0
 
@@ -819,6 +905,16 @@ def _energy_main(args) -> int:
     else:
         args.horizon = number("--horizon", args.horizon, 0, math.inf, "a positive number of seconds")
         if args.horizon is None:
+            return 2
+    threads = None
+    if args.threads is not None:
+        try:
+            threads = int(args.threads)
+        except ValueError:
+            threads = 0
+        if not 1 <= threads <= 1024:
+            print(f"{args.prog}: --threads: must be an integer from 1 to 1024, got {args.threads!r}",
+                  file=sys.stderr)
             return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
