@@ -34,9 +34,17 @@ def _is_number(x) -> bool:
     return isinstance(x, Real) and not isinstance(x, bool)
 
 
+def _finite_number(x) -> bool:
+    """A real number (no bool) whose float is finite (an int beyond float's range is not)."""
+    try:
+        return _is_number(x) and math.isfinite(float(x))
+    except OverflowError:
+        return False
+
+
 def finite(name: str, value) -> float:
     """A finite real number."""
-    if not _is_number(value) or not math.isfinite(float(value)):
+    if not _finite_number(value):
         raise ValueError(f"`{name}` must be a finite number, got {value!r}")
     return float(value)
 
@@ -74,17 +82,36 @@ def float_list(name: str, value, *, length: int | None = None, min_length: int =
     """A list of finite numbers (optionally all > 0) of a given length."""
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
         raise ValueError(f"`{name}` must be a list of numbers, got {value!r}")
+    arr = _plain_numbers(value)
+    if arr is not None and (length is None or arr.shape[0] == length) and arr.shape[0] >= min_length \
+            and np.isfinite(arr).all() and (not positive_items or (arr > 0.0).all()):
+        return arr  # what the loop below returns, checked in bulk (a long chain's list)
     items = list(value)
     if length is not None and len(items) != length:
         raise ValueError(f"`{name}` must have {length} entries, got {len(items)}: {value!r}")
     if len(items) < min_length:
         raise ValueError(f"`{name}` must have at least {min_length} entries, got {len(items)}")
     for i, v in enumerate(items):
-        if not _is_number(v) or not math.isfinite(float(v)):
+        if not _finite_number(v):
             raise ValueError(f"`{name}[{i}]` must be a finite number, got {v!r}")
         if positive_items and float(v) <= 0.0:
             raise ValueError(f"`{name}[{i}]` must be > 0, got {v!r}")
     return np.asarray(items, dtype=float)
+
+
+def _plain_numbers(value):
+    """``value`` as a float array when it is a list of Python ints and floats
+    (no bool) or a 1-D numeric numpy array, else None (the items are
+    checked one by one)."""
+    if type(value) is list:
+        if not set(map(type, value)) <= {float, int}:
+            return None
+    elif not (isinstance(value, np.ndarray) and value.ndim == 1 and value.dtype.kind in "fiu"):
+        return None
+    try:
+        return np.array(value, dtype=float)
+    except OverflowError:  # an int beyond float's range: the loop below says which
+        return None
 
 
 def check_t_span(t_span, *, allow_backward: bool = False):

@@ -92,8 +92,9 @@ def check_masses(name: str, masses) -> np.ndarray:
         One line naming the field and the value.
     """
     m = np.asarray(masses, dtype=float)
-    for i, v in enumerate(m.ravel()):
-        check_normal_positive(f"{name}[{i}]" if m.size > 1 else name, v)
+    if not (np.isfinite(m).all() and (m >= MASS_MIN).all()):  # the loop names the first entry that fails
+        for i, v in enumerate(m.ravel()):
+            check_normal_positive(f"{name}[{i}]" if m.size > 1 else name, v)
     if m.size and not math.isfinite(float(m.max()) / float(m.min())):
         raise ValueError(f"`{name}` must have a finite ratio largest/smallest, got "
                          f"{float(m.max())!r} / {float(m.min())!r}")
