@@ -101,12 +101,13 @@ def float_list(name: str, value, *, length: int | None = None, min_length: int =
 
 def _plain_numbers(value):
     """``value`` as a float array when it is a list of Python ints and floats
-    (no bool) or a 1-D numeric numpy array, else None (the items are
-    checked one by one)."""
+    (no bool) or a 1-D integer or float64 (or narrower) numpy array (not a
+    subclass), else None (the items are checked one by one)."""
     if type(value) is list:
         if not set(map(type, value)) <= {float, int}:
             return None
-    elif not (isinstance(value, np.ndarray) and value.ndim == 1 and value.dtype.kind in "fiu"):
+    elif not (type(value) is np.ndarray and value.ndim == 1  # no subclass: a masked array's data is not its values
+              and (value.dtype.kind in "iu" or (value.dtype.kind == "f" and value.dtype.itemsize <= 8))):
         return None
     try:
         return np.array(value, dtype=float)
@@ -240,7 +241,7 @@ def check_step_sign(h, t0, t1):
     or an empty one (``t1 == t0``) and refused, naming ``h``, when it
     contradicts a forward one. Anything that is not a real number is passed
     on unchanged (:func:`check_step_args` refuses it naming ``h``)."""
-    if not _is_number(h) or not float(h) < 0.0:
+    if not _finite_number(h) or not float(h) < 0.0:
         return h
     if t1 > t0:
         raise ValueError(f"`h` = {h!r} is negative but t_span = ({t0!r}, {t1!r}) runs forward (t1 > t0); "

@@ -21,7 +21,9 @@ _CASES = [
     [-0.0, 1.0], [1e308, 1e-320],
 ]
 _ARRAYS = [np.array([1.0, np.inf]), np.array([1, 2]), np.array([True, False]), np.array([1.0, -1.0]),
-           np.array([[1.0, 2.0]]), np.array([3, 4], dtype=np.uint8)]
+           np.array([[1.0, 2.0]]), np.array([3, 4], dtype=np.uint8),
+           np.ma.array([1.0, 2.0, 3.0], mask=[0, 1, 0]),                      # a subclass: its values, not its data
+           np.array([1.0, 1e308], dtype=np.longdouble) * 10]                  # beyond float64: no cast warning
 
 
 def _outcome(fn):
@@ -44,14 +46,19 @@ def test_a_list_gives_what_the_item_loop_gives(case, positive, length, min_lengt
 @pytest.mark.parametrize("positive", [False, True])
 @pytest.mark.parametrize("arr", _ARRAYS, ids=repr)
 def test_an_array_gives_what_the_item_loop_gives(arr, positive):
-    bulk = _outcome(lambda: float_list("x", arr, positive_items=positive))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a cast that overflows would warn before the one-line error
+        bulk = _outcome(lambda: float_list("x", arr, positive_items=positive))
     loop = _outcome(lambda: float_list("x", _Items(list(arr)), positive_items=positive))
     assert bulk == loop
 
 
 def test_the_bulk_path_is_taken_for_plain_lists_and_arrays_only():
     assert _plain_numbers([1.0, 2]) is not None and _plain_numbers(np.arange(3)) is not None
-    for other in ([1.0, True], [1.0, "2"], _Items([1.0]), (1.0, 2.0), np.array([True]), [1.0, 10**400]):
+    for other in ([1.0, True], [1.0, "2"], _Items([1.0]), (1.0, 2.0), np.array([True]), [1.0, 10**400],
+                  np.ma.array([1.0]), np.array([1.0], dtype=np.longdouble)):
         assert _plain_numbers(other) is None
 
 
@@ -63,10 +70,20 @@ def test_a_returned_array_is_a_copy():
 
 
 def test_a_huge_integer_is_one_line_not_a_traceback():
+    import rk4h
+
     with pytest.raises(ValueError, match=r"`alpha` must be a finite number"):
         finite("alpha", 10**400)
     with pytest.raises(ValueError, match=r"`springs\[1\]` must be a finite number"):
         Chain([1.0, 1.0], [1.0, 10**400, 1.0])
+    with pytest.raises(ValueError, match=r"`masses\[1\]` must be a finite number"):
+        check_masses("masses", [1.0, 10**400])
+    with pytest.raises(ValueError, match=r"`masses\[0\]` must be a finite number"):
+        rk4h.make_model("network", {"masses": [10**400], "positions": [0.0], "anchors": [-1.0, 1.0],
+                                    "springs": [[1, 0, 1.0], [0, 2, 1.0]], "dim": 1})
+    for h in (10**400, -10**400):
+        with pytest.raises(ValueError, match=r"`h` must be a finite number"):
+            rk4h.solve(lambda t, y: -y, (0.0, 1.0), [1.0], h=h)
 
 
 @pytest.mark.parametrize("masses, message", [

@@ -118,7 +118,7 @@ from rk4h.validation.trust import ORDER_TOLERANCE, asymptotic_fit, bracket_step 
 
 __all__ = ["Advice", "advise", "main", "asymptotic_fit", "bracket_step", "CALIBRATION_HALVINGS",
            "FIT_HALVINGS", "ORDER_TOLERANCE", "CONFIRM_TRIES", "CONFIRM_ROUNDS", "SAMPLE_STEPS", "TIMING_REPEATS",
-           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps"]
+           "SKIP_FACTOR", "SKIP_MIN_S", "PYTHON_CALLBACK", "sample_steps", "compiled_own_model"]
 
 #: Halvings from the scene's largest step to the first error below
 #: :data:`rk4h.validation.metrics.PREASYMPTOTIC_REL`.
@@ -191,11 +191,21 @@ class Advice:
         return json.dumps(asdict(self), allow_nan=True, default=float)
 
 
+def compiled_own_model(model) -> bool:
+    """Whether ``model`` is one of rk4h's own model classes (not a scene's
+    ``module:Class`` nor a subclass defined elsewhere, whose methods could run
+    the user's code) with a compiled force: a tableau's runs on it go through
+    a loop that holds no lock of Python's (:mod:`rk4h.fast.codegen`:
+    ``nogil``), so they may run side by side in threads."""
+    import rk4h.fast
+
+    return type(model).__module__.partition(".")[0] == "rk4h" and bool(rk4h.fast.supports(model))
+
+
 class _Problem:
     """The scene's model, initial state, output grid and truth, built once."""
 
     def __init__(self, scene, threads: int = 1):
-        import rk4h.fast
         from rk4h.validation.execute import problem
 
         from rk4h.references.truth import reference_solution
@@ -211,9 +221,13 @@ class _Problem:
         self.compile = {}   # (method name, setting) and method name -> largest compile s (heyoka's JIT, numba)
         self.implementation = {}  # method name -> "compiled" where its compiled loop ran (see run)
         self.runs = {}      # (method name, setting) -> the first run's result (see measured)
-        # A tableau's runs on this model go through a compiled loop that holds no lock of Python's
-        # (rk4h.fast.codegen: nogil) and runs nothing of the user's: they may go side by side.
-        self.side_by_side = rk4h.fast.supports(self.model)
+        self._compiled_model = compiled_own_model(self.model)
+
+    def side_by_side(self, method) -> bool:
+        """Whether runs of ``method`` may go side by side in threads
+        (:func:`_first_miss`): a tableau method on one of rk4h's own models
+        with a compiled loop, so no code of the user's runs in a thread."""
+        return self._compiled_model and method.kind in (Kind.TABLEAU, Kind.PARTITIONED)
 
     def run(self, method, setting):
         """``(error_rel, rhs calls, wall s, status)`` of one run.
@@ -460,13 +474,13 @@ def _first_miss(p, method, steps, target, cache):
     ``cache`` (step -> ``(error, rhs, wall, status)``).
 
     The first step runs alone: its wall time is the candidate's first timing
-    (:func:`_timed`). Where ``p`` allows it (:attr:`_Problem.side_by_side`, more
-    than one of :attr:`_Problem.threads`) the rest run side by side in
+    (:func:`_timed`). Where ``p`` allows it (:meth:`_Problem.side_by_side`,
+    more than one of :attr:`_Problem.threads`) the rest run side by side in
     threads, and their results are recorded in the order of ``steps`` and
-    only up to the first miss: the answer, the evidence and every recorded
-    number are those of the runs one after the other. A run started beside
-    one that missed is waited for and thrown away, so nothing runs beside
-    the next round's first step."""
+    only up to the first miss: every number of the advice is that of the
+    runs one after the other (their wall times, measured beside each other,
+    enter no figure of it). A run started beside one that missed is waited
+    for and thrown away, so nothing runs beside the next round's first step."""
     measured = getattr(p, "measured", None) or p.run
 
     def outcome(s):
@@ -477,7 +491,7 @@ def _first_miss(p, method, steps, target, cache):
 
     miss = outcome(steps[0])
     todo = [s for s in steps[1:] if s not in cache and not p.known(method, s)] \
-        if miss is None and getattr(p, "side_by_side", False) else []
+        if miss is None and hasattr(p, "side_by_side") and p.side_by_side(method) else []
     threads = min(getattr(p, "threads", 1), len(todo))
     if threads < 2:
         for s in steps[1:]:
@@ -852,16 +866,9 @@ def main(argv=None, *, prog="advise.py") -> int:
     if not (math.isfinite(target) and 0 < target < 1):
         print(f"{args.prog}: --target: must lie in (0, 1), got {args.target!r}", file=sys.stderr)
         return 2
-    threads = None
-    if args.threads is not None:
-        try:
-            threads = int(args.threads)
-        except ValueError:
-            threads = 0
-        if not 1 <= threads <= 1024:
-            print(f"{args.prog}: --threads: must be an integer from 1 to 1024, got {args.threads!r}",
-                  file=sys.stderr)
-            return 2
+    threads = _threads(args)
+    if threads == 0:
+        return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
     except SceneError as e:
@@ -872,6 +879,20 @@ def main(argv=None, *, prog="advise.py") -> int:
         adv = advise(scene, target, threads)
         print(adv.to_json() if args.json else _text(adv) + f"\n  ({time.perf_counter() - t0:.1f} s)")
     return 0
+
+
+def _threads(args):
+    """``--threads`` as an int, None when not given, 0 after printing why it is refused."""
+    if args.threads is None:
+        return None
+    try:
+        threads = int(args.threads)
+    except ValueError:
+        threads = 0
+    if not 1 <= threads <= 1024:
+        print(f"{args.prog}: --threads: must be an integer from 1 to 1024, got {args.threads!r}", file=sys.stderr)
+        return 0
+    return threads
 
 
 def _energy_main(args) -> int:
@@ -906,16 +927,10 @@ def _energy_main(args) -> int:
         args.horizon = number("--horizon", args.horizon, 0, math.inf, "a positive number of seconds")
         if args.horizon is None:
             return 2
-    threads = None
     if args.threads is not None:
-        try:
-            threads = int(args.threads)
-        except ValueError:
-            threads = 0
-        if not 1 <= threads <= 1024:
-            print(f"{args.prog}: --threads: must be an integer from 1 to 1024, got {args.threads!r}",
-                  file=sys.stderr)
-            return 2
+        print(f"{args.prog}: --threads: only with --target (the energy advice runs no sample of steps)",
+              file=sys.stderr)
+        return 2
     try:
         scenes = load_scenes([args.scene], allow_code=True if args.allow_code else None)
     except SceneError as e:

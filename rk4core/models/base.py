@@ -91,7 +91,16 @@ def check_masses(name: str, masses) -> np.ndarray:
     ValueError
         One line naming the field and the value.
     """
-    m = np.asarray(masses, dtype=float)
+    try:
+        m = np.asarray(masses, dtype=float)
+    except OverflowError:  # an int beyond float's range: name it
+        for i, v in enumerate(np.ravel(np.asarray(masses, dtype=object))):
+            try:
+                float(v)
+            except OverflowError:
+                raise ValueError(f"`{name}[{i}]` must be a finite number >= {MASS_MIN:g} (a normal positive "
+                                 f"float), got {v!r}") from None
+        raise
     if not (np.isfinite(m).all() and (m >= MASS_MIN).all()):  # the loop names the first entry that fails
         for i, v in enumerate(m.ravel()):
             check_normal_positive(f"{name}[{i}]" if m.size > 1 else name, v)

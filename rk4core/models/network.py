@@ -127,7 +127,7 @@ class Network(Model):
         self.dim = int(dim)
         if isinstance(masses, (str, bytes)) or not hasattr(masses, "__len__") or not len(masses):
             raise ValueError(f"`masses` must be a non-empty list of numbers, got {masses!r}")
-        self.node_mass = check_masses("masses", [float(m) if not isinstance(m, bool) else m for m in masses])
+        self.node_mass = check_masses("masses", list(masses))
         n = self.node_mass.shape[0]
         self.X = _flat("positions", positions, self.dim)
         if self.X.shape[0] != n:
