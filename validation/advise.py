@@ -52,7 +52,8 @@ How (all plain data):
    wall time is the candidate's first timing); its other steps run side by
    side on up to ``threads`` cores where the model's loop is compiled
    (:func:`_first_miss`), recorded in their order up to the first miss, so
-   the advice is the same for any number of threads. On planar4-case2 RK4's error is erratic in
+   the advice is the same for any number of threads. On planar4-case2
+   RK4's error is erratic in
    ``h`` (623 steps per 0.02 s miss 1e-3 with 2.4e-3, 624 meet it with
    6.0e-4): the advisor says so and the sampled runs are the evidence.
    ``confirmed_error`` is the largest error of the runs that confirm the
