@@ -436,11 +436,7 @@ def _confirm_fixed(p, method, cand, target) -> dict:
     (why it was sampled, "" when not)}``.
     """
     cache = {}
-
-    def run(h):
-        if h not in cache:
-            cache[h] = getattr(p, "measured", p.run)(method, h)
-        return cache[h]
+    run = _cached(p, method, cache)
 
     rise = _rise(cand["calibration"])
     why = ""
@@ -469,6 +465,20 @@ def _confirm_fixed(p, method, cand, target) -> dict:
             "evidence": sorted(([k, v[0]] for k, v in cache.items()), reverse=True), "why": why}
 
 
+def _cached(p, method, cache):
+    """``run(h)``: ``method``'s result at step ``h`` from ``cache`` (step ->
+    ``(error, rhs, wall, status)``), else from ``p.measured`` (``p.run`` for a
+    problem without it), entered in ``cache``."""
+    measured = getattr(p, "measured", None) or p.run
+
+    def run(h):
+        if h not in cache:
+            cache[h] = measured(method, h)
+        return cache[h]
+
+    return run
+
+
 def _first_miss(p, method, steps, target, cache):
     """Run ``steps`` in their order until one misses ``target``: ``(step,
     error, status)`` of the first that does, or None. Each result enters
@@ -482,12 +492,10 @@ def _first_miss(p, method, steps, target, cache):
     runs one after the other (their wall times, measured beside each other,
     enter no figure of it). A run started beside one that missed is waited
     for and thrown away, so nothing runs beside the next round's first step."""
-    measured = getattr(p, "measured", None) or p.run
+    run = _cached(p, method, cache)
 
     def outcome(s):
-        if s not in cache:
-            cache[s] = measured(method, s)
-        err, _, _, status = cache[s]
+        err, _, _, status = run(s)
         return None if status == "ok" and err <= target else (s, err, status)
 
     miss = outcome(steps[0])
