@@ -31,8 +31,8 @@ from typing import ClassVar
 import numpy as np
 
 __all__ = ["Model", "Defined", "Drawing", "NUMPY", "HEYOKA", "Ops", "MASS_MIN", "check_masses",
-           "check_normal_positive", "model_constants", "model_fingerprint", "CONSTANTS_MAXSIZE",
-           "clear_constants", "model_current", "OBJECT_CACHES", "register_object_cache"]
+           "check_normal_positive", "check_all_normal_positive", "model_constants", "model_fingerprint",
+           "CONSTANTS_MAXSIZE", "clear_constants", "model_current", "OBJECT_CACHES", "register_object_cache"]
 
 #: Smallest mass (kg, or kg m^2) a model accepts. Anything smaller is not a
 #: physical mass but an underflow: at 5e-324 (the smallest subnormal) the
@@ -71,6 +71,15 @@ def check_normal_positive(name: str, value: float, minimum: float = MASS_MIN) ->
     return v
 
 
+def check_all_normal_positive(values: np.ndarray, label) -> None:
+    """:func:`check_normal_positive` on every entry of the float array
+    ``values``, tested in bulk; the first entry that fails is named
+    ``label(i)`` (its flat index ``i``) in the error."""
+    if not (np.isfinite(values).all() and (values >= MASS_MIN).all()):
+        for i, v in enumerate(values.ravel()):
+            check_normal_positive(label(i), v)
+
+
 def check_masses(name: str, masses) -> np.ndarray:
     """Every entry of ``masses`` a finite float ``>= MASS_MIN`` and the ratio
     of the largest to the smallest finite.
@@ -101,9 +110,7 @@ def check_masses(name: str, masses) -> np.ndarray:
                 raise ValueError(f"`{name}[{i}]` must be a finite number >= {MASS_MIN:g} (a normal positive "
                                  f"float), got {v!r}") from None
         raise
-    if not (np.isfinite(m).all() and (m >= MASS_MIN).all()):  # the loop names the first entry that fails
-        for i, v in enumerate(m.ravel()):
-            check_normal_positive(f"{name}[{i}]" if m.size > 1 else name, v)
+    check_all_normal_positive(m, lambda i: f"{name}[{i}]" if m.size > 1 else name)
     if m.size and not math.isfinite(float(m.max()) / float(m.min())):
         raise ValueError(f"`{name}` must have a finite ratio largest/smallest, got "
                          f"{float(m.max())!r} / {float(m.min())!r}")

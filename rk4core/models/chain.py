@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..validate import choice, finite, float_list
-from .base import MASS_MIN, Drawing, Model, check_masses, check_normal_positive
+from .base import Drawing, Model, check_all_normal_positive, check_masses
 from .compiled import ChainKernel
 from .network import (_np_stiffness, _np_tension_harmonic, spring_energy, spring_energy_heyoka, spring_tension,
                       spring_tension_heyoka)
@@ -106,9 +106,7 @@ class Chain(Model):
         self.k = float_list("springs", springs, length=n_springs, positive_items=True)
         self.alpha, self.beta = finite("alpha", alpha), finite("beta", beta)
         self.linear = self.alpha == 0.0 and self.beta == 0.0
-        if not (np.isfinite(self.k).all() and (self.k >= MASS_MIN).all()):  # the loop names the first that fails
-            for i, k in enumerate(self.k):
-                check_normal_positive(f"springs[{i}]", k)
+        check_all_normal_positive(self.k, lambda i: f"springs[{i}]")
         self.n_dof = N
         self.coord_names = [f"x{i + 1}" for i in range(N)]
         self._left = walls in ("both", "left")
