@@ -192,27 +192,22 @@ def linear_jacobian(model, perm: np.ndarray):
         J[:n, n:] = np.eye(n)
         J[n:, :n] = -((1.0 / model.mass)[:, None] * K)
         r, c = np.nonzero(J)
-        inv = np.empty_like(perm)
-        inv[perm] = np.arange(perm.size)
-        rows, cols, vals = inv[r], inv[c], J[r, c]
-        lband = int(max(0, np.max(rows - cols))) if rows.size else 0
-        uband = int(max(0, np.max(cols - rows))) if rows.size else 0
-        return rows, cols, vals, lband, uband
-    import scipy.sparse as sp
+        vals = J[r, c]
+    else:
+        import scipy.sparse as sp
 
-    try:
-        K = model.stiffness_matrix(sparse=True)
-    except TypeError:
-        K = model.stiffness_matrix()
-    K = sp.csr_matrix(K, dtype=float)
-    A = sp.diags(1.0 / model.mass) @ K
-    J = sp.bmat([[None, sp.identity(n)], [-A, None]], format="csr")
-    inv = np.empty_like(perm)
+        try:
+            K = model.stiffness_matrix(sparse=True)
+        except TypeError:
+            K = model.stiffness_matrix()
+        K = sp.csr_matrix(K, dtype=float)
+        A = sp.diags(1.0 / model.mass) @ K
+        Jc = sp.bmat([[None, sp.identity(n)], [-A, None]], format="csr").tocoo()
+        keep = Jc.data != 0.0
+        r, c, vals = Jc.row[keep], Jc.col[keep], Jc.data[keep]
+    inv = np.empty_like(perm)  # entry (r, c) of J is entry (inv[r], inv[c]) in the order perm
     inv[perm] = np.arange(perm.size)
-    Jc = J.tocoo()
-    rows, cols = inv[Jc.row], inv[Jc.col]
-    keep = Jc.data != 0.0
-    rows, cols, vals = rows[keep], cols[keep], Jc.data[keep]
+    rows, cols = inv[r], inv[c]
     lband = int(max(0, np.max(rows - cols))) if rows.size else 0
     uband = int(max(0, np.max(cols - rows))) if rows.size else 0
     return rows, cols, vals, lband, uband
