@@ -55,12 +55,41 @@ def energy_scale(model, E0) -> float:
     return _scale(motion_energy(model, E0))
 
 
+#: Bytes of states per block when the energies of a long trajectory are
+#: evaluated (:func:`motion_energies`): numpy's temporaries of one block stay
+#: in the processor's cache instead of streaming the whole trajectory through
+#: memory once per operation.
+BLOCK_BYTES = 1 << 20
+
+
 def motion_energies(model, y) -> np.ndarray:
-    """``T + V(q) - V(q*)`` (J) of states ``y`` of shape (2n, m) (or (2n,))."""
+    """``T + V(q) - V(q*)`` (J) of states ``y`` of shape (2n, m) (or (2n,)).
+
+    A long trajectory is evaluated in blocks of consecutive columns
+    (:data:`BLOCK_BYTES` of states each). Every energy is a function of its
+    own column, and a block is a view of the trajectory (same memory
+    layout), so the result equals one call on the whole array to the bit
+    (``tests/test_energy_blocks.py`` checks C and F order); only the
+    temporaries shrink."""
     y = np.asarray(y, dtype=float)
     above = getattr(model, "potential_above_rest", None)
+    rest = 0.0 if above is not None else rest_energy(model)
+    width = max(256, BLOCK_BYTES // (8 * max(1, y.shape[0]))) if y.ndim == 2 else 0
+    if y.ndim != 2 or y.shape[1] <= width:
+        return _motion_energies(model, y, above, rest)
+    out = np.empty(y.shape[1])
+    for a in range(0, y.shape[1], width):
+        part = _motion_energies(model, y[:, a:a + width], above, rest)
+        if part.shape != out[a:a + width].shape:
+            raise ValueError(f"{type(model).__name__}.energy of {y.shape[0]} x {y[:, a:a + width].shape[1]} "
+                             f"states returned shape {part.shape}, not one energy per state")
+        out[a:a + width] = part
+    return out
+
+
+def _motion_energies(model, y, above, rest) -> np.ndarray:
     if above is None:
-        return np.asarray(model.energy(y), float) - rest_energy(model)
+        return np.asarray(model.energy(y), float) - rest
     n = model.n_dof
     m = model.mass if y.ndim == 1 else np.asarray(model.mass)[:, None]
     v = y[n:]
