@@ -17,12 +17,7 @@ until the target error is met; for the adaptive solvers the loosest ``rtol``
 of a ladder that meets it is searched (:func:`ladder_search`: guided by the
 measured error's slope against rtol, so the expensive tight rungs are mostly
 jumped over instead of walked). The cost reported is that of the loosest setting
-meeting the target (nfev; heyoka: Taylor steps x order). The search is untimed
-work: DOP853 and CVODE probe the ladder on their compiled loops
-(:func:`rk4h.references.solvers.integrate_compiled`, equal to the solvers a
-user runs to round-off), and the rung found runs once more through
-:func:`rk4h.references.solvers.integrate`, as a user runs it; the row's error,
-nfev, steps, wall time and status are that run's.
+meeting the target (nfev; heyoka: Taylor steps x order).
 
 Skipped for cost (:func:`skip_reason`, status ``skipped`` with the reason):
 
@@ -242,34 +237,24 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
                     break
                 h /= 2
         else:
-            from rk4h.references.solvers import integrate, integrate_compiled
+            from rk4h.references.solvers import integrate
 
-            def one(rtol, solver=solver, runner=integrate_compiled):
+            def one(rtol, solver=solver):
                 with np.errstate(all="ignore"):
-                    run = runner(solver, model, y0, np.array([0.0, t_end]), rtol)
+                    run = integrate(solver, model, y0, np.array([0.0, t_end]), rtol)
                 err = error_rel(model, run.y[:, -1:], ref, scale) if run.ok else math.nan
                 nfev = int(resolve(solver).cost(run.nfev, run.n_steps, run.taylor_order or 0))
                 return {"status": "ok" if run.ok else run.status.value, "error": err, "setting": rtol,
-                        "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message,
-                        "compiled": run.extra.get("implementation") == "compiled"}
+                        "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message}
 
-            # the search is untimed work: a reference with a compiled loop probes the ladder on it
-            # (equal to the solver a user runs to round-off); the rung reported is run once more as a
-            # user runs it, and its numbers, wall time and status are that run's
             found, runs = ladder_search(rtol_ladder, target, one)
             tried = ", ".join(f"{rtol_ladder[j]:.0e}" for j in runs)
             pick_ = found if found is not None else max(runs)
             r = runs[pick_]
-            searched = "rtol tried" + (" (compiled loop)" if r["compiled"] else "")
-            if r["compiled"]:
-                r = one(rtol_ladder[pick_], runner=integrate)
             rec.update({k: r[k] for k in ("setting", "error", "nfev", "n_steps", "wall_s")})
-            hit = r["status"] == "ok" and r["error"] <= target
-            rec["status"] = "ok" if hit else ("not-reached" if r["status"] == "ok" else r["status"])
+            rec["status"] = "ok" if found is not None else ("not-reached" if r["status"] == "ok" else r["status"])
             unit = resolve(solver).cost_unit
             rec["note"] = (f"{solver}: nfev = {unit.text}; " if unit is CostUnit.TAYLOR_STEPS else "") + \
-                f"{searched}: {tried}" + ("" if r["status"] == "ok" else f"; {r['message']}") + \
-                ("; the run as a user runs it missed where the compiled loop met the target"
-                 if found is not None and not hit else "")
+                f"rtol tried: {tried}" + ("" if r["status"] == "ok" else f"; {r['message']}")
         out.append(rec)
     return out
