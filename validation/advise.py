@@ -79,8 +79,10 @@ How (all plain data):
    DOP853 (any reference with a compiled loop,
    :data:`rk4h.references.solvers.COMPILED_RUNNERS`) is calibrated, confirmed
    and timed as that loop (:func:`rk4h.references.solvers.integrate_compiled`,
-   equal to scipy's DOP853 to round-off; scipy's ``solve_ivp`` steps in
-   Python and is not run): its candidate says ``implementation =
+   scipy's DOP853 step for step to round-off, its sums in another order:
+   where steps are rejected near the tolerance a run can part from
+   scipy's, as scipy's own does when rtol moves one ulp; scipy's
+   ``solve_ivp`` steps in Python and is not run): its candidate says ``implementation =
    "compiled"``. So are CVODE-Adams and CVODE-BDF: SUNDIALS CVODE driven
    through ``ctypes`` with compiled callbacks, equal to scikit-sundae's run
    (:mod:`rk4h.references.solvers.cvode_compiled`). A confirmation at a setting a calibration run already ran
@@ -811,7 +813,8 @@ def _text(adv: Advice) -> str:
                              f"scikit-sundae, which calls a Python function per evaluation, was not run")
                 continue
             lines.append(f"  {c['method']}: run and timed as its compiled loop "
-                         f"(rk4h.references.solvers.integrate_compiled, equal to scipy's to round-off); scipy's "
+                         f"(rk4h.references.solvers.integrate_compiled: scipy's method, its sums in another order; where "
+                         f"steps are rejected near the tolerance a run can part from scipy's); scipy's "
                          f"solve_ivp, which steps in Python, was not run")
     if adv.not_listed:
         lines.append("  not listed:")

@@ -9,7 +9,9 @@ most the target. Where no run of any other method reaches a target, the
 scene's adaptive references run at tighter tolerances, ten times tighter per
 round, down to each one's floor (:data:`RTOL_FLOOR`). A reference with a
 compiled loop runs it there (DOP853: :mod:`rk4h.fast.dop853`, scipy's
-method to round-off, about 100x faster than scipy's Python stepping; CVODE:
+method step for step to round-off (where steps are rejected near the
+tolerance a run can part from scipy's, as scipy's own does when rtol
+moves one ulp), about 100x faster than scipy's Python stepping; CVODE:
 :mod:`rk4h.references.solvers.cvode_compiled`, scikit-sundae's CVODE with
 compiled callbacks, equal to its run); its
 row says so (``implementation``) and the trust table's note names it.

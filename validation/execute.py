@@ -242,7 +242,7 @@ def _run_spec(scene, spec, quick):
     t = grid(scene, model, spec)
     truth, reason = _truth_or_reason(model, y0, t)
     method = scene.method(spec.solver)
-    # a reference's confirmation run steps a compiled loop (same method, round-off apart)
+    # a reference's confirmation run steps a compiled loop (same method, steps round-off apart)
     compiled = spec.purpose == "confirm" and method.kind is Kind.REFERENCE
     run, walls = _timed(method, model, y0, t, spec.setting, spec.repeats, compiled)
     status = _status(run)

@@ -12,8 +12,10 @@ A scene's ``python`` and ``command`` methods
     scipy's explicit RK 8(5,3) on the model's right-hand side compiled from its definition
     (``rk4h.fast.CompiledRHS``; ``model.rhs`` when it has none); ``setting`` is ``rtol``.
     :func:`integrate_compiled` runs the same method as one compiled loop
-    (:mod:`rk4h.fast.dop853`), equal to scipy's to round-off, for untimed
-    work (the trust table's confirmation runs); timed rows keep scipy's.
+    (:mod:`rk4h.fast.dop853`), equal to scipy's step for step to round-off, for
+    untimed work (the trust table's confirmation runs); timed rows keep scipy's.
+    Where steps are rejected near the tolerance a run can part from scipy's, as
+    scipy's own does when rtol moves one ulp (``benchmarks/dop853_parting.py``).
 ``cvode-adams``, ``cvode-bdf``
     SUNDIALS CVODE (scikit-sundae) on the compiled right-hand side (as
     DOP853), analytic Jacobian, banded for chains; ``setting`` is ``rtol``.
@@ -262,7 +264,7 @@ def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
     """:func:`integrate` for untimed work (confirmation runs): a reference
     with a compiled loop (:data:`COMPILED_RUNNERS`: DOP853 stepped by
     :func:`rk4h.references.solvers.dop853.run_dop853_compiled`, equal to scipy's
-    to round-off; CVODE driven through ``ctypes`` with compiled callbacks by
+    step for step to round-off; CVODE driven through ``ctypes`` with compiled callbacks by
     :func:`rk4h.references.solvers.cvode_compiled.run_cvode_compiled`, equal to
     scikit-sundae's) runs it; every other solver, and a model without a
     compiled right-hand side, runs as :func:`integrate` runs it.
