@@ -17,16 +17,7 @@ until the target error is met; for the adaptive solvers the loosest ``rtol``
 of a ladder that meets it is searched (:func:`ladder_search`: guided by the
 measured error's slope against rtol, so the expensive tight rungs are mostly
 jumped over instead of walked). The cost reported is that of the loosest setting
-meeting the target (nfev; heyoka: Taylor steps x order). The search is untimed
-work: DOP853 and CVODE probe the ladder on their compiled loops
-(:func:`rk4h.references.solvers.integrate_compiled`, equal to the solvers a
-user runs to round-off per step; over a run their step sequences can part,
-and an error near the target can fall on either side of it). The solver as a
-user runs it (:func:`rk4h.references.solvers.integrate`) then confirms the
-boundary from that answer (:func:`confirm_rung`: that rung and its looser
-neighbour when the answer holds), so the rung reported is a hit of the
-user's solver whose looser neighbour it missed; the row's error, nfev,
-steps, wall time and status are that run's.
+meeting the target (nfev; heyoka: Taylor steps x order).
 
 Skipped for cost (:func:`skip_reason`, status ``skipped`` with the reason):
 
@@ -53,7 +44,7 @@ from rk4h.references.registry import CostUnit, resolve
 
 from ._common import error_rel, integrate_fixed
 
-__all__ = ["stiff_chain", "mass_ratio_chain", "cost_at_target", "ladder_search", "confirm_rung", "skip_reason",
+__all__ = ["stiff_chain", "mass_ratio_chain", "cost_at_target", "ladder_search", "skip_reason",
            "excited_ratio", "RTOL_LADDER", "RTOL_LADDER_QUICK", "EXCITED"]
 
 RTOL_LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
@@ -174,38 +165,6 @@ def ladder_search(ladder, target: float, run):
     return None, runs
 
 
-def confirm_rung(ladder, target: float, start: int, run):
-    """The boundary of ``ladder`` as ``run`` finds it, from another solver's
-    answer ``start`` (an index): the rung found is a hit of ``run`` whose
-    looser neighbour missed, as :func:`ladder_search` guarantees.
-
-    A hit at ``start`` walks to looser rungs while they hit; a miss walks to
-    tighter rungs until one hits; a failed run ends a walk. When ``start``
-    was right (the usual case) that is two runs: ``start`` and its looser
-    neighbour.
-
-    Returns ``(index, runs)`` as :func:`ladder_search` does: the index found
-    (None if none meets) and ``{index: run result}`` in running order.
-    """
-    runs: dict = {}
-
-    def outcome(i):
-        runs[i] = r = run(ladder[i])
-        return "fail" if r["status"] != "ok" else ("hit" if r["error"] <= target else "miss")
-
-    out = outcome(start)
-    if out == "hit":
-        j = start
-        while j > 0 and outcome(j - 1) == "hit":
-            j -= 1
-        return j, runs
-    i = start
-    while out == "miss" and i + 1 < len(ladder):
-        i += 1
-        out = outcome(i)
-    return (i if out == "hit" else None), runs
-
-
 def _predict(ladder, target, runs, a, b):
     """First rung whose rtol is at or below where the line through misses
     ``a`` and ``b`` (slope held in [1, 3]) reaches ``target``."""
@@ -278,33 +237,24 @@ def cost_at_target(model, y0, target: float, solvers, *, fixed=None, max_rk4_ste
                     break
                 h /= 2
         else:
-            from rk4h.references.solvers import integrate, integrate_compiled
+            from rk4h.references.solvers import integrate
 
-            def one(rtol, solver=solver, runner=integrate_compiled):
+            def one(rtol, solver=solver):
                 with np.errstate(all="ignore"):
-                    run = runner(solver, model, y0, np.array([0.0, t_end]), rtol)
+                    run = integrate(solver, model, y0, np.array([0.0, t_end]), rtol)
                 err = error_rel(model, run.y[:, -1:], ref, scale) if run.ok else math.nan
                 nfev = int(resolve(solver).cost(run.nfev, run.n_steps, run.taylor_order or 0))
                 return {"status": "ok" if run.ok else run.status.value, "error": err, "setting": rtol,
-                        "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message,
-                        "compiled": run.extra.get("implementation") == "compiled"}
+                        "nfev": nfev, "n_steps": run.n_steps, "wall_s": run.wall_s, "message": run.message}
 
-            # the search is untimed work: a reference with a compiled loop probes the ladder on it; the
-            # solver a user runs then confirms the boundary from that answer (confirm_rung), so the rung
-            # reported is a hit of the user's solver whose looser neighbour it missed
             found, runs = ladder_search(rtol_ladder, target, one)
-            tried = "rtol tried: " + ", ".join(f"{rtol_ladder[j]:.0e}" for j in runs)
-            start = found if found is not None else max(runs)
-            if runs[start]["compiled"]:
-                found, runs = confirm_rung(rtol_ladder, target, start, lambda rtol: one(rtol, runner=integrate))
-                tried = (tried.replace("rtol tried", "rtol tried on the compiled loop") + "; as a user runs it: "
-                         + ", ".join(f"{rtol_ladder[j]:.0e}" for j in runs))
+            tried = ", ".join(f"{rtol_ladder[j]:.0e}" for j in runs)
             pick_ = found if found is not None else max(runs)
             r = runs[pick_]
             rec.update({k: r[k] for k in ("setting", "error", "nfev", "n_steps", "wall_s")})
             rec["status"] = "ok" if found is not None else ("not-reached" if r["status"] == "ok" else r["status"])
             unit = resolve(solver).cost_unit
             rec["note"] = (f"{solver}: nfev = {unit.text}; " if unit is CostUnit.TAYLOR_STEPS else "") + \
-                tried + ("" if r["status"] == "ok" else f"; {r['message']}")
+                f"rtol tried: {tried}" + ("" if r["status"] == "ok" else f"; {r['message']}")
         out.append(rec)
     return out
