@@ -9,11 +9,11 @@ import rk4h.energy as EN
 from rk4h.validation.execute import problem
 from rk4h.validation.scenes import load_scene
 
-#: Scenes of every model kind the energy runs meet: linear chains (100 masses: numpy
-#: sums their columns pairwise in F order, in sequence in C order) and an FPUT chain,
-#: the planar network, a symbolic potential, pendulums, a triangle, CO2 and a first-order ODE.
-SCENES = ("three_blocks", "lattice100", "energy_fput", "planar4_case1", "energy_henon_heiles", "pendulums_beats", "triangle", "co2",
-          "lotka_volterra")
+#: Scenes of every model kind the energy runs meet: linear chains of 3 and 100 masses, an
+#: FPUT chain, the planar network, a symbolic potential, pendulums, a triangle, CO2 and a
+#: first-order ODE.
+SCENES = ("three_blocks", "lattice100", "energy_fput", "planar4_case1", "energy_henon_heiles", "pendulums_beats",
+          "triangle", "co2", "lotka_volterra")
 
 
 def _trajectory(model, y0, m, seed):
