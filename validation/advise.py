@@ -236,9 +236,10 @@ class _Problem:
         """``(error_rel, rhs calls, wall s, status)`` of one run.
 
         A reference with a compiled loop (DOP853:
-        :func:`rk4h.references.solvers.integrate_compiled`, equal to scipy's
-        to round-off) runs it, for its calibration, confirmation and timing
-        alike; :attr:`implementation` records that it did."""
+        :func:`rk4h.references.solvers.integrate_compiled`, scipy's step for
+        step to round-off; see the module docstring for where runs part) runs
+        it, for its calibration, confirmation and timing alike;
+        :attr:`implementation` records that it did."""
         return self.commit(method, setting, self.execute(method, setting))
 
     def execute(self, method, setting):
