@@ -17,7 +17,7 @@ import numpy as np
 
 from rk4h.references import closed_forms as cf
 from rk4h.references import dispersion as disp
-from rk4h.models import Chain, Oscillator2D, Planar4
+from rk4h.models import Chain, Model, Oscillator2D, Planar4
 
 __all__ = ["errata_rows", "errata_markdown", "erratum_4_rows", "THESIS_PRINTED", "ERRATUM_4_READINGS"]
 
@@ -163,11 +163,18 @@ _ASSUMPTION = ("ASSUMPTION (a reading, not a certainty): Code 03's printed `1` i
 
 
 def _y_ratio_3s(fun, y0, h=0.01, t_end=3.0) -> float:
-    """``y(t_end) / y(0)`` of an RK4 run (rk4h.solve) of ``fun`` from ``y0``."""
+    """``y(t_end) / y(0)`` of an RK4 run of ``fun`` from ``y0``: a function
+    ``fun(t, y)`` through :func:`rk4h.solve`, a model through its compiled loop
+    (:func:`rk4h.fast.solve_model`, the numbers of ``rk4h.solve(model.rhs, ...)``)."""
     import rk4h
+    from rk4h import fast
 
     n = int(round(t_end / h))
-    res = rk4h.solve(fun, (0.0, t_end), np.asarray(y0, float), n_steps=n, method="rk4")
+    y0 = np.asarray(y0, float)
+    if isinstance(fun, Model):
+        res = fast.solve_model(fun, (0.0, t_end), y0, n_steps=n, method="rk4")
+    else:
+        res = rk4h.solve(fun, (0.0, t_end), y0, n_steps=n, method="rk4")
     return float(res.y[1, -1] / y0[1]) if res.success else float("nan")
 
 
@@ -190,7 +197,7 @@ def erratum_4_rows() -> list[dict]:
     f1, f2 = (float(Planar4(m, k, L).force(np.array(_TABLE_4_4_X0))[0]) for L in (l1, l2))
     y45 = np.array([0.005, 0.03, 0.0, 0.0])
     printed = [_y_ratio_3s(printed_code03_rhs(m, k, L), y45) for L in (l1, l2)]
-    physics = [_y_ratio_3s(Planar4(m, k, L).rhs, y45) for L in (l1, l2)]
+    physics = [_y_ratio_3s(Planar4(m, k, L), y45) for L in (l1, l2)]
     return [
         _row(4, "planar4 force F_x (N) at x = 0.005 m, y = 0: l = 1 m vs l = 0.01 m", f1, f2,
              f"{_ASSUMPTION}. With l = 1 m the amplitude is x/l = {x / l1:g} and the motion is linear "

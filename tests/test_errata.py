@@ -98,6 +98,19 @@ def test_item4_is_an_assumption_with_both_readings_computed(rows):
     assert f"{row['corrected']:.4g}" in row["note"] and f"{row['thesis']:.4g}" in row["note"]
 
 
+def test_item4_physics_row_is_the_generic_solvers_number_to_the_bit(rows):
+    # the repaired planar4 runs on its compiled loop; rk4h.solve on the model's numpy
+    # right-hand side must give the very same y(3 s) / y(0) under both readings
+    import rk4h
+    from rk4h.models import Planar4
+
+    y0 = np.array([0.005, 0.03, 0.0, 0.0])
+    want = [rk4h.solve(Planar4(M_TAB, K_TAB, L).rhs, (0.0, 3.0), y0, n_steps=300, method="rk4").y[1, -1] / y0[1]
+            for L in (1.0, 0.01)]
+    row = _find(rows, 4, "planar4 (dz4 repaired)")
+    assert (row["thesis"], row["corrected"]) == (float(want[0]), float(want[1]))
+
+
 def test_printed_code03_default_reading_is_the_digit_one():
     from rk4h.references.thesis_code import printed_code03_rhs
 
