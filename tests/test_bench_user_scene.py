@@ -26,3 +26,11 @@ def test_zero_rounds_is_refused_in_one_line():
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_user_scene.py"), "--rounds", "0"],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and "--rounds: must be at least 1, got 0" in proc.stderr
+
+
+def test_the_uniform_benchmark_scene_loads_with_the_wave_packets():
+    from rk4h.validation.scenes import load_scene
+
+    scene = load_scene(ROOT / "benchmarks" / "scenes" / "uniform_chain3.toml")
+    assert scene.model == "chain" and len(set(scene.params["masses"])) == 1
+    assert "dispersion" in scene.outputs  # a default output here: the chain is uniform
