@@ -166,6 +166,7 @@ def test_packet_state_is_right_moving(frac):
 def test_packet_compiled_loop_equals_the_generic_solver_bit_for_bit(monkeypatch, frac, N, h):
     # measure_group_velocity steps RK4's compiled loop; rk4h.solve on the chain's numpy
     # right-hand side must give the very same centroid track and fitted speed
+    import rk4h.fast
     from rk4h.references import wavepacket
 
     kp0 = frac * math.pi / D
@@ -176,9 +177,26 @@ def test_packet_compiled_loop_equals_the_generic_solver_bit_for_bit(monkeypatch,
         calls.append(model.n_dof)
         return rk4h.solve(model.rhs, t_span, y0, **kw)
 
-    monkeypatch.setattr(wavepacket, "solve_model", generic)
+    monkeypatch.setattr(rk4h.fast, "solve_model", generic)
     slow = wavepacket.measure_group_velocity(kp0, N=N, h=h)
     assert calls == [N] and fast.success and slow.success
     assert np.array_equal(fast.t, slow.t)
     assert np.array_equal(fast.centroid, slow.centroid)
     assert (fast.v_measured, fast.energy_drift, fast.h) == (slow.v_measured, slow.energy_drift, slow.h)
+
+
+def test_packet_runs_without_numba_with_the_same_numbers():
+    # the base install (no numba): the generic stepper runs the packet, and gives the
+    # compiled loop's numbers (printed with repr: every bit)
+    import subprocess
+    import sys
+
+    code = ("import sys\nsys.modules['numba'] = None\nimport math\n"
+            "from rk4h.references import wavepacket as w\n"
+            "r = w.measure_group_velocity(0.8 * math.pi / w.THESIS_LATTICE['d'], N=60, h=0.05)\n"
+            "assert 'numba' not in sys.modules or sys.modules['numba'] is None\n"
+            "print(repr(r.v_measured), repr(r.energy_drift), repr(float(r.centroid[-1])))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    here = measure_group_velocity(0.8 * math.pi / D, N=60, h=0.05)
+    assert proc.stdout.split() == [repr(here.v_measured), repr(here.energy_drift), repr(float(here.centroid[-1]))]
