@@ -90,7 +90,10 @@ class _Ledger:
 
         def digest(solver, model, y0, t_eval, setting, atol):
             h = hashlib.sha256()
-            params = model.params() if hasattr(model, "params") else id(model)
+            try:
+                params = model.params()
+            except Exception:  # noqa: BLE001 - a model without plain parameters (a function): its identity
+                params = id(model)
             for part in (getattr(solver, "name", solver), type(model).__name__, params, setting, atol):
                 h.update(repr(part).encode())
             for a in (y0, t_eval):
