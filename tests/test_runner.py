@@ -154,6 +154,13 @@ def test_small_run_writes_tables_and_index(tmp_path, previous_report):
     assert "numpy" in index and "heyoka" in index            # versions recorded
     assert "previous report" not in index
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == [".reports.lock"]  # no temp dir; the lock file stays
+    # the phase line benchmarks/bench_user_scene.py quotes
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    try:
+        import bench_user_scene
+    finally:
+        sys.path.remove(str(REPO / "benchmarks"))
+    assert bench_user_scene.PHASES.search(r.stdout + r.stderr), r.stdout[-1000:]
 
 
 def test_failed_expectation_exits_1_and_is_listed_first(tmp_path):
