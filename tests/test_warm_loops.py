@@ -93,3 +93,62 @@ def test_a_sweeps_batched_runs_are_left_to_their_batch(monkeypatch):
     assert batched and batched == grouped
     keys = {s.key for _, s in jobs}
     assert batched < keys
+
+
+def _scene(name):
+    from rk4h.validation.scenes import load_scenes
+
+    (scene,) = [s for s in load_scenes() if s.name == name]
+    return scene
+
+
+def test_an_energy_work_precision_loop_is_handed_out():
+    """energy-planar4 lists only the energy work-precision output: its methods' loops ran
+    in no ``run`` spec and were compiled by every worker that met them (the full run's
+    two-worker cold ledger: 20 such loops, each compiled twice)."""
+    from rk4h.validation.outputs import loops
+
+    scene = _scene("energy-planar4")
+    jobs = plan_all([scene], quick=False, figures=False)
+    assert {spec.purpose for _, spec in jobs} == {"energy_wp"}
+    assert loops("energy_wp") is not None
+    keys = {_loop_key(s, v) for s, v in loop_jobs(jobs)}
+    wanted = {_loop_key(scene, spec.solver) for _, spec in jobs} - {None}
+    assert len(wanted) >= 5 and keys == wanted
+
+
+def test_an_ensembles_batch_loops_are_handed_out_with_its_references():
+    """A nonlinear ensemble runs its solver's batch loop and the batch reference's
+    (blanes-moan6); a linear one only its solver's, which its stability map shares."""
+    from rk4h.validation.ensemble import REFERENCE_METHOD
+    from rk4h.validation.warm import BATCH
+
+    weak = _scene("ensemble-planar4-weak")
+    keys = {_loop_key(s, v) for s, v in loop_jobs(plan_all([weak], quick=False, figures=False))}
+    batch = {k for k in keys if k[0] == "batch"}
+    assert batch == {_loop_key(weak, BATCH + "rk4"), _loop_key(weak, BATCH + REFERENCE_METHOD)}
+    assert _loop_key(weak, BATCH + "rk4") != _loop_key(weak, "rk4")  # a module of its own
+    linear = _scene("ensemble-2dof-map")
+    jobs = plan_all([linear], quick=False, figures=False)
+    assert {"ensemble", "stability_map"} <= {spec.purpose for _, spec in jobs}
+    batch = [v for s, v in loop_jobs(jobs) if _loop_key(s, v)[0] == "batch"]
+    assert batch == [BATCH + "rk4"]
+
+
+def test_the_warmed_batch_loop_is_the_one_the_ensemble_runs():
+    """warm_one's one-instance batch compiles (or loads) the signature the
+    ensemble's own batches call: running the ensemble adds none."""
+    from rk4h.batch import _numba
+    from rk4h.fast import force_kernel
+    from rk4h.validation.execute import execute, problem
+    from rk4h.validation.warm import BATCH
+
+    scene = _scene("ensemble-2dof-map")
+    model, y0 = problem(scene)
+    tab = scene.method("rk4").tableau
+    assert warm_one(scene, BATCH + "rk4") >= 0.0
+    fn, _ = _numba.batch_loop(tab, force_kernel(model), len(y0))
+    assert len(fn.signatures) == 1
+    (spec,) = [s for _, s in plan_all([scene], quick=True, figures=False) if s.purpose == "ensemble"][:1]
+    assert execute(scene, spec).status == "ok"
+    assert len(fn.signatures) == 1

@@ -7,7 +7,9 @@ to compile the same loops at the same time (each loop's compile time paid
 once per worker). :func:`warm_pools` instead hands each *distinct* loop the
 plan needs -- a fixed-step method on a force structure, or the compiled
 right-hand side DOP853 and CVODE call, or a stability study's method on the
-scene's model -- to one worker, the loops spread over
+scene's model, or a loop an output declares for its own purposes
+(:attr:`rk4h.validation.outputs.Output.loops`: the energy work-precision
+runs, the ensembles' batch loops) -- to one worker, the loops spread over
 all workers, and waits; the runs after it load the loops from the cache
 (about 0.2 s per process for all of them).
 
@@ -20,7 +22,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["loop_jobs", "warm_one", "warm_pools"]
+__all__ = ["loop_jobs", "warm_one", "warm_pools", "STABILITY", "BATCH"]
 
 #: Purposes whose runs call a solver of the registry (the loops prepared here):
 #: a convergence sweep's ``order`` runs and the figures' ``figure`` run call
@@ -41,6 +43,11 @@ _READONLY_STATE = ("cvode-adams", "cvode-bdf")
 #: studies other than ``boundary`` integrate that method, on the scene's model
 #: or on others, e.g. a linearized one, that are not prepared here).
 STABILITY = "<stability.method>"
+#: The prefix of a job's ``solver`` that prepares that solver's ensemble loop
+#: (``rk4h.ensemble``'s numba backend: the fixed-step loop's text with a
+#: parallel ``batch`` function after it, a module of its own) on the scene's
+#: model: ``BATCH + "rk4"``.
+BATCH = "<batch>"
 
 
 def _stability_tableau(scene):
@@ -65,10 +72,18 @@ def _loop_key(scene, solver):
 
     from .execute import problem
 
-    model, _ = problem(scene)
+    model, y0 = problem(scene)
     kern = fast.force_kernel(model)
     if kern is None:
         return None
+    if solver.startswith(BATCH):
+        from rk4h.fast.codegen import loop_key
+
+        tab = _tableau(scene, solver[len(BATCH):])
+        if tab is None:
+            return None
+        array = not (len(y0) <= MAX_UNROLLED_DIM and kern.has_scalar())  # as rk4h.batch's numba backend picks
+        return ("batch",) + loop_key(tab, kern, array)
     if solver == STABILITY:
         tab = _stability_tableau(scene)
     else:
@@ -81,6 +96,29 @@ def _loop_key(scene, solver):
     if method.runner_key in _COMPILED_REFERENCES:
         return ("rhs", kern.key())
     return None
+
+
+def _tableau(scene, name):
+    """The tableau of ``scene``'s method ``name``, or None (not a fixed-step tableau)."""
+    from rk4h.references.registry import Kind
+
+    method = scene.method(name)
+    return method.tableau if method.kind in (Kind.TABLEAU, Kind.PARTITIONED) else None
+
+
+def _solvers(scene, spec) -> list:
+    """The job ``solver`` strings of the loops ``spec`` runs (see :func:`loop_jobs`)."""
+    purpose, solver = getattr(spec, "purpose", ""), getattr(spec, "solver", "")
+    if purpose == "stability":
+        return [STABILITY]  # the study's loop on the scene's model (stability_planar4's RK4 on planar4)
+    if purpose in _SOLVER_PURPOSES:
+        return [solver] if solver else []
+    from .outputs import loops
+
+    declared = loops(purpose)
+    if declared is None:
+        return []
+    return [(BATCH + name if kind == "batch" else name) for kind, name in declared(scene, spec)]
 
 
 def _batched_keys(jobs) -> set:
@@ -106,27 +144,27 @@ def loop_jobs(jobs) -> list:
     seen, out = {}, []
     batched = _batched_keys(jobs)
     for scene, spec in jobs:
-        solver = getattr(spec, "solver", "")
-        if getattr(spec, "purpose", "") == "stability":
-            solver = STABILITY  # the study's loop on the scene's model (stability_planar4's RK4 on planar4)
-        elif getattr(spec, "purpose", "") not in _SOLVER_PURPOSES or not solver:
-            continue
         if getattr(spec, "key", None) in batched:  # runs in a sweep's batch loop, not this one
             continue
         try:
-            key = _loop_key(scene, solver)
+            solvers = _solvers(scene, spec)
         except Exception:  # noqa: BLE001 - the run itself will report it
             continue
-        if key is None:
-            continue
-        if key not in seen:
-            seen[key] = len(out)
-            out.append((scene, solver))
-        elif (key[0] == "rhs" and _adapter(scene, solver) in _READONLY_STATE
-              and _adapter(*out[seen[key]]) not in _READONLY_STATE):
-            # one job per module (two jobs on one module, in two workers, would race on
-            # numba's index file); CVODE's, which also calls the read-only form
-            out[seen[key]] = (scene, solver)
+        for solver in solvers:
+            try:
+                key = _loop_key(scene, solver)
+            except Exception:  # noqa: BLE001 - the run itself will report it
+                continue
+            if key is None:
+                continue
+            if key not in seen:
+                seen[key] = len(out)
+                out.append((scene, solver))
+            elif (key[0] == "rhs" and _adapter(scene, solver) in _READONLY_STATE
+                  and _adapter(*out[seen[key]]) not in _READONLY_STATE):
+                # one job per module (two jobs on one module, in two workers, would race on
+                # numba's index file); CVODE's, which also calls the read-only form
+                out[seen[key]] = (scene, solver)
     return out
 
 
@@ -142,6 +180,9 @@ def warm_one(scene, solver) -> float:
         from .execute import problem
 
         model, y0 = problem(scene)
+        if solver.startswith(BATCH):
+            _warm_batch(model, y0, _tableau(scene, solver[len(BATCH):]))
+            return time.perf_counter() - start
         if solver == STABILITY:
             fast.warm_up(model, _stability_tableau(scene))
             return time.perf_counter() - start
@@ -157,6 +198,18 @@ def warm_one(scene, solver) -> float:
     except Exception:  # noqa: BLE001 - best effort: the run compiles it again and reports
         pass
     return time.perf_counter() - start
+
+
+def _warm_batch(model, y0, tab) -> None:
+    """Compile (or load) ``tab``'s ensemble loop on ``model``: a batch of one
+    instance, one step, through ``rk4h.ensemble``'s numba backend (the
+    argument types of every batch it runs, so nothing more is compiled)."""
+    import numpy as np
+
+    import rk4h
+
+    y = np.asarray(y0, dtype=float)[None, :]
+    rk4h.ensemble(model, y, (0.0, 1e-3), h=1e-3, method=tab, backend="numba")
 
 
 def _warm_readonly(rhs, y0) -> None:

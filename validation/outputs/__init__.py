@@ -39,7 +39,7 @@ from typing import Any, Callable, Mapping
 
 __all__ = ["Output", "Table", "ModelFacts", "Planning", "Measuring", "FileJob", "OUTPUTS", "register",
            "unregister", "on_register", "names", "get", "help_rows", "table_names", "own_table", "executor", "drawer",
-           "run_keep", "write_files"]
+           "loops", "run_keep", "write_files"]
 
 
 def _never(facts) -> bool:
@@ -109,6 +109,16 @@ class Output:
         ``write(out_dir, jobs: [FileJob]) -> [(Path, sentence)]``: files
         other than tables and figures (called once per report with every
         scene's jobs of this output, figures or not).
+    loops : mapping
+        purpose -> ``fn(scene, spec) -> [(kind, solver)]``: the numba loops a
+        spec of that purpose runs on the scene's model, for
+        :mod:`rk4h.validation.warm` to compile once per machine before the
+        runs (with several workers). ``kind`` is ``"loop"`` (the solver's
+        fixed-step loop, or a reference's compiled right-hand side, as a
+        ``run`` spec runs them) or ``"batch"`` (the solver's ensemble loop,
+        ``rk4h.ensemble``'s numba backend); ``solver`` is a name
+        ``scene.method`` knows. A speed-up only: a loop left out is compiled
+        where it runs.
     """
 
     name: str
@@ -126,6 +136,7 @@ class Output:
     tables: tuple = ()
     draw: Mapping[str, Callable] = field(default_factory=dict)
     write: Callable | None = None
+    loops: Mapping[str, Callable] = field(default_factory=dict)
 
 
 class ModelFacts:
@@ -339,6 +350,14 @@ def executor(purpose: str) -> Callable | None:
     for o in _REGISTRY.values():
         if purpose in o.execute:
             return o.execute[purpose]
+    return None
+
+
+def loops(purpose: str) -> Callable | None:
+    """The :attr:`Output.loops` function an output declares for ``purpose``, or None."""
+    for o in _REGISTRY.values():
+        if purpose in o.loops:
+            return o.loops[purpose]
     return None
 
 

@@ -236,6 +236,7 @@ OUTPUT = Output(
          "solution of the linearization: deviation statistics per amplitude bin, `amplitude_ensemble.csv` and "
          "its log-log figure",
     plan=plan, measure=measure, execute={"amplitude_ensemble": execute}, draw={"amplitude_ensemble": draw},
+    loops={"amplitude_ensemble": lambda scene, spec: [("batch", spec.solver)]},
     purposes={"amplitude_ensemble": "one batch of every instance of [ensemble] at the smallest step against the "
                                     "linearization, a few rerun at half the step"},
     tables=(Table("amplitude_ensemble", columns=_COLUMNS,

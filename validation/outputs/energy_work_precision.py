@@ -57,6 +57,12 @@ def plan(p) -> list:
             for solver in p.scene.solvers for per in periods]
 
 
+def loops(scene, spec) -> list:
+    """The numba loop a spec runs (:attr:`rk4h.validation.outputs.Output.loops`):
+    its solver's on the scene's model, as a ``run`` spec's."""
+    return [("loop", spec.solver)]
+
+
 def execute(scene, spec, quick):
     """The rows of one solver over one horizon (:func:`rk4h.validation.energy_time.work_precision_rows`)."""
     import rk4h.fast as fast
@@ -262,7 +268,7 @@ OUTPUT = Output(
     what="the largest relative energy error over each run against RHS calls and wall time over horizons of "
          "`[energy_work_precision] periods` of the slowest mode, every solver: `energy_work_precision.csv`, its "
          "figure and the check that every symplectic method's energy stays bounded (growth exponent < 0.1)",
-    plan=plan, measure=measure, execute={PURPOSE: execute}, draw={FIGURE: draw},
+    plan=plan, measure=measure, execute={PURPOSE: execute}, draw={FIGURE: draw}, loops={PURPOSE: loops},
     purposes={PURPOSE: "one solver over one horizon: a fixed-step method at each steps-per-fastest-period, an "
                        "adaptive reference at each run.tolerances; energy error, growth exponent, calls, wall time"},
     tables=(Table("energy_work_precision", columns=COLUMNS, timing=frozenset({"wall_s"}),

@@ -224,6 +224,19 @@ _COLUMNS = (("scene", "", "str", "scene name"),
 _WEAK_KEYS = ("weak_error", "weak_energy_error", "reference", "reference_h_s", "reference_failed",
               "reference_bound", "weak_reference_bound")
 
+
+def loops(scene, spec) -> list:
+    """The numba loops a spec runs (:attr:`rk4h.validation.outputs.Output.loops`):
+    its solver's batch loop, and the batch reference's (:data:`REFERENCE_METHOD`
+    of :mod:`rk4h.validation.ensemble`) where :func:`execute` runs one."""
+    from rk4h.validation.ensemble import REFERENCE_METHOD
+
+    out = [("batch", spec.solver)]
+    if REFERENCE == "batch" or not scene.build_model().linear:
+        out.append(("batch", REFERENCE_METHOD))
+    return out
+
+
 OUTPUT = Output(
     name="ensemble", rank=130, plan_rank=95, measure_rank=95,
     when="never by default (needs an `[ensemble]` table)",
@@ -234,6 +247,7 @@ OUTPUT = Output(
          "disagreement is 10x below the errors), `ensemble.csv` and the ensemble work-precision figure "
          "(error statistics against RHS calls)",
     plan=plan, measure=measure, execute={"ensemble": execute}, draw={"ensemble_work_precision": draw},
+    loops={"ensemble": loops},
     purposes={"ensemble": "one batch of every instance of [ensemble] at one solver and step: error statistics"},
     tables=(Table("ensemble", columns=_COLUMNS,
                   description="error and energy-error statistics over each scene's [ensemble] instances"),),

@@ -119,6 +119,7 @@ OUTPUT = Output(
     what="stable or not over (parameter, h) as batches, the largest stable omega_max h per value: "
          "`stability_map.csv` and its figure",
     plan=plan, measure=measure, execute={"stability_map": execute}, draw={"stability_map": draw},
+    loops={"stability_map": lambda scene, spec: [("batch", spec.solver)]},
     purposes={"stability_map": "one batch per grid step h over every value of the [ensemble] grid parameter"},
     tables=(Table("stability_map", columns=_COLUMNS,
                   description="the largest stable omega_max h per value of a swept parameter"),),
