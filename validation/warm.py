@@ -66,7 +66,6 @@ def _adapter(scene, solver) -> str:
 def _loop_key(scene, solver):
     """What identifies the compiled code ``solver`` runs on ``scene``'s model
     (None: nothing compiled ahead: no compiled force, heyoka, a command...)."""
-    from rk4h.references.registry import Kind
     from rk4h import fast
     from rk4h.fast.codegen import MAX_UNROLLED_DIM, _cache_key
 
@@ -77,18 +76,15 @@ def _loop_key(scene, solver):
     if kern is None:
         return None
     if solver.startswith(BATCH):
-        from rk4h.fast.codegen import loop_key
+        from rk4h.batch._numba import batch_key
 
-        tab = _tableau(scene, solver[len(BATCH):])
-        if tab is None:
-            return None
-        array = not (len(y0) <= MAX_UNROLLED_DIM and kern.has_scalar())  # as rk4h.batch's numba backend picks
-        return ("batch",) + loop_key(tab, kern, array)
+        tab = _tableau(scene.method(solver[len(BATCH):]))
+        return None if tab is None else ("batch",) + batch_key(tab, kern, len(y0))[0]
     if solver == STABILITY:
         tab = _stability_tableau(scene)
     else:
         method = scene.method(solver)
-        tab = method.tableau if method.kind in (Kind.TABLEAU, Kind.PARTITIONED) else None
+        tab = _tableau(method)
     if tab is not None:
         if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
             return ("scalar",) + _cache_key(tab) + (kern.scalar_key(),)
@@ -98,11 +94,10 @@ def _loop_key(scene, solver):
     return None
 
 
-def _tableau(scene, name):
-    """The tableau of ``scene``'s method ``name``, or None (not a fixed-step tableau)."""
+def _tableau(method):
+    """The tableau of ``method`` (a ``scene.method``), or None (not a fixed-step tableau)."""
     from rk4h.references.registry import Kind
 
-    method = scene.method(name)
     return method.tableau if method.kind in (Kind.TABLEAU, Kind.PARTITIONED) else None
 
 
@@ -173,7 +168,6 @@ def warm_one(scene, solver) -> float:
     model; returns the seconds it took. Never raises."""
     start = time.perf_counter()
     try:
-        from rk4h.references.registry import Kind
         from rk4h.references.solvers.base import compiled_rhs
         from rk4h import fast
 
@@ -181,14 +175,15 @@ def warm_one(scene, solver) -> float:
 
         model, y0 = problem(scene)
         if solver.startswith(BATCH):
-            _warm_batch(model, y0, _tableau(scene, solver[len(BATCH):]))
+            _warm_batch(model, y0, _tableau(scene.method(solver[len(BATCH):])))
             return time.perf_counter() - start
         if solver == STABILITY:
             fast.warm_up(model, _stability_tableau(scene))
             return time.perf_counter() - start
         method = scene.method(solver)
-        if method.kind in (Kind.TABLEAU, Kind.PARTITIONED):
-            fast.warm_up(model, method.tableau)
+        tab = _tableau(method)
+        if tab is not None:
+            fast.warm_up(model, tab)
         else:
             rhs = compiled_rhs(model)
             if rhs is not None:

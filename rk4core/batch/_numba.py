@@ -11,7 +11,7 @@ import numpy as np
 from ..fast import codegen
 from ..fast.codegen import MAX_UNROLLED_DIM
 
-__all__ = ["run", "batch_loop"]
+__all__ = ["run", "batch_loop", "batch_key"]
 
 _BATCH: dict = {}
 
@@ -41,10 +41,16 @@ def batch(fp, ip, mass, w, y0, t0, step, n, idx, theta, ys, bound, pending, y_fa
 """
 
 
+def batch_key(tab, kern, dim: int) -> tuple:
+    """``(key, uses the array loop)`` of the batch loop for method ``tab``,
+    force kernel ``kern``, state size ``dim``: equal keys, one generated module."""
+    array = not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
+    return codegen.loop_key(tab, kern, array), array
+
+
 def batch_loop(tab, kern, dim: int):
     """``(batch function, uses the array loop)`` for method ``tab``, force kernel ``kern``, state size ``dim``."""
-    array = not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
-    key = codegen.loop_key(tab, kern, array)
+    key, array = batch_key(tab, kern, dim)
     fn = _BATCH.get(key)
     if fn is None:
         text = codegen.array_source(tab, kern) if array else codegen.source(tab, kern)
