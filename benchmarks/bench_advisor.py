@@ -48,23 +48,20 @@ import argparse
 import json
 import math
 import os
-import resource
 import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' own helpers
+from _child import timed_run  # noqa: E402
 
 
 def _call(python: str, scene: str, target: str, extra=()) -> tuple:
     """``(wall s, cpu s, load, answer)`` of one advisor call (``extra``: more arguments)."""
-    load = os.getloadavg()[0]
-    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    r = subprocess.run([python, "-m", "rk4h.validation.advise", scene, "--target", target, "--json", *extra],
-                       capture_output=True, text=True)
-    wall = time.perf_counter() - t0
-    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    r, wall, cpu, load = timed_run([python, "-m", "rk4h.validation.advise", scene, "--target", target, "--json",
+                                    *extra])
     if r.returncode != 0:
         raise SystemExit(f"bench_advisor: {python} failed on {scene}: {r.stderr.strip()[-500:]}")
     d = json.loads(r.stdout)

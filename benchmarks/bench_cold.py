@@ -37,12 +37,13 @@ import argparse
 import datetime
 import json
 import os
-import resource
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' own helpers
+from _child import timed_run  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -150,18 +151,14 @@ def measure(args: list[str], cache: Path, workers: int = 1, no_shipped: bool = F
         env["PYTHONPATH"] = os.pathsep.join([str(site), *filter(None, [env.get("PYTHONPATH")])])
         env["RK4H_BENCH_COMPILES"] = str(compiles)
         load0 = _load()
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, __file__, "--child", str(ledger), *(["--no-shipped"] if no_shipped else []), "--",
-                            *args, "--workers", str(workers), "--out", str(Path(tmp) / "r")],
-                           cwd=REPO, capture_output=True, text=True, env=env)
-        wall = time.perf_counter() - t0
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r, wall, cpu, _ = timed_run([sys.executable, __file__, "--child", str(ledger),
+                                     *(["--no-shipped"] if no_shipped else []), "--",
+                                     *args, "--workers", str(workers), "--out", str(Path(tmp) / "r")],
+                                    cwd=REPO, env=env)
         led = json.loads(ledger.read_text()) if ledger.exists() else {"truths": []}
         led["numba"] = [json.loads(ln) for ln in compiles.read_text().splitlines()] if compiles.exists() else []
     if r.returncode != 0:
         sys.stderr.write(r.stderr[-3000:])
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     return {"wall": wall, "cpu": cpu, "rc": r.returncode, "load": (load0, _load()), **led}
 
 

@@ -27,13 +27,13 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import resource
 import statistics
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' own helpers
+from _child import timed_run  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 PHASES = re.compile(r"plan [0-9.]+ s, runs [0-9.]+ s, measure [0-9.]+ s, figures [0-9.]+ s, write [0-9.]+ s")
@@ -50,17 +50,11 @@ def readme_scene() -> str:
 
 def call(python: str, scene: Path, work: Path) -> tuple:
     """``(wall s, cpu s, load, phases)`` of one run of ``scene`` by ``python``."""
-    load = os.getloadavg()[0]
     out = Path(tempfile.mkdtemp(dir=work)) / "out"
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    proc = subprocess.run([python, "-m", "rk4h.validation.run_all", "--scene", str(scene), "--out", str(out)],
-                          capture_output=True, text=True, cwd=work)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    proc, wall, cpu, load = timed_run([python, "-m", "rk4h.validation.run_all", "--scene", str(scene), "--out",
+                                       str(out)], cwd=work)
     if proc.returncode not in (0, 1):
         raise SystemExit(f"bench_user_scene: {python} exited {proc.returncode}:\n{proc.stderr[-2000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     m = PHASES.search(proc.stdout + proc.stderr)
     return wall, cpu, load, m.group(0) if m else "(no phase line)"
 

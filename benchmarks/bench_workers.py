@@ -17,12 +17,12 @@ import argparse
 import datetime
 import os
 import re
-import resource
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the benchmarks' own helpers
+from _child import timed_run  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -37,13 +37,8 @@ def measure(args: list[str]) -> dict:
     env.setdefault("MPLBACKEND", "Agg")
     with tempfile.TemporaryDirectory(prefix="rk4h-workers-") as tmp:
         load0 = _load()
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t0 = time.perf_counter()
-        r = subprocess.run([sys.executable, "validation/run_all.py", *args, "--out", str(Path(tmp) / "r")],
-                           cwd=REPO, capture_output=True, text=True, env=env)
-        wall = time.perf_counter() - t0
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        r, wall, cpu, _ = timed_run([sys.executable, "validation/run_all.py", *args, "--out", str(Path(tmp) / "r")],
+                                    cwd=REPO, env=env)
     summary = next((ln for ln in r.stdout.splitlines() if re.search(r"runs planned", ln)), "")
     return {"wall": wall, "cpu": cpu, "rc": r.returncode, "summary": summary.strip(), "load": (load0, _load())}
 
