@@ -15,7 +15,11 @@ slope and the rhs wrapper inlined by LLVM instead of numba's
 ``inline="always"``); ``nonrt`` and ``nocfunc`` (``_nrt=False``,
 ``no_cfunc_wrapper=True`` on a straight-line loop), ``both``;
 ``nocfunc_arr`` (the latter on an array loop); ``dense_call`` (an array
-loop's dense-output slopes through a called, not inlined, wrapper). Run each
+loop's dense-output slopes through a called, not inlined, wrapper). Designs
+(other generators of the array loop, ``benchmarks/_loop_variants.py``; N >=
+3): ``one_call_site`` (the stages in a run-time loop, the slope inlined
+once), ``as_data`` and ``as_data_inline`` (one text per force structure,
+the method passed as data). Run each
 variant several times, interleaved: one compile's CPU time varies by
 20-40% on a loaded machine.
 """
@@ -24,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -33,6 +38,8 @@ from rk4h.methods import get_method
 from rk4h.models import Chain
 
 VARIANTS = ("base", "noinline", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
+#: Other array-loop designs (``benchmarks/_loop_variants.py``; N >= 3).
+DESIGNS = ("one_call_site", "as_data", "as_data_inline")
 
 
 def model(N):
@@ -60,7 +67,7 @@ def variant(text, v):
     raise KeyError(v)
 
 
-def run(fn, m, kern, unrolled, nsteps):
+def run(fn, m, kern, unrolled, nsteps, plan=()):
     fp = np.ascontiguousarray(kern.fp, float); ip = np.ascontiguousarray(kern.ip, np.int64)
     mass = np.ascontiguousarray(m.mass, float)
     d = 2*m.n_dof
@@ -70,7 +77,8 @@ def run(fn, m, kern, unrolled, nsteps):
     if unrolled:
         args = (fp, ip, mass, y, 0.0, 1e-3, nsteps, idx, theta, ys, bound, 0.0, yf)
     else:
-        args = (fp, ip, mass, np.zeros(kern.work_size), y, 0.0, 1e-3, nsteps, idx, theta, ys, bound, 0.0, yf)
+        args = (*plan, fp, ip, mass, np.zeros(kern.work_size), y, 0.0, 1e-3, nsteps, idx, theta, ys, bound, 0.0,
+                yf)
     t0 = time.process_time(); fn(*args); tc = time.process_time() - t0
     best = 1e9
     for _ in range(5):
@@ -79,9 +87,9 @@ def run(fn, m, kern, unrolled, nsteps):
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 3 or argv[2] not in VARIANTS or not argv[1].isdigit() or int(argv[1]) < 1:
-        print(f"usage: bench_compile_options.py METHOD N VARIANT (N >= 1, VARIANT one of {', '.join(VARIANTS)}), "
-              f"got {' '.join(argv)!r}", file=sys.stderr)
+    if len(argv) != 3 or argv[2] not in VARIANTS + DESIGNS or not argv[1].isdigit() or int(argv[1]) < 1:
+        print(f"usage: bench_compile_options.py METHOD N VARIANT (N >= 1, VARIANT one of "
+              f"{', '.join(VARIANTS + DESIGNS)}), got {' '.join(argv)!r}", file=sys.stderr)
         return 2
     method, N, v = argv[0], int(argv[1]), argv[2]
     try:
@@ -92,10 +100,23 @@ def main(argv=None) -> int:
     m = model(N)
     kern = fast.force_kernel(m)
     unrolled = 2 * N <= codegen.MAX_UNROLLED_DIM and kern.has_scalar()
-    text = codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern)
-    text = variant(text, v) + f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
+    plan = ()
+    if v in DESIGNS:
+        if unrolled:
+            print(f"bench_compile_options.py: {v} is an array loop: N must be >= 3, got {N}", file=sys.stderr)
+            return 2
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import _loop_variants as lv
+
+        if v == "one_call_site":
+            text = lv.one_call_site_source(tab, kern)
+        else:
+            text, plan = lv.as_data_source(kern, inline_comb=v == "as_data_inline"), lv.plan_data(tab)
+    else:
+        text = variant(codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern), v)
+    text += f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
     mod = codegen._in_memory(codegen.module_name(text), text)
-    tc, ns, yend = run(mod.integrate, m, kern, unrolled, 200000 if unrolled else 50000)
+    tc, ns, yend = run(mod.integrate, m, kern, unrolled, 200000 if unrolled else 50000, plan)
     print(f"{method} N={N} {v}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
           f"y_end {hashlib.sha1(yend.tobytes()).hexdigest()[:10]}")
     return 0

@@ -1,0 +1,41 @@
+"""benchmarks/bench_compile_options.py: the two array-loop designs kept for the
+record (benchmarks/_loop_variants.py) give the package's loop's numbers bit for
+bit, or their figures in docs/performance.md would compare different arithmetic.
+Each run is a cold compile (4-10 s) or at least numba's import: slow set. Timings are not asserted."""
+import pathlib
+import re
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "benchmarks" / "bench_compile_options.py"
+LINE = re.compile(r"^(\S+) N=(\d+) (\S+): compile\+1run [0-9.]+ s CPU, [0-9.]+ ns/step, y_end ([0-9a-f]{10})$")
+
+
+def _digest(method, n, variant):
+    proc = subprocess.run([sys.executable, str(SCRIPT), method, str(n), variant], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    m = LINE.match(proc.stdout.strip())
+    assert m and m.group(3) == variant, proc.stdout
+    return m.group(4)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["yoshida4", "rk4"])  # velocity-first stages with FSAL; a classical method
+def test_each_design_gives_the_package_loops_numbers(method):
+    base = _digest(method, 3, "base")
+    assert [_digest(method, 3, v) for v in ("one_call_site", "as_data", "as_data_inline")] == [base] * 3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("argv, why", [
+    (["rk4", "2", "as_data"], "as_data is an array loop: N must be >= 3, got 2"),
+    (["rk4", "3", "no-such-design"], "VARIANT one of"),
+])
+def test_bad_arguments_are_one_line_and_exit_2(argv, why):
+    proc = subprocess.run([sys.executable, str(SCRIPT), *argv], cwd=ROOT, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2 and why in proc.stderr and "Traceback" not in proc.stderr
