@@ -160,8 +160,33 @@ def _sturm(p):
     return seq
 
 
+def _integer(p):
+    """``p`` times the least common multiple of its denominators: integer
+    coefficients, and the sign of ``p`` everywhere."""
+    m = math.lcm(*(a.denominator for a in p)) if p else 1
+    return [int(a * m) for a in p]
+
+
+def _value_sign_times(c, num, den):
+    """``sum c_i num^i den^(n-i)`` for integer ``c`` of degree ``n`` and
+    ``den > 0``: ``den^n p(num / den)``, which has the sign of ``p(num /
+    den)``; integer Horner, no fraction reduced on the way."""
+    if not c:
+        return 0
+    it = reversed(c)
+    acc, scale = next(it), 1
+    for a in it:
+        scale *= den
+        acc = acc * num + a * scale
+    return acc
+
+
 def _variations(seq, x):
-    signs = [v for v in (_eval(s, x) for s in seq) if v != 0]
+    """Sign changes of the Sturm sequence ``seq`` (integer polynomials,
+    :func:`_integer`) at the rational ``x``, zeros skipped."""
+    x = Fraction(x)
+    num, den = x.numerator, x.denominator
+    signs = [v for v in (_value_sign_times(c, num, den) for c in seq) if v != 0]
     return sum(1 for u, v in zip(signs, signs[1:]) if (u < 0) != (v < 0))
 
 
@@ -179,7 +204,7 @@ def _first_violation(p) -> float:
     odd = _odd_part(q)  # q changes sign exactly at the roots of odd
     if len(odd) <= 1:
         return math.inf
-    seq = _sturm(odd)
+    seq = [_integer(c) for c in _sturm(odd)]  # the same signs, in integer arithmetic
     bound = 1 + max(abs(a / odd[-1]) for a in odd[:-1])  # Cauchy: every root is below it
     lo, hi = Fraction(0), Fraction(bound)
     v_lo = _variations(seq, lo)

@@ -171,3 +171,24 @@ def test_a_copy_of_a_shipped_tableau_is_worked_out_not_read(monkeypatch):
     assert sf.imaginary_axis_boundary(G.FOREST_RUTH) == -1.0
     sf._imaginary_axis_boundary_cached.cache_clear()
     assert sf.imaginary_axis_boundary(copy) == pytest.approx(1.5734, abs=1e-4)
+
+
+def test_the_integer_sign_evaluation_is_the_fractions_sign():
+    """The Sturm sequences are evaluated in integer arithmetic (each
+    polynomial times the lcm of its denominators, homogeneous Horner at
+    num/den): the sign of every value must be that of the exact rational one."""
+    import random
+    from fractions import Fraction
+
+    from rk4h import stability_function as sf
+
+    rng = random.Random(29)
+    for _ in range(300):
+        p = [Fraction(rng.randint(-10**6, 10**6), rng.randint(1, 10**4)) for _ in range(rng.randint(1, 12))]
+        x = Fraction(rng.randint(-10**5, 10**5), rng.randint(1, 2**rng.randint(0, 40)))
+        exact = sf._eval(p, x)
+        got = sf._value_sign_times(sf._integer(p), x.numerator, x.denominator)
+        assert (got > 0) == (exact > 0) and (got == 0) == (exact == 0), (p, x)
+    # a root hit exactly: p = (x - 1/3)(x + 2), at 1/3
+    p = [Fraction(-2, 3), Fraction(5, 3), Fraction(1)]
+    assert sf._eval(p, Fraction(1, 3)) == 0 == sf._value_sign_times(sf._integer(p), 1, 3)
