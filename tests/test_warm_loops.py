@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from rk4h.validation.plan import plan_all
 from rk4h.validation.scenes import load_scene
 from rk4h.validation.warm import _loop_key, loop_jobs, warm_one, _READONLY_STATE
@@ -152,3 +154,70 @@ def test_the_warmed_batch_loop_is_the_one_the_ensemble_runs():
     (spec,) = [s for _, s in plan_all([scene], quick=True, figures=False) if s.purpose == "ensemble"][:1]
     assert execute(scene, spec).status == "ok"
     assert len(fn.signatures) == 1
+
+
+def test_the_outputs_declare_the_loops_of_the_specs_that_run_their_own_solver():
+    """warm.py knows no purpose by name: the outputs owning ``run``, ``confirm``,
+    ``order``, ``figure`` and ``stability`` declare their loops
+    (:attr:`Output.loops`), and a spec of those with a solver is handed out.
+    On the full shipped plan, every loop a spec runs on its own solver is one job."""
+    from rk4h.validation.outputs import loops, solver_loop
+    from rk4h.validation.scenes import load_scenes
+    from rk4h.validation.warm import STABILITY
+
+    for purpose in ("run", "confirm", "order", "figure"):
+        assert loops(purpose) is solver_loop, purpose
+    assert loops("stability")(None, None) == [("stability", "")]
+    jobs = plan_all(load_scenes(), quick=False, figures=True)
+    keys = {_loop_key(s, v) for s, v in loop_jobs(jobs)}
+    own = {(scene.name, spec.solver) for scene, spec in jobs
+           if spec.purpose in ("run", "confirm", "order", "figure") and spec.solver}
+    by_name = {scene.name: scene for scene, _ in jobs}
+    wanted = {_loop_key(by_name[name], solver) for name, solver in own} - {None}
+    assert len(wanted) > 20 and wanted <= keys
+    stab = {scene.name for scene, spec in jobs if spec.purpose == "stability"}
+    assert stab and {_loop_key(by_name[n], STABILITY) for n in stab} - {None} <= keys
+
+
+def test_a_new_outputs_declared_loop_is_handed_out(monkeypatch):
+    """An output of a user's (a purpose warm.py has never heard of) gets its
+    loop compiled ahead by declaring it: nothing to change in warm.py."""
+    from types import SimpleNamespace
+
+    from rk4h.validation import outputs
+
+    scene = _scene("thesis-2dof-case1")
+    spec = SimpleNamespace(purpose="my_sweep", solver="", key="k1")
+    assert loop_jobs([(scene, spec)]) == []
+    monkeypatch.setattr(outputs, "loops", lambda p: (lambda sc, sp: [("loop", "symplectic-euler")])
+                        if p == "my_sweep" else None)
+    assert loop_jobs([(scene, spec)]) == [(scene, "symplectic-euler")]
+
+
+def _warm_jobs_script():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "benchmarks" / "warm_jobs.py"
+    spec = importlib.util.spec_from_file_location("warm_jobs_script", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_warm_jobs_script_prints_the_plans_jobs(capsys):
+    script = _warm_jobs_script()
+    assert script.main(["thesis-2dof-case1"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    scene = _scene("thesis-2dof-case1")
+    pairs = loop_jobs(plan_all([scene], quick=False, figures=True, repeats=3))
+    assert lines[0] == f"{len(pairs)} jobs" and len(pairs) >= 3
+    assert lines[1:] == [f"{s.name} {v} {_loop_key(s, v)[0]}" for s, v in pairs]
+
+
+@pytest.mark.parametrize("argv, words", [(["--bogus"], "unknown option '--bogus'"),
+                                         (["no-such-scene"], "no-such-scene")])
+def test_the_warm_jobs_script_refuses_bad_arguments_in_one_line(argv, words, capsys):
+    assert _warm_jobs_script().main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1

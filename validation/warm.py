@@ -5,11 +5,12 @@ under ``RK4H_CACHE``; a loop missing there is compiled on its first call in a
 process. With several worker processes and a cold cache, every worker used
 to compile the same loops at the same time (each loop's compile time paid
 once per worker). :func:`warm_pools` instead hands each *distinct* loop the
-plan needs -- a fixed-step method on a force structure, or the compiled
+plan needs, as the output owning each spec's purpose declares them
+(:attr:`rk4h.validation.outputs.Output.loops`) -- a fixed-step method on a
+force structure (the scene's runs, confirmations, convergence sweeps, the
+state figures' run, the energy work-precision runs), or the compiled
 right-hand side DOP853 and CVODE call, or a stability study's method on the
-scene's model, or a loop an output declares for its own purposes
-(:attr:`rk4h.validation.outputs.Output.loops`: the energy work-precision
-runs, the ensembles' batch loops) -- to one worker, the loops spread over
+scene's model, or an ensemble's batch loop -- to one worker, the loops spread over
 all workers, and waits; the runs after it load the loops from the cache
 (about 0.2 s per process for all of them).
 
@@ -24,11 +25,6 @@ import time
 
 __all__ = ["loop_jobs", "warm_one", "warm_pools", "STABILITY", "BATCH"]
 
-#: Purposes whose runs call a solver of the registry (the loops prepared here):
-#: a convergence sweep's ``order`` runs and the figures' ``figure`` run call
-#: the same fixed-step loops as ``run`` (a method some scene uses only in its
-#: sweep was left to every worker that met it first).
-_SOLVER_PURPOSES = ("run", "confirm", "order", "figure")
 #: Reference adapters (``Method.adapter``) that call the model's compiled right-hand side.
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
 #: The adapters that call the compiled right-hand side on a read-only state
@@ -102,18 +98,16 @@ def _tableau(method):
 
 
 def _solvers(scene, spec) -> list:
-    """The job ``solver`` strings of the loops ``spec`` runs (see :func:`loop_jobs`)."""
-    purpose, solver = getattr(spec, "purpose", ""), getattr(spec, "solver", "")
-    if purpose == "stability":
-        return [STABILITY]  # the study's loop on the scene's model (stability_planar4's RK4 on planar4)
-    if purpose in _SOLVER_PURPOSES:
-        return [solver] if solver else []
+    """The job ``solver`` strings of the loops ``spec`` runs (see
+    :func:`loop_jobs`), as the output that owns its purpose declares them
+    (:attr:`rk4h.validation.outputs.Output.loops`)."""
     from .outputs import loops
 
-    declared = loops(purpose)
+    declared = loops(getattr(spec, "purpose", ""))
     if declared is None:
         return []
-    return [(BATCH + name if kind == "batch" else name) for kind, name in declared(scene, spec)]
+    return [STABILITY if kind == "stability" else BATCH + name if kind == "batch" else name
+            for kind, name in declared(scene, spec)]
 
 
 def _batched_keys(jobs) -> set:

@@ -39,7 +39,14 @@ from typing import Any, Callable, Mapping
 
 __all__ = ["Output", "Table", "ModelFacts", "Planning", "Measuring", "FileJob", "OUTPUTS", "register",
            "unregister", "on_register", "names", "get", "help_rows", "table_names", "own_table", "executor", "drawer",
-           "loops", "run_keep", "write_files"]
+           "loops", "solver_loop", "run_keep", "write_files"]
+
+
+def solver_loop(scene, spec) -> list:
+    """``[("loop", spec.solver)]`` (:attr:`Output.loops`): the loop a spec
+    that runs its own solver runs; none for a spec without a solver."""
+    solver = getattr(spec, "solver", "")
+    return [("loop", solver)] if solver else []
 
 
 def _never(facts) -> bool:
@@ -115,10 +122,13 @@ class Output:
         :mod:`rk4h.validation.warm` to compile once per machine before the
         runs (with several workers). ``kind`` is ``"loop"`` (the solver's
         fixed-step loop, or a reference's compiled right-hand side, as a
-        ``run`` spec runs them) or ``"batch"`` (the solver's ensemble loop,
-        ``rk4h.ensemble``'s numba backend); ``solver`` is a name
-        ``scene.method`` knows. A speed-up only: a loop left out is compiled
-        where it runs.
+        ``run`` spec runs them), ``"batch"`` (the solver's ensemble loop,
+        ``rk4h.ensemble``'s numba backend) or ``"stability"`` (the scene's
+        ``stability.method`` on its model; ``solver`` unused); ``solver`` is
+        a name ``scene.method`` knows. :func:`solver_loop` is the
+        declaration of a spec that runs its own ``solver`` (the scene's
+        runs, confirmations, convergence sweeps, the state figures' run). A
+        speed-up only: a loop left out is compiled where it runs.
     """
 
     name: str

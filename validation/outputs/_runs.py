@@ -3,6 +3,8 @@
 measurement, called once however many of those outputs a scene lists."""
 from __future__ import annotations
 
+from rk4h.validation.outputs import solver_loop
+
 
 def plan(p) -> list:
     """The reference on the scene's output grid, then every solver at every
@@ -26,6 +28,9 @@ def measure(m) -> None:
 
     measure_runs(m.scene, m.specs("run"), m.records, m.res, m.draw, m.specs("confirm"))
 
+
+#: The loops the runs run (:attr:`rk4h.validation.outputs.Output.loops`).
+LOOPS = {"run": solver_loop}
 
 #: What the runs record (the purposes' documentation).
 PURPOSES = {"truth": "the reference on the scene's output grid (its kind, the state's scale)",

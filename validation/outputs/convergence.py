@@ -1,5 +1,5 @@
 """``convergence``: the observed order of every fixed-step method."""
-from rk4h.validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table, solver_loop
 
 
 def plan(p) -> list:
@@ -32,5 +32,6 @@ OUTPUT = Output(
     applies=lambda facts: facts.dense and (facts.linearized or facts.first_order),
     plan=plan, measure=measure,
     purposes={"order": "one fixed-step run of a convergence sweep: its step and its error against the truth"},
+    loops={"order": solver_loop},
     tables=(Table("convergence"),),
 )

@@ -7,7 +7,7 @@ OUTPUT = Output(
     what="energy drift of those runs, against theory for tableaux on linear models: `energy.csv`, the energy "
          "figure",
     applies=lambda facts: facts.dense and facts.conserved,
-    plan=_runs.plan, measure=_runs.measure, purposes=_runs.PURPOSES,
+    plan=_runs.plan, measure=_runs.measure, purposes=_runs.PURPOSES, loops=_runs.LOOPS,
     run_keep=lambda draw: ("energy",) if draw else (),  # the energy figure's series
     tables=(Table("energy"),),
 )

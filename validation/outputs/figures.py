@@ -1,5 +1,5 @@
 """``figures``: the figures of the other outputs and the state figures."""
-from rk4h.validation.outputs import Output
+from rk4h.validation.outputs import Output, solver_loop
 
 
 def plan(p) -> list:
@@ -29,4 +29,5 @@ OUTPUT = Output(
     applies=lambda facts: facts.dense,
     plan=plan, measure=measure,
     purposes={"figure": "the trajectory of the state figures (the method under test at the finest step)"},
+    loops={"figure": solver_loop},
 )

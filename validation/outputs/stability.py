@@ -63,5 +63,7 @@ OUTPUT = Output(
     applies=lambda facts: facts.stability,
     plan=plan, measure=measure, draw={"stability_region": draw_region},
     purposes={"stability": "one unit of the stability study (rk4h.validation.stability.units)"},
+    # the study's loop on the scene's model (stability_planar4's RK4 on planar4)
+    loops={"stability": lambda scene, spec: [("stability", "")]},
     tables=(Table("stability"),),
 )

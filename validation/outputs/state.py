@@ -6,6 +6,6 @@ OUTPUT = Output(
     when="every model",
     what="every solver at every step or tolerance against the reference: `accuracy.csv`",
     applies=lambda facts: facts.dense,
-    plan=_runs.plan, measure=_runs.measure, purposes=_runs.PURPOSES,
+    plan=_runs.plan, measure=_runs.measure, purposes=_runs.PURPOSES, loops=_runs.LOOPS,
     tables=(Table("accuracy"),),
 )

@@ -135,7 +135,7 @@ OUTPUT = Output(
     when="never by default (it writes every run's states); any model that lists it, a first-order ODE included",
     what="every run's time, state and energy in `trajectory-<scene>.nc` (netCDF through xarray), listed in "
          "`trajectory.csv`",
-    plan=_runs.plan, measure=measure, write=write,
+    plan=_runs.plan, measure=measure, write=write, loops=_runs.LOOPS,
     run_keep=lambda draw: ("trajectory",),
     purposes={"run": "as for `state`, keeping the run's time, state and energy arrays"},
     tables=(Table("trajectory", columns=(

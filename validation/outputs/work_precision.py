@@ -1,5 +1,5 @@
 """``work_precision``: error against cost, and the trust table of the method under test."""
-from rk4h.validation.outputs import Output, Table, _runs
+from rk4h.validation.outputs import Output, Table, _runs, solver_loop
 
 OUTPUT = Output(
     name="work_precision", rank=40, plan_rank=10, measure_rank=10,
@@ -10,5 +10,6 @@ OUTPUT = Output(
     plan=_runs.plan, measure=_runs.measure,
     purposes={**_runs.PURPOSES, "confirm": "a run confirming a verdict of the trust table, planned from the "
                                            "records (rk4h.validation.confirm)"},
+    loops={**_runs.LOOPS, "confirm": solver_loop},
     tables=(Table("work_precision"), Table("cheapest")),
 )
