@@ -161,12 +161,16 @@ def test_the_outputs_declare_the_loops_of_the_specs_that_run_their_own_solver():
     ``order``, ``figure`` and ``stability`` declare their loops
     (:attr:`Output.loops`), and a spec of those with a solver is handed out.
     On the full shipped plan, every loop a spec runs on its own solver is one job."""
+    from types import SimpleNamespace
+
     from rk4h.validation.outputs import loops, solver_loop
     from rk4h.validation.scenes import load_scenes
     from rk4h.validation.warm import STABILITY
 
-    for purpose in ("run", "confirm", "order", "figure"):
+    for purpose in ("run", "order", "figure"):
         assert loops(purpose) is solver_loop, purpose
+    confirm = SimpleNamespace(purpose="confirm", solver="dop853")
+    assert loops("confirm")(None, confirm) == [("loop", "dop853"), ("compiled", "dop853")]
     assert loops("stability")(None, None) == [("stability", "")]
     jobs = plan_all(load_scenes(), quick=False, figures=True)
     keys = {_loop_key(s, v) for s, v in loop_jobs(jobs)}
@@ -221,3 +225,84 @@ def test_the_warm_jobs_script_refuses_bad_arguments_in_one_line(argv, words, cap
     assert _warm_jobs_script().main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("solver, where", [("dop853", "dop853"), ("cvode-adams", "cvode"), ("cvode-bdf", "cvode")])
+def test_a_confirmation_runs_compiled_loop_is_handed_out_and_is_the_one_it_runs(solver, where):
+    """Confirmation runs are planned from the records, after the plan, and step a
+    reference's compiled loop (DOP853's right-hand side, CVODE's callbacks): the
+    engine's warm-up before them hands that loop out once (it was compiled by every
+    worker that ran a confirmation), and what it builds is what the run calls."""
+    from types import SimpleNamespace
+
+    from rk4h import fast
+    from rk4h.fast import dop853 as fast_dop853
+    from rk4h.references.solvers import cvode_compiled, integrate_compiled
+    from rk4h.validation.execute import problem
+    from rk4h.validation.warm import COMPILED
+
+    scene = _scene("thesis-2dof-case1")
+    other = _scene("thesis-2dof-case2")  # same structure, other numbers: one job
+    specs = [(sc, SimpleNamespace(purpose="confirm", solver=solver, key=f"c{i}")) for i, sc in enumerate((scene, other))]
+    jobs = loop_jobs(specs)
+    compiled = [(s, v) for s, v in jobs if v.startswith(COMPILED)]
+    assert compiled == [(scene, COMPILED + solver)]
+    assert _loop_key(scene, COMPILED + solver) == ("compiled", where, fast.force_kernel(problem(scene)[0]).key())
+    assert _loop_key(scene, COMPILED + "rk4") is None  # a tableau's confirmation runs its own loop
+
+    model, y0 = problem(scene)
+    key = fast.force_kernel(model).key()
+    fast_dop853._LOOPS.pop(key, None)
+    for k in [k for k in cvode_compiled._CALLBACK_CACHE if k[0] == key]:
+        del cvode_compiled._CALLBACK_CACHE[k]
+    warm_one(scene, COMPILED + solver)
+    built = key in fast_dop853._LOOPS if where == "dop853" else (key, "rhs") in cvode_compiled._CALLBACK_CACHE
+    assert built
+    before = (dict(fast_dop853._LOOPS), dict(cvode_compiled._CALLBACK_CACHE))
+    import numpy as np
+
+    run = integrate_compiled(scene.method(solver), model, y0, np.linspace(0.0, 1.0, 5), 1e-8)
+    assert run.extra["implementation"] == "compiled"
+    assert (dict(fast_dop853._LOOPS), dict(cvode_compiled._CALLBACK_CACHE)) == before  # nothing more built
+
+
+def test_the_references_compiled_loops_are_warmed_in_one_process(monkeypatch):
+    """DOP853's compiled loop is one function for every model, compiled inside
+    the package: two of its jobs in two workers compiled it twice on a fresh
+    install (the --quick cold ledger: 4.8 + 4.6 s). Every COMPILED job goes to the
+    lane, a pool of one process; the others alternate as before."""
+    from concurrent.futures import Future
+
+    from rk4h.validation import warm
+
+    class Pool:
+        def __init__(self, name, log):
+            self.name, self.log = name, log
+
+        def submit(self, fn, scene, solver):
+            self.log.append((self.name, solver))
+            f = Future()
+            f.set_result(0.0)
+            return f
+
+    class Pools:
+        workers = 2
+
+        def __init__(self):
+            self.log = []
+            self.lane, self.general = Pool("lane", self.log), Pool("general", self.log)
+
+        def start(self):
+            return self
+
+    pairs = [(None, "rk4"), (None, warm.COMPILED + "dop853"), (None, "euler"), (None, warm.COMPILED + "cvode-bdf"),
+             (None, warm.COMPILED + "dop853")]
+    monkeypatch.setattr(warm, "loop_jobs", lambda jobs: pairs)
+    pools = Pools()
+    assert warm.warm_pools(pools, []) == 5
+    assert pools.log == [("lane", "rk4"), ("lane", warm.COMPILED + "dop853"), ("lane", "euler"),
+                         ("lane", warm.COMPILED + "cvode-bdf"), ("lane", warm.COMPILED + "dop853")]
+    pairs[:] = [(None, "rk4"), (None, "euler"), (None, "heun3")]
+    pools = Pools()
+    warm.warm_pools(pools, [])
+    assert [n for n, _ in pools.log] == ["lane", "general", "lane"]

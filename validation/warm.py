@@ -9,8 +9,10 @@ plan needs, as the output owning each spec's purpose declares them
 (:attr:`rk4h.validation.outputs.Output.loops`) -- a fixed-step method on a
 force structure (the scene's runs, confirmations, convergence sweeps, the
 state figures' run, the energy work-precision runs), or the compiled
-right-hand side DOP853 and CVODE call, or a stability study's method on the
-scene's model, or an ensemble's batch loop -- to one worker, the loops spread over
+right-hand side DOP853 and CVODE call, or their compiled loops for the
+confirmation runs (a round of those is planned from the records and warmed
+like the plan), or a stability study's method on the scene's model, or an
+ensemble's batch loop -- to one worker, the loops spread over
 all workers, and waits; the runs after it load the loops from the cache
 (about 0.2 s per process for all of them).
 
@@ -23,7 +25,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["loop_jobs", "warm_one", "warm_pools", "STABILITY", "BATCH"]
+__all__ = ["loop_jobs", "warm_one", "warm_pools", "STABILITY", "BATCH", "COMPILED"]
 
 #: Reference adapters (``Method.adapter``) that call the model's compiled right-hand side.
 _COMPILED_REFERENCES = ("dop853", "cvode-adams", "cvode-bdf")
@@ -44,6 +46,13 @@ STABILITY = "<stability.method>"
 #: parallel ``batch`` function after it, a module of its own) on the scene's
 #: model: ``BATCH + "rk4"``.
 BATCH = "<batch>"
+#: The prefix of a job's ``solver`` that prepares that reference's compiled
+#: loop for untimed work (``rk4h.references.solvers.integrate_compiled``:
+#: DOP853's loop on the model's right-hand side, CVODE's C callbacks), which
+#: the confirmation runs step: ``COMPILED + "dop853"``.
+COMPILED = "<compiled>"
+#: The compiled loop of each such reference adapter (CVODE's two share their callbacks).
+_COMPILED_LOOP = {"dop853": "dop853", "cvode-adams": "cvode", "cvode-bdf": "cvode"}
 
 
 def _stability_tableau(scene):
@@ -76,6 +85,9 @@ def _loop_key(scene, solver):
 
         tab = _tableau(scene.method(solver[len(BATCH):]))
         return None if tab is None else ("batch",) + batch_key(tab, kern, len(y0))[0]
+    if solver.startswith(COMPILED):
+        loop = _COMPILED_LOOP.get(scene.method(solver[len(COMPILED):]).runner_key)
+        return None if loop is None else ("compiled", loop, kern.key())
     if solver == STABILITY:
         tab = _stability_tableau(scene)
     else:
@@ -106,8 +118,8 @@ def _solvers(scene, spec) -> list:
     declared = loops(getattr(spec, "purpose", ""))
     if declared is None:
         return []
-    return [STABILITY if kind == "stability" else BATCH + name if kind == "batch" else name
-            for kind, name in declared(scene, spec)]
+    prefix = {"batch": BATCH, "compiled": COMPILED}
+    return [STABILITY if kind == "stability" else prefix.get(kind, "") + name for kind, name in declared(scene, spec)]
 
 
 def _batched_keys(jobs) -> set:
@@ -174,6 +186,9 @@ def warm_one(scene, solver) -> float:
         if solver == STABILITY:
             fast.warm_up(model, _stability_tableau(scene))
             return time.perf_counter() - start
+        if solver.startswith(COMPILED):
+            _warm_compiled(scene.method(solver[len(COMPILED):]), model, y0)
+            return time.perf_counter() - start
         method = scene.method(solver)
         tab = _tableau(method)
         if tab is not None:
@@ -201,6 +216,19 @@ def _warm_batch(model, y0, tab) -> None:
     rk4h.ensemble(model, y, (0.0, 1e-3), h=1e-3, method=tab, backend="numba")
 
 
+def _warm_compiled(method, model, y0) -> None:
+    """Compile (or load) ``method``'s compiled loop for untimed work on
+    ``model``: one run over a span of a millionth of a second through
+    :func:`rk4h.references.solvers.integrate_compiled`, which builds what
+    every confirmation run of that reference on a model of that structure
+    calls (DOP853's right-hand side, CVODE's callbacks of the model's kind)."""
+    import numpy as np
+
+    from rk4h.references.solvers import integrate_compiled
+
+    integrate_compiled(method, model, np.asarray(y0, dtype=float), np.array([0.0, 1e-6]), 1e-6)
+
+
 def _warm_readonly(rhs, y0) -> None:
     """Call ``rhs``'s entry point on a read-only state, the form CVODE's
     callback calls (the computed values are discarded): the one signature
@@ -226,7 +254,10 @@ def warm_pools(pools, jobs) -> int:
     pools.start()
     futures = []
     for i, (scene, solver) in enumerate(pairs):
-        name = "lane" if i % pools.workers == 0 else "general"
+        # the references' compiled loops share one loop compiled inside the package for every
+        # model (DOP853's, CVODE's constant Jacobian): all in the lane's one process, one after
+        # the other, so that it is compiled once, not once by each worker that meets it first
+        name = "lane" if i % pools.workers == 0 or solver.startswith(COMPILED) else "general"
         futures.append((name, getattr(pools, name).submit(warm_one, scene, solver)))
     wait([f for _, f in futures])
     broken = {name for name, f in futures if f.exception() is not None}

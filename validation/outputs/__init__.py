@@ -123,7 +123,9 @@ class Output:
         runs (with several workers). ``kind`` is ``"loop"`` (the solver's
         fixed-step loop, or a reference's compiled right-hand side, as a
         ``run`` spec runs them), ``"batch"`` (the solver's ensemble loop,
-        ``rk4h.ensemble``'s numba backend) or ``"stability"`` (the scene's
+        ``rk4h.ensemble``'s numba backend), ``"compiled"`` (a reference's
+        compiled loop for untimed work, as a confirmation runs it; nothing
+        for another solver) or ``"stability"`` (the scene's
         ``stability.method`` on its model; ``solver`` unused); ``solver`` is
         a name ``scene.method`` knows. :func:`solver_loop` is the
         declaration of a spec that runs its own ``solver`` (the scene's

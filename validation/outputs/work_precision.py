@@ -10,6 +10,7 @@ OUTPUT = Output(
     plan=_runs.plan, measure=_runs.measure,
     purposes={**_runs.PURPOSES, "confirm": "a run confirming a verdict of the trust table, planned from the "
                                            "records (rk4h.validation.confirm)"},
-    loops={**_runs.LOOPS, "confirm": solver_loop},
+    # a confirmation steps a reference's compiled loop (rk4h.validation.execute)
+    loops={**_runs.LOOPS, "confirm": lambda scene, spec: solver_loop(scene, spec) + [("compiled", spec.solver)]},
     tables=(Table("work_precision"), Table("cheapest")),
 )
