@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from rk4h.validation.outputs import Output, Table
+from rk4h.validation.outputs import Output, Table, solver_loop
 
 #: A symplectic method's energy error counts as bounded while the fitted
 #: growth exponent of its running maximum stays below this (secular growth: 1).
@@ -55,12 +55,6 @@ def plan(p) -> list:
     periods, steps = settings(p.scene)
     return [p.spec(PURPOSE, solver=solver, setting=per, grid="periods", params=(("steps", tuple(steps)),))
             for solver in p.scene.solvers for per in periods]
-
-
-def loops(scene, spec) -> list:
-    """The numba loop a spec runs (:attr:`rk4h.validation.outputs.Output.loops`):
-    its solver's on the scene's model, as a ``run`` spec's."""
-    return [("loop", spec.solver)]
 
 
 def execute(scene, spec, quick):
@@ -268,7 +262,7 @@ OUTPUT = Output(
     what="the largest relative energy error over each run against RHS calls and wall time over horizons of "
          "`[energy_work_precision] periods` of the slowest mode, every solver: `energy_work_precision.csv`, its "
          "figure and the check that every symplectic method's energy stays bounded (growth exponent < 0.1)",
-    plan=plan, measure=measure, execute={PURPOSE: execute}, draw={FIGURE: draw}, loops={PURPOSE: loops},
+    plan=plan, measure=measure, execute={PURPOSE: execute}, draw={FIGURE: draw}, loops={PURPOSE: solver_loop},
     purposes={PURPOSE: "one solver over one horizon: a fixed-step method at each steps-per-fastest-period, an "
                        "adaptive reference at each run.tolerances; energy error, growth exponent, calls, wall time"},
     tables=(Table("energy_work_precision", columns=COLUMNS, timing=frozenset({"wall_s"}),
