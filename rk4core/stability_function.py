@@ -94,13 +94,6 @@ def _deriv(p):
     return _trim([i * p[i] for i in range(1, len(p))])
 
 
-def _eval(p, x):
-    acc = Fraction(0)
-    for a in reversed(p):
-        acc = acc * x + a
-    return acc
-
-
 def _divmod(p, q):
     p, q = _trim(p), _trim(q)
     if len(p) < len(q):
