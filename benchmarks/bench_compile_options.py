@@ -99,7 +99,7 @@ def main(argv=None) -> int:
         return 2
     m = model(N)
     kern = fast.force_kernel(m)
-    unrolled = 2 * N <= codegen.MAX_UNROLLED_DIM and kern.has_scalar()
+    unrolled = not codegen.array_loop(kern, 2 * N)
     plan = ()
     if v in DESIGNS:
         if unrolled:

@@ -72,7 +72,7 @@ def _loop_key(scene, solver):
     """What identifies the compiled code ``solver`` runs on ``scene``'s model
     (None: nothing compiled ahead: no compiled force, heyoka, a command...)."""
     from rk4h import fast
-    from rk4h.fast.codegen import MAX_UNROLLED_DIM, _cache_key
+    from rk4h.fast.codegen import array_loop, loop_key
 
     from .execute import problem
 
@@ -93,10 +93,9 @@ def _loop_key(scene, solver):
     else:
         method = scene.method(solver)
         tab = _tableau(method)
-    if tab is not None:
-        if 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar():
-            return ("scalar",) + _cache_key(tab) + (kern.scalar_key(),)
-        return ("array",) + _cache_key(tab) + (kern.key(),)
+    if tab is not None:  # the key of the generated module rk4h.fast.solve_model loads
+        array = array_loop(kern, 2 * model.n_dof)
+        return ("array" if array else "scalar",) + loop_key(tab, kern, array)[1:]
     if method.runner_key in _COMPILED_REFERENCES:
         return ("rhs", kern.key())
     return None

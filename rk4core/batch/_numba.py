@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..fast import codegen
-from ..fast.codegen import MAX_UNROLLED_DIM
 
 __all__ = ["run", "batch_loop", "batch_key"]
 
@@ -44,7 +43,7 @@ def batch(fp, ip, mass, w, y0, t0, step, n, idx, theta, ys, bound, pending, y_fa
 def batch_key(tab, kern, dim: int) -> tuple:
     """``(key, uses the array loop)`` of the batch loop for method ``tab``,
     force kernel ``kern``, state size ``dim``: equal keys, one generated module."""
-    array = not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
+    array = codegen.array_loop(kern, dim)
     return codegen.loop_key(tab, kern, array), array
 
 

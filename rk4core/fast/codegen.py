@@ -76,8 +76,8 @@ from ..cachedir import UntrustedCacheError, private_dir
 from ..methods import Tableau
 from . import _kernels as K
 
-__all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "model_module",
-           "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
+__all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "array_loop",
+           "model_module", "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
 
 #: Largest state size (2 n_dof) that gets a generated loop: the two-degree-of-
 #: freedom models, where the loop overhead is most of the cost. Larger states
@@ -730,6 +730,15 @@ def load_generated(text: str):
     from the verified private cache directory, numba's on-disk cache of every
     function in it beside it."""
     return _module(text)
+
+
+def array_loop(kern, dim: int) -> bool:
+    """Whether a state of ``dim`` components on force kernel ``kern`` runs the
+    array loop (:func:`array_kernel`) rather than the straight-line one
+    (:func:`kernel`): above :data:`MAX_UNROLLED_DIM`, or where the kernel has
+    no straight-line form. :func:`rk4h.fast.solve_model`, the ensemble's
+    batch and the warm-up before a multi-worker run all choose by it."""
+    return not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
 
 
 def loop_key(tab: Tableau, kern, array: bool) -> tuple:

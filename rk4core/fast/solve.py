@@ -22,7 +22,7 @@ from ..solver import (FixedStepResult, grid_time, grid_times, growth_bound, nfev
 from ..validate import (check_max_growth, check_model_y0, check_output_size, check_step_args, check_t_eval,
                         check_t_span, check_y_scale)
 from . import _kernels as K
-from .codegen import MAX_UNROLLED_DIM, array_kernel, kernel, model_module
+from .codegen import MAX_UNROLLED_DIM, array_kernel, array_loop, kernel, model_module
 
 __all__ = ["solve_model", "warm_up", "compile_time", "supports", "force_kernel", "compiled_rhs", "CompiledRHS",
            "compiled_entry", "plain_vector"]
@@ -262,7 +262,7 @@ class _Prepared:
 
     def __init__(self, model, kern, tab):
         self.tab = tab  # kept: the cache key is id(tab)
-        self.unrolled = 2 * model.n_dof <= MAX_UNROLLED_DIM and kern.has_scalar()
+        self.unrolled = not array_loop(kern, 2 * model.n_dof)
         self.loop = kernel(tab, kern) if self.unrolled else array_kernel(tab, kern)
         # own writable copies: the one compiled signature takes writable
         # constants (a caller's read-only or memory-mapped array would not match)
