@@ -37,6 +37,19 @@ atol 1e-8 x 5 mm) on the ensemble case (the 2-DOF chain, ``jax.vmap`` over
 the instances, 1 s), its wall time and mean accepted steps, beside the numba
 RK4 batch (h = 1e-3 s) over the same instances and span.
 
+jax's loop body (``--unroll U [U ...]``): the jax backend writes out
+``rk4h.batch._jax.UNROLL`` steps per loop iteration (one fused GPU kernel per
+iteration). The sweep times each ``U`` at the largest B over
+``--unroll-steps`` steps (default 1e4), checks that every ``U`` gives the
+first one's states bit for bit, and gives the largest per-instance relative
+difference from the numba batch (issue 31: at most 1e-13). The main table's
+jax column uses the package's own ``UNROLL``; it also gives, per B, the
+largest per-instance relative difference of jax from numba.
+
+``--max-steps`` caps the steps of a row (B = 1 on a GPU: one instance-step is
+a whole kernel launch). ``--commit`` names the code when the benchmark runs
+outside a git checkout (a device machine gets a copy of the working tree).
+
 With ``--docs PATH`` the markdown table replaces the block between
 ``<!-- bench_ensemble:begin -->`` and ``<!-- bench_ensemble:end -->`` of that
 file (the markers must be there; nothing else is touched).
@@ -195,12 +208,59 @@ def bench_diffrax(model, sizes, repeats, t1=1.0, rtol=1e-8):
     return rows
 
 
+def rel_diff(a, ref) -> float:
+    """Largest, over the instances, of ``max |a - ref| / max |ref|`` per instance
+    (arrays of shape (B, rows, n))."""
+    scale = np.max(np.abs(ref), axis=(1, 2))
+    return float(np.max(np.max(np.abs(a - ref), axis=(1, 2)) / scale))
+
+
+def bench_unroll(model, B, steps, unrolls, repeats, h=1e-3):
+    """``[(U, ns per instance-step, bit-identical to the first U, relative
+    difference from numba), ...]`` of the jax backend at ``B`` instances."""
+    from rk4h.batch import _jax
+
+    rng = np.random.default_rng(4)
+    y0 = rng.uniform(-0.005, 0.005, (B, 4))
+    t1 = steps * h
+    ref = rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend="numba").y
+    platform_ = _jax.jax.default_backend()
+    saved = dict(_jax.UNROLL)
+    rows, first = [], None
+    try:
+        for U in unrolls:
+            _jax.UNROLL[platform_] = U
+
+            def run():
+                return rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend="jax")
+
+            t = time.perf_counter()
+            y = run().y
+            compile_s = time.perf_counter() - t
+            s = timed(run, repeats) / (B * steps) * 1e9
+            first = y if first is None else first
+            same, diff = bool(np.array_equal(y, first)), rel_diff(y, ref)
+            print(f"unroll {U:>3} B={B:.0e} steps={steps}: jax {s:.4f} ns/instance-step (first call {compile_s:.1f} s), "
+                  f"bit-identical to unroll {unrolls[0]}: {same}, relative difference from numba {diff:.1e}",
+                  flush=True)
+            rows.append((U, s, same, diff))
+    finally:
+        _jax.UNROLL.clear()
+        _jax.UNROLL.update(saved)
+    return rows
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--tiny", action="store_true", help="small sizes (a smoke run)")
     ap.add_argument("--sizes", type=float, nargs="+", default=None, help="batch sizes B (default 1 1e3 1e5 1e6)")
     ap.add_argument("--work", type=float, default=2e7, help="instance-steps per timed run (default 2e7)")
     ap.add_argument("--min-steps", type=int, default=20)
+    ap.add_argument("--max-steps", type=float, default=None, help="cap on the steps of a row (default: none)")
+    ap.add_argument("--unroll", type=int, nargs="*", default=None,
+                    help="jax steps per loop iteration to compare at the largest B (default: none)")
+    ap.add_argument("--unroll-steps", type=float, default=1e4, help="steps of the unroll sweep (default 1e4)")
+    ap.add_argument("--commit", default=None, help="the code's commit, when not run in a git checkout")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--backends", nargs="+", default=["numba", "jax"], choices=["numba", "jax"])
     ap.add_argument("--docs", type=pathlib.Path, default=None, help="markdown file holding the table's markers")
@@ -247,9 +307,11 @@ def main(argv=None) -> int:
     rows = []
     for B in sizes:
         steps = max(a.min_steps, int(round(work / B)))
+        if a.max_steps is not None:
+            steps = min(steps, int(a.max_steps))
         y0 = rng.uniform(-0.005, 0.005, (B, 4))
         t1 = steps * h
-        cells = {}
+        cells, ys = {}, {}
         for backend in a.backends:
             def run():
                 return rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend=backend)
@@ -257,17 +319,23 @@ def main(argv=None) -> int:
             r = run()
             first = time.perf_counter() - t
             assert (r.status == 0).all()
+            ys[backend] = r.y
             s = timed(run, a.repeats)
             cells[backend] = s / (B * steps) * 1e9
             print(f"B={B:>8} steps={steps:>7} {backend:>5}: {cells[backend]:8.3f} ns/instance-step "
                   f"(first call incl. compile {first:.1f} s)", flush=True)
-        rows.append((B, steps, cells))
+        diff = rel_diff(ys["jax"], ys["numba"]) if len(ys) == 2 else None
+        if diff is not None:
+            print(f"B={B:>8}: jax differs from numba by at most {diff:.1e} relative per instance", flush=True)
+        rows.append((B, steps, cells, diff))
+    unroll_rows = (bench_unroll(model, max(sizes), int(a.unroll_steps), a.unroll, a.repeats)
+                   if a.unroll and "jax" in a.backends and "numba" in a.backends else [])
     chain_rows = [bench_chain(N, 20 if a.tiny else a.chain_steps, a.repeats, "jax" in a.backends) for N in chains]
     dfx_rows = bench_diffrax(model, dfx_sizes, a.repeats) if dfx_sizes else []
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                                check=True).stdout.strip()
+        commit = a.commit or subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
+                                            text=True, check=True).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         commit = "unknown"
     stamp = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -275,20 +343,29 @@ def main(argv=None) -> int:
     L = [f"`{cmd.strip()}` at {commit}, {stamp}, load average {load:.1f} on {os.cpu_count()} CPUs "
          f"(medians of {a.repeats}; ns per instance-step, RK4, 2-DOF case 1; "
          f"tight single-instance loop {tight:.2f} ns/step, so tight / {cores} threads = {tight / cores:.2f}).",
-         "", "| B | steps | numba | numba / (tight / threads) | jax | GPU |", "|---|---|---|---|---|---|"]
-    for B, steps, cells in rows:
+         "", "| B | steps | numba | numba / (tight / threads) | jax | GPU | jax vs numba (relative, per instance) |",
+         "|---|---|---|---|---|---|---|"]
+    for B, steps, cells, diff in rows:
         nb = cells.get("numba")
         jx = cells.get("jax")
         L.append(f"| {B:.0e} | {steps} | {'%.3f' % nb if nb else '-'} | "
-                 f"{'%.2f' % (nb / (tight / cores)) if nb else '-'} | {'%.3f' % jx if jx else '-'} | "
-                 f"{gpu_note or '%.3f' % jx} |")
+                 f"{'%.2f' % (nb / (tight / cores)) if nb else '-'} | {'%.4f' % jx if jx else '-'} | "
+                 f"{gpu_note or '%.4f' % jx} | {'%.1e' % diff if diff is not None else '-'} |")
+    if unroll_rows:
+        B = max(sizes)
+        L += ["", f"jax steps per loop iteration (`UNROLL`), B = {B:.0e}, {int(a.unroll_steps)} RK4 steps, "
+              f"ns per instance-step; the package's `UNROLL` is {rk4h.batch._jax.UNROLL}:", "",
+              f"| steps per iteration | jax | bit-identical to {a.unroll[0]} | jax vs numba (relative, per instance) |",
+              "|---|---|---|---|"]
+        for U, s_, same, diff in unroll_rows:
+            L.append(f"| {U} | {s_:.4f} | {'yes' if same else 'NO'} | {diff:.1e} |")
     if chain_rows:
         L += ["", f"One uniform chain between walls (m = {CHAIN_M} kg, k = {CHAIN_K} N/m, h = {CHAIN_H} s), "
               "RK4, float64, ns per mass-step (numba: one core, one instance):", "",
               "| masses | steps | numba loop | jax lax.scan | max relative difference | GPU |", "|---|---|---|---|---|---|"]
         for N, steps, nb, jx, diff in chain_rows:
-            L.append(f"| {N:.0e} | {steps} | {nb:.3f} | {'%.3f' % jx if jx is not None else '-'} | "
-                     f"{'%.1e' % diff if diff is not None else '-'} | {gpu_note or '%.3f' % jx} |")
+            L.append(f"| {N:.0e} | {steps} | {nb:.3f} | {'%.4f' % jx if jx is not None else '-'} | "
+                     f"{'%.1e' % diff if diff is not None else '-'} | {gpu_note or '%.4f' % jx} |")
     if dfx_rows:
         L += ["", "diffrax Tsit5 (rtol 1e-8) beside the numba RK4 batch (h = 1e-3 s) on the 2-DOF ensemble over "
               "1 s:", "", "| B | diffrax wall (s) | accepted steps (mean) | ns per instance-step | "

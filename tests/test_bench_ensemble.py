@@ -30,3 +30,24 @@ def test_diffrax_missing_is_one_line(bench, monkeypatch, capsys):
     assert bench.bench_diffrax(None, [10], 1) == []
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1 and out[0].startswith("diffrax is not importable")
+
+
+def test_unroll_sweep_compares_and_restores(bench):
+    pytest.importorskip("jax")
+    import numpy as np
+
+    import rk4h
+    from rk4h.batch import _jax
+
+    before = dict(_jax.UNROLL)
+    model = rk4h.make_model("chain", {"masses": bench.MASSES, "springs": bench.SPRINGS})
+    rows = bench.bench_unroll(model, 40, 37, [1, 3, 8], 1)
+    assert [r[0] for r in rows] == [1, 3, 8] and all(r[1] > 0 for r in rows)
+    assert all(r[2] for r in rows)  # every written-out body gives the one-step loop's states bit for bit
+    assert all(r[3] <= 1e-13 for r in rows)  # and the numba batch's to 1e-13 per instance
+    assert _jax.UNROLL == before  # the package's setting is left as it was
+    # the per-instance measure sees one instance off by 1e-9 of its size
+    a = np.ones((3, 2, 4))
+    b = a.copy()
+    b[1, 1, 2] += 1e-9
+    assert abs(bench.rel_diff(b, a) - 1e-9) < 1e-15

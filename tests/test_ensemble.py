@@ -103,6 +103,32 @@ def test_diverging_instances_stop_alone(backend):
             assert _rel(res.y[b:b + 1, :rows], ref.y.T[None]) <= 1e-13
 
 
+@pytest.mark.parametrize("method", METHODS + ["yoshida4", "forest-ruth"], ids=_name)
+def test_jax_unrolled_loop_is_bit_for_bit_the_one_step_loop(monkeypatch, method):
+    # The GPU's written-out loop body (rk4h.batch._jax.UNROLL steps per iteration)
+    # must change no arithmetic: on the CPU, 5 steps per iteration against 1, with
+    # step counts between outputs (23, 77, 50) that 5 does not divide, and
+    # instances that diverge mid-block (t_fail and n_steps equal too).
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4h.batch import _jax
+
+    masses, y0 = _diverging()
+    span, h = (0.0, 7.5), 0.05
+    t_eval = [0.0, 23 * h, 100 * h, 7.5]
+    runs = {}
+    for unroll in (1, 5):
+        monkeypatch.setattr(_jax, "UNROLL", {"cpu": unroll, "gpu": unroll})
+        runs[unroll] = ensemble(chain([1.0, 1.0]), y0, span, h=h, method=method, params={"masses": masses},
+                                t_eval=t_eval, backend="jax")
+    one, five = runs[1], runs[5]
+    assert (one.status != 0).any() and (one.status == 0).any()  # both kinds of instance are there
+    assert np.array_equal(one.y, five.y, equal_nan=True)
+    assert np.array_equal(one.n_steps, five.n_steps) and np.array_equal(one.status, five.status)
+    assert np.array_equal(one.t_fail, five.t_fail, equal_nan=True)
+    with pytest.raises(ValueError, match="`unroll` must be an integer >= 1, got 0"):
+        _jax.run(None, None, None, None, None, 0.0, h, 1, np.array([1]), None, None, None, None, unroll=0)
+
+
 def test_array_loop_and_off_grid_output_bit_for_bit():
     # five masses: the array loop (beyond the straight-line size); t_eval off the grid: Hermite
     rng = np.random.default_rng(3)

@@ -10,10 +10,16 @@ into the next step. Every local is an array of shape (B,) -- one lane per
 instance -- so the batch is the vector width; ``math.f`` of the printed
 expressions is ``jax.numpy.f``.
 
-The steps run in a ``lax.scan`` over the output rows, each row after a
-``lax.fori_loop`` over the steps up to it. An instance whose new state fails
-the instability test keeps its last accepted state and is marked dead (its
-later rows are NaN); the others run on.
+The steps run in a ``lax.scan`` over the output rows, each row after the
+steps up to it: a ``lax.fori_loop`` whose body is :data:`UNROLL` steps written
+out one after the other, then one loop of single steps for the remainder. The
+written-out body is what makes a GPU fast: XLA fuses it into one kernel, so the
+state stays in registers for ``UNROLL`` steps instead of going through device
+memory (and a loop iteration's launch) after every step. Unrolling changes no
+arithmetic: every instance does the same operations in the same order for
+any ``UNROLL`` (tests/test_ensemble.py checks it bit for bit).
+An instance whose new state fails the instability test keeps its last
+accepted state and is marked dead (its later rows are NaN); the others run on.
 
 Importing this module switches jax's x64 mode on (float64 arithmetic;
 ``jax.config.update("jax_enable_x64", True)``).
@@ -32,7 +38,14 @@ from ..fast.codegen import _force, _Plan, step_lines
 
 jax.config.update("jax_enable_x64", True)
 
-__all__ = ["run", "step_source"]
+__all__ = ["run", "step_source", "UNROLL"]
+
+#: Steps written out in one loop iteration, by jax platform (see the module's
+#: docstring); any other platform: 1. On the CPU, XLA's code for a written-out
+#: body is slower per step (2.7x at 16 steps, docs/performance.md), so it
+#: stays 1 there; the GPU figure is measured by
+#: ``benchmarks/bench_ensemble.py --unroll``.
+UNROLL = {"cpu": 1, "gpu": 16}
 
 _MATH = types.SimpleNamespace(**{name: getattr(jnp, name) for name in dir(jnp) if not name.startswith("_")})
 _STEPS: dict = {}
@@ -83,8 +96,8 @@ def _compile(text: str, name: str):
     return ns[name]
 
 
-def _runner(tab, kern, dtype: str):
-    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype)
+def _runner(tab, kern, dtype: str, unroll: int):
+    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype, unroll)
     hit = _STEPS.get(key)
     if hit is not None:
         return hit[0]
@@ -125,8 +138,14 @@ def _runner(tab, kern, dtype: str):
             pending = jnp.where(arm, 0.0, pending)
             return y, kc, bound, pending, ok, done + ok.astype(done.dtype)
 
+        def block(i, c):
+            for _ in range(unroll):
+                c = one(i, c)
+            return c
+
         def row(c, count):
-            c = lax.fori_loop(0, count, one, c)
+            c = lax.fori_loop(0, count // unroll, block, c)
+            c = lax.fori_loop(0, count % unroll, one, c)
             out = jnp.stack([jnp.where(c[4], yp, jnp.nan) for yp in c[0]], axis=-1)
             return c, out
 
@@ -137,15 +156,19 @@ def _runner(tab, kern, dtype: str):
     return run
 
 
-def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64"):
+def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64", unroll=None):
     """Integrate the rows of ``y0`` (one chunk), writing ``ys`` (B, rows, dim)
     in place; returns ``(steps completed, status)`` per instance. The output
-    points ``idx`` are grid steps (``theta`` all zero)."""
+    points ``idx`` are grid steps (``theta`` all zero). ``unroll``: steps per
+    loop iteration (default: :data:`UNROLL` of jax's default platform)."""
+    unroll = UNROLL.get(jax.default_backend(), 1) if unroll is None else unroll
+    if isinstance(unroll, bool) or not isinstance(unroll, int) or unroll < 1:
+        raise ValueError(f"`unroll` must be an integer >= 1, got {unroll!r}")
     if not kern.has_scalar():
         raise ValueError(f"backend='jax' needs a force with a straight-line form (at most "
                          f"{kern.MAX_SCALAR_DOF} degrees of freedom), got {kern.n_dof}; use backend='numba'")
     dt = np.dtype(dtype)
-    fn = _runner(tab, kern, dtype)
+    fn = _runner(tab, kern, dtype, unroll)
     counts = np.diff(np.concatenate([[0], idx])).astype(np.int64)
     big = np.finfo(dt).max
     out, done, alive = fn(jnp.asarray(fp.T, dtype=dt), jnp.asarray(mass.T, dtype=dt), jnp.asarray(y0.T, dtype=dt),
