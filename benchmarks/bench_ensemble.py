@@ -37,14 +37,16 @@ atol 1e-8 x 5 mm) on the ensemble case (the 2-DOF chain, ``jax.vmap`` over
 the instances, 1 s), its wall time and mean accepted steps, beside the numba
 RK4 batch (h = 1e-3 s) over the same instances and span.
 
-jax's loop body (``--unroll U [U ...]``): the jax backend writes out
-``rk4h.batch._jax.UNROLL`` steps per loop iteration (one fused GPU kernel per
-iteration). The sweep times each ``U`` at the largest B over
-``--unroll-steps`` steps (default 1e4), checks that every ``U`` gives the
-first one's states bit for bit, and gives the largest per-instance relative
-difference from the numba batch (issue 31: at most 1e-13). The main table's
-jax column uses the package's own ``UNROLL``; it also gives, per B, the
-largest per-instance relative difference of jax from numba.
+jax's loop kernels (``--kernels V [V ...]``): ``xla:U`` is jax's own loops
+with ``U`` steps written out per iteration (``rk4h.batch._jax.UNROLL``),
+``pallas:L`` the Pallas kernel that keeps ``L`` instances' states in
+registers for a whole output row (``_jax.LANES``). The sweep times each
+variant at the largest B over ``--kernel-steps`` steps (default 1e4), says
+whether each gives the first variant's states bit for bit, and gives the
+largest per-instance relative difference from the numba batch (issue 31: at
+most 1e-13). The main table's jax column uses the package's own choice
+(``_jax.KERNEL``); it also gives, per B, the largest per-instance relative
+difference of jax from numba.
 
 ``--max-steps`` caps the steps of a row (B = 1 on a GPU: one instance-step is
 a whole kernel launch). ``--commit`` names the code when the benchmark runs
@@ -215,9 +217,12 @@ def rel_diff(a, ref) -> float:
     return float(np.max(np.max(np.abs(a - ref), axis=(1, 2)) / scale))
 
 
-def bench_unroll(model, B, steps, unrolls, repeats, h=1e-3):
-    """``[(U, ns per instance-step, bit-identical to the first U, relative
-    difference from numba), ...]`` of the jax backend at ``B`` instances."""
+def bench_kernels(model, B, steps, variants, repeats, h=1e-3):
+    """``[(variant, ns per instance-step, bit-identical to the first variant,
+    relative difference from numba), ...]`` of the jax backend at ``B``
+    instances; a variant is ``"xla:U"`` (jax's loops, ``U`` steps per
+    iteration) or ``"pallas:L"`` (the Pallas kernel, ``L`` instances per
+    program)."""
     from rk4h.batch import _jax
 
     rng = np.random.default_rng(4)
@@ -225,11 +230,16 @@ def bench_unroll(model, B, steps, unrolls, repeats, h=1e-3):
     t1 = steps * h
     ref = rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend="numba").y
     platform_ = _jax.jax.default_backend()
-    saved = dict(_jax.UNROLL)
+    saved = dict(_jax.UNROLL), dict(_jax.KERNEL), _jax.LANES
     rows, first = [], None
     try:
-        for U in unrolls:
-            _jax.UNROLL[platform_] = U
+        for variant in variants:
+            kernel, number = variant.split(":")
+            _jax.KERNEL[platform_] = kernel
+            if kernel == "xla":
+                _jax.UNROLL[platform_] = int(number)
+            else:
+                _jax.LANES = int(number)
 
             def run():
                 return rk4h.ensemble(model, y0, (0.0, t1), h=h, t_eval=[0.0, t1], backend="jax")
@@ -240,13 +250,14 @@ def bench_unroll(model, B, steps, unrolls, repeats, h=1e-3):
             s = timed(run, repeats) / (B * steps) * 1e9
             first = y if first is None else first
             same, diff = bool(np.array_equal(y, first)), rel_diff(y, ref)
-            print(f"unroll {U:>3} B={B:.0e} steps={steps}: jax {s:.4f} ns/instance-step (first call {compile_s:.1f} s), "
-                  f"bit-identical to unroll {unrolls[0]}: {same}, relative difference from numba {diff:.1e}",
-                  flush=True)
-            rows.append((U, s, same, diff))
+            print(f"{variant:>10} B={B:.0e} steps={steps}: jax {s:.4f} ns/instance-step (first call {compile_s:.1f} s), "
+                  f"bit-identical to {variants[0]}: {same}, relative difference from numba {diff:.1e}", flush=True)
+            rows.append((variant, s, same, diff))
     finally:
-        _jax.UNROLL.clear()
-        _jax.UNROLL.update(saved)
+        for d, old in zip((_jax.UNROLL, _jax.KERNEL), saved[:2]):
+            d.clear()
+            d.update(old)
+        _jax.LANES = saved[2]
     return rows
 
 
@@ -257,9 +268,10 @@ def main(argv=None) -> int:
     ap.add_argument("--work", type=float, default=2e7, help="instance-steps per timed run (default 2e7)")
     ap.add_argument("--min-steps", type=int, default=20)
     ap.add_argument("--max-steps", type=float, default=None, help="cap on the steps of a row (default: none)")
-    ap.add_argument("--unroll", type=int, nargs="*", default=None,
-                    help="jax steps per loop iteration to compare at the largest B (default: none)")
-    ap.add_argument("--unroll-steps", type=float, default=1e4, help="steps of the unroll sweep (default 1e4)")
+    ap.add_argument("--kernels", nargs="*", default=None,
+                    help="jax loop variants to compare at the largest B: xla:U, pallas:L (default: none)")
+    ap.add_argument("--jax-kernel", default=None, help="the jax loop kernel of the main table (default: the package's)")
+    ap.add_argument("--kernel-steps", type=float, default=1e4, help="steps of the kernel sweep (default 1e4)")
     ap.add_argument("--commit", default=None, help="the code's commit, when not run in a git checkout")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--backends", nargs="+", default=["numba", "jax"], choices=["numba", "jax"])
@@ -303,6 +315,9 @@ def main(argv=None) -> int:
         except ImportError:
             print("jax is not installed: its column is skipped")
             a.backends = [b for b in a.backends if b != "jax"]
+    if a.jax_kernel is not None and "jax" in a.backends:
+        from rk4h.batch import _jax
+        _jax.KERNEL[_jax.jax.default_backend()] = a.jax_kernel
     rng = np.random.default_rng(1)
     rows = []
     for B in sizes:
@@ -328,8 +343,8 @@ def main(argv=None) -> int:
         if diff is not None:
             print(f"B={B:>8}: jax differs from numba by at most {diff:.1e} relative per instance", flush=True)
         rows.append((B, steps, cells, diff))
-    unroll_rows = (bench_unroll(model, max(sizes), int(a.unroll_steps), a.unroll, a.repeats)
-                   if a.unroll and "jax" in a.backends and "numba" in a.backends else [])
+    kernel_rows = (bench_kernels(model, max(sizes), int(a.kernel_steps), a.kernels, a.repeats)
+                   if a.kernels and "jax" in a.backends and "numba" in a.backends else [])
     chain_rows = [bench_chain(N, 20 if a.tiny else a.chain_steps, a.repeats, "jax" in a.backends) for N in chains]
     dfx_rows = bench_diffrax(model, dfx_sizes, a.repeats) if dfx_sizes else []
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -351,14 +366,15 @@ def main(argv=None) -> int:
         L.append(f"| {B:.0e} | {steps} | {'%.3f' % nb if nb else '-'} | "
                  f"{'%.2f' % (nb / (tight / cores)) if nb else '-'} | {'%.4f' % jx if jx else '-'} | "
                  f"{gpu_note or '%.4f' % jx} | {'%.1e' % diff if diff is not None else '-'} |")
-    if unroll_rows:
-        B = max(sizes)
-        L += ["", f"jax steps per loop iteration (`UNROLL`), B = {B:.0e}, {int(a.unroll_steps)} RK4 steps, "
-              f"ns per instance-step; the package's `UNROLL` is {rk4h.batch._jax.UNROLL}:", "",
-              f"| steps per iteration | jax | bit-identical to {a.unroll[0]} | jax vs numba (relative, per instance) |",
+    if kernel_rows:
+        B, jx = max(sizes), rk4h.batch._jax
+        L += ["", f"jax's loop kernels, B = {B:.0e}, {int(a.kernel_steps)} RK4 steps, ns per instance-step "
+              f"(xla:U: jax's loops, U steps per iteration; pallas:L: one Pallas kernel per output row, L instances "
+              f"per program); the package's choice: kernel {jx.KERNEL}, UNROLL {jx.UNROLL}, LANES {jx.LANES}:", "",
+              f"| kernel | jax | bit-identical to {a.kernels[0]} | jax vs numba (relative, per instance) |",
               "|---|---|---|---|"]
-        for U, s_, same, diff in unroll_rows:
-            L.append(f"| {U} | {s_:.4f} | {'yes' if same else 'NO'} | {diff:.1e} |")
+        for variant, s_, same, diff in kernel_rows:
+            L.append(f"| {variant} | {s_:.4f} | {'yes' if same else 'no'} | {diff:.1e} |")
     if chain_rows:
         L += ["", f"One uniform chain between walls (m = {CHAIN_M} kg, k = {CHAIN_K} N/m, h = {CHAIN_H} s), "
               "RK4, float64, ns per mass-step (numba: one core, one instance):", "",
@@ -373,6 +389,9 @@ def main(argv=None) -> int:
         for B, wall, steps, nb_wall, diff in dfx_rows:
             L.append(f"| {B:.0e} | {wall:.3f} | {steps:.0f} | {wall / (B * steps) * 1e9:.2f} | {nb_wall:.3f} | "
                      f"{diff:.1e} |")
+    if "jax" in a.backends:
+        from rk4h.batch import _jax
+        L += ["", f"The jax column's loop kernel: {_jax.KERNEL.get(_jax.jax.default_backend(), 'xla')}."]
     L += ["", "Devices: " + "; ".join(f"{k}: {v}" for k, v in devices.items()) + "."]
     table = "\n".join(L)
     print()

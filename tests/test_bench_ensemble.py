@@ -32,20 +32,21 @@ def test_diffrax_missing_is_one_line(bench, monkeypatch, capsys):
     assert len(out) == 1 and out[0].startswith("diffrax is not importable")
 
 
-def test_unroll_sweep_compares_and_restores(bench):
+def test_kernel_sweep_compares_and_restores(bench):
     pytest.importorskip("jax")
     import numpy as np
 
     import rk4h
     from rk4h.batch import _jax
 
-    before = dict(_jax.UNROLL)
+    before = dict(_jax.UNROLL), dict(_jax.KERNEL), _jax.LANES
     model = rk4h.make_model("chain", {"masses": bench.MASSES, "springs": bench.SPRINGS})
-    rows = bench.bench_unroll(model, 40, 37, [1, 3, 8], 1)
-    assert [r[0] for r in rows] == [1, 3, 8] and all(r[1] > 0 for r in rows)
-    assert all(r[2] for r in rows)  # every written-out body gives the one-step loop's states bit for bit
+    variants = ["xla:1", "xla:3", "xla:8", "pallas-interpret:16"]
+    rows = bench.bench_kernels(model, 40, 37, variants, 1)
+    assert [r[0] for r in rows] == variants and all(r[1] > 0 for r in rows)
+    assert all(r[2] for r in rows)  # every variant gives the one-step loop's states bit for bit (on the CPU)
     assert all(r[3] <= 1e-13 for r in rows)  # and the numba batch's to 1e-13 per instance
-    assert _jax.UNROLL == before  # the package's setting is left as it was
+    assert (dict(_jax.UNROLL), dict(_jax.KERNEL), _jax.LANES) == before  # the package's settings are left as they were
     # the per-instance measure sees one instance off by 1e-9 of its size
     a = np.ones((3, 2, 4))
     b = a.copy()

@@ -103,30 +103,54 @@ def test_diverging_instances_stop_alone(backend):
             assert _rel(res.y[b:b + 1, :rows], ref.y.T[None]) <= 1e-13
 
 
+@pytest.mark.parametrize("variant", [("xla", 5, 128), ("pallas-interpret", 1, 4)], ids=["xla-unroll5", "pallas"])
 @pytest.mark.parametrize("method", METHODS + ["yoshida4", "forest-ruth"], ids=_name)
-def test_jax_unrolled_loop_is_bit_for_bit_the_one_step_loop(monkeypatch, method):
-    # The GPU's written-out loop body (rk4h.batch._jax.UNROLL steps per iteration)
-    # must change no arithmetic: on the CPU, 5 steps per iteration against 1, with
-    # step counts between outputs (23, 77, 50) that 5 does not divide, and
-    # instances that diverge mid-block (t_fail and n_steps equal too).
+def test_jax_gpu_loops_are_bit_for_bit_the_one_step_loop(monkeypatch, method, variant):
+    # The GPU's loops must change no arithmetic: on the CPU, jax's loop with 5
+    # steps written out per iteration, and the Pallas kernel (run by Pallas'
+    # interpreter; 4 instances per program, so 5 instances need a padded
+    # program), against jax's one-step loop. Step counts between outputs (23,
+    # 77, 50) that 5 does not divide; instances that diverge mid-row (t_fail
+    # and n_steps equal too).
     pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
     from rk4h.batch import _jax
 
+    kernel, unroll, lanes = variant
     masses, y0 = _diverging()
     span, h = (0.0, 7.5), 0.05
     t_eval = [0.0, 23 * h, 100 * h, 7.5]
     runs = {}
-    for unroll in (1, 5):
-        monkeypatch.setattr(_jax, "UNROLL", {"cpu": unroll, "gpu": unroll})
-        runs[unroll] = ensemble(chain([1.0, 1.0]), y0, span, h=h, method=method, params={"masses": masses},
-                                t_eval=t_eval, backend="jax")
-    one, five = runs[1], runs[5]
+    for key, (k, u) in {"one": ("xla", 1), "other": (kernel, unroll)}.items():
+        monkeypatch.setattr(_jax, "UNROLL", {"cpu": u, "gpu": u})
+        monkeypatch.setattr(_jax, "KERNEL", {"cpu": k, "gpu": k})
+        monkeypatch.setattr(_jax, "LANES", lanes)
+        runs[key] = ensemble(chain([1.0, 1.0]), y0, span, h=h, method=method, params={"masses": masses},
+                             t_eval=t_eval, backend="jax")
+    one, other = runs["one"], runs["other"]
     assert (one.status != 0).any() and (one.status == 0).any()  # both kinds of instance are there
-    assert np.array_equal(one.y, five.y, equal_nan=True)
-    assert np.array_equal(one.n_steps, five.n_steps) and np.array_equal(one.status, five.status)
-    assert np.array_equal(one.t_fail, five.t_fail, equal_nan=True)
+    assert np.array_equal(one.y, other.y, equal_nan=True)
+    assert np.array_equal(one.n_steps, other.n_steps) and np.array_equal(one.status, other.status)
+    assert np.array_equal(one.t_fail, other.t_fail, equal_nan=True)
+
+
+def test_jax_pallas_kernel_float32_and_bad_settings(monkeypatch):
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4h.batch import _jax
+
+    y0 = np.random.default_rng(5).uniform(-0.01, 0.01, (3, 4))
+    monkeypatch.setattr(_jax, "LANES", 2)
+    kw = dict(t_eval=[0.0, 0.5, 1.0], backend="jax", dtype="float32")
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "xla"})
+    ref = ensemble(chain([0.815, 3.099]), y0, (0.0, 1.0), h=0.01, **kw)
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "pallas-interpret"})
+    res = ensemble(chain([0.815, 3.099]), y0, (0.0, 1.0), h=0.01, **kw)
+    assert np.array_equal(res.y, ref.y)
+    # the float32 states are float32 numbers (a float64 run differs from them)
+    assert np.array_equal(res.y, res.y.astype(np.float32).astype(np.float64))
     with pytest.raises(ValueError, match="`unroll` must be an integer >= 1, got 0"):
-        _jax.run(None, None, None, None, None, 0.0, h, 1, np.array([1]), None, None, None, None, unroll=0)
+        _jax.run(None, None, None, None, None, 0.0, 0.01, 1, np.array([1]), None, None, None, None, unroll=0)
+    with pytest.raises(ValueError, match="`kernel` must be one of .*, got 'cuda'"):
+        _jax.run(None, None, None, None, None, 0.0, 0.01, 1, np.array([1]), None, None, None, None, kernel="cuda")
 
 
 def test_array_loop_and_off_grid_output_bit_for_bit():

@@ -96,8 +96,115 @@ def _compile(text: str, name: str):
     return ns[name]
 
 
-def _runner(tab, kern, dtype: str, unroll: int):
-    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype, unroll)
+def _checked_step(step, dim, big):
+    """``one(c, fp, m, hs)``: one step of every lane of the carry ``c = (y, kc,
+    bound, pending, alive, done)`` (tuples of lane arrays for ``y``, ``kc`` and
+    ``bound``), with the instability test. Both kernels trace this one
+    function, so they run the same operations in the same order."""
+
+    def one(c, fpt, mt, hs):
+        y, kc, bound, pending, alive, done = c
+        new, kc_new = step(fpt, mt, y, kc, hs)
+        ok = alive
+        for p in range(dim):
+            ok = ok & (jnp.abs(new[p]) <= bound[p])
+        y = tuple(jnp.where(ok, a, b) for a, b in zip(new, y))
+        kc = tuple(jnp.where(ok, a, b) for a, b in zip(kc_new, kc))
+        norm = jnp.zeros_like(new[0])
+        for p in range(dim):
+            norm = jnp.maximum(norm, jnp.abs(new[p]))
+        arm = ok & (pending > 0) & (norm > 0)
+        armed = jnp.minimum(pending * norm, big)
+        bound = tuple(jnp.where(arm, armed, b) for b in bound)
+        pending = jnp.where(arm, 0.0, pending)
+        return y, kc, bound, pending, ok, done + ok.astype(done.dtype)
+
+    return one
+
+
+def _xla_steps(one, unroll):
+    """``steps(c, count, fpt, mt, hs)``: ``count`` steps as XLA loops,
+    ``unroll`` written out per iteration, then the remainder one at a time."""
+
+    def steps(c, count, fpt, mt, hs):
+        def single(_, c):
+            return one(c, fpt, mt, hs)
+
+        def block(_, c):
+            for _ in range(unroll):
+                c = one(c, fpt, mt, hs)
+            return c
+
+        c = lax.fori_loop(0, count // unroll, block, c)
+        return lax.fori_loop(0, count % unroll, single, c)
+
+    return steps
+
+
+def _pallas_steps(one, names, coefs, dt, lanes, interpret):
+    """``steps(c, count, fpt, mt, h)`` as one Pallas kernel: each program takes
+    ``lanes`` instances, loads their state once, runs all ``count`` steps with
+    it in registers and stores it once. Every lane array must have a length
+    that ``lanes`` divides (the caller pads)."""
+    from jax.experimental import pallas as pl
+    from jax.experimental.pallas import triton as pltriton
+
+    def steps(c, count, fpt, mt, h):
+        y, kc, bound, pending, alive, done = c
+        ins = (*fpt, *mt, *y, *kc, *bound, pending, alive.astype(jnp.int32), done)
+        sizes = (len(fpt), len(mt), len(y), len(kc), len(bound))
+        B = pending.shape[0]
+
+        def kernel(count_ref, h_ref, *refs):
+            loaded = [r[...] for r in refs[:len(ins)]]
+            parts, at = [], 0
+            for size in sizes:
+                parts.append(tuple(loaded[at:at + size]))
+                at += size
+            fpk, mk, yk, kck, boundk = parts
+            pendk, alivek, donek = loaded[at], loaded[at + 1] != 0, loaded[at + 2]
+            hk = h_ref[0]
+            hs = {nm: hk * jnp.asarray(cf, dtype=dt) for nm, cf in zip(names, coefs)}
+
+            def single(_, c):
+                return one(c, fpk, mk, hs)
+
+            out = lax.fori_loop(0, count_ref[0], single, (yk, kck, boundk, pendk, alivek, donek))
+            flat = (*out[0], *out[1], *out[2], out[3], out[4].astype(jnp.int32), out[5])
+            for r, v in zip(refs[len(ins):], flat):
+                r[...] = v
+
+        lane = pl.BlockSpec((lanes,), lambda i: (i,))
+        one_value = pl.BlockSpec((1,), lambda i: (0,))
+        outs = pl.pallas_call(
+            kernel, grid=(B // lanes,),
+            in_specs=[one_value, one_value] + [lane] * len(ins),
+            out_specs=[lane] * (len(ins) - len(fpt) - len(mt)),
+            out_shape=[jax.ShapeDtypeStruct((B,), a.dtype) for a in ins[len(fpt) + len(mt):]],
+            interpret=interpret,
+            compiler_params=pltriton.CompilerParams(),  # Triton: jax's default GPU lowering is Mosaic
+        )(jnp.reshape(count, (1,)).astype(jnp.int64), jnp.reshape(h, (1,)), *ins)
+        nq, nk, nb = len(y), len(kc), len(bound)
+        return (tuple(outs[:nq]), tuple(outs[nq:nq + nk]), tuple(outs[nq + nk:nq + nk + nb]),
+                outs[-3], outs[-2] != 0, outs[-1])
+
+    return steps
+
+
+#: Instances per Pallas program (a power of two, as Triton's blocks must be).
+LANES = 128
+#: The loop's kernels: ``"xla"`` (jax's own loops, :data:`UNROLL` steps per
+#: iteration), ``"pallas"`` (one Pallas kernel per output row: the state
+#: stays in registers for all the row's steps; GPU only) and
+#: ``"pallas-interpret"`` (that kernel's jax program run by Pallas'
+#: interpreter: any platform, slow; the tests' check of its arithmetic).
+KERNELS = ("xla", "pallas", "pallas-interpret")
+#: Kernel by jax platform; any other platform: ``"xla"``.
+KERNEL = {"cpu": "xla", "gpu": "pallas"}
+
+
+def _runner(tab, kern, dtype: str, unroll: int, kernel: str):
+    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype, unroll, kernel)
     hit = _STEPS.get(key)
     if hit is not None:
         return hit[0]
@@ -105,74 +212,74 @@ def _runner(tab, kern, dtype: str, unroll: int):
     step = _compile(step_source(tab, kern), "step")
     first = _compile(_first_force_source(tab, kern), "first") if plan.fsal else None
     names = [line.strip().split(" = ")[0] for line in plan.products("")]
-    coefs = [line.strip().split(" * ")[1] for line in plan.products("")]
+    coefs = [float(line.strip().split(" * ")[1]) for line in plan.products("")]
     dt = jnp.dtype(dtype)
     dim = 2 * kern.n_dof
-    big = float(np.finfo(dt).max)
+    one = _checked_step(step, dim, float(np.finfo(dt).max))
+    if kernel == "xla":
+        steps = _xla_steps(one, unroll)
+    else:
+        steps = _pallas_steps(one, names, coefs, dt, LANES, interpret=kernel == "pallas-interpret")
 
     @jax.jit
     def run(fp, m, y0, bound, pending, h, counts):
         # fp (n_fp, B), m (n_dof, B), y0 (dim, B), bound (dim, B), pending (B,)
-        hs = {nm: h * jnp.asarray(float(c), dtype=dt) for nm, c in zip(names, coefs)}
         fpt = tuple(fp[j] for j in range(fp.shape[0]))
         mt = tuple(m[j] for j in range(m.shape[0]))
         y = tuple(y0[p] for p in range(dim))
+        hs = {nm: h * jnp.asarray(c, dtype=dt) for nm, c in zip(names, coefs)}
         kc = first(fpt, mt, y) if first is not None else ()
         B = y0.shape[1]
         alive = jnp.ones(B, dtype=bool)
         done = jnp.zeros(B, dtype=jnp.int64)
-
-        def one(_, c):
-            y, kc, bound, pending, alive, done = c
-            new, kc_new = step(fpt, mt, y, kc, hs)
-            ok = alive
-            for p in range(dim):
-                ok = ok & (jnp.abs(new[p]) <= bound[p])
-            y = tuple(jnp.where(ok, a, b) for a, b in zip(new, y))
-            kc = tuple(jnp.where(ok, a, b) for a, b in zip(kc_new, kc))
-            norm = jnp.zeros_like(new[0])
-            for p in range(dim):
-                norm = jnp.maximum(norm, jnp.abs(new[p]))
-            arm = ok & (pending > 0) & (norm > 0)
-            bound = jnp.where(arm[None, :], jnp.minimum(pending * norm, big)[None, :], bound)
-            pending = jnp.where(arm, 0.0, pending)
-            return y, kc, bound, pending, ok, done + ok.astype(done.dtype)
-
-        def block(i, c):
-            for _ in range(unroll):
-                c = one(i, c)
-            return c
+        per_step = h if kernel != "xla" else hs  # the Pallas kernel forms the products itself
 
         def row(c, count):
-            c = lax.fori_loop(0, count // unroll, block, c)
-            c = lax.fori_loop(0, count % unroll, one, c)
+            c = steps(c, count, fpt, mt, per_step)
             out = jnp.stack([jnp.where(c[4], yp, jnp.nan) for yp in c[0]], axis=-1)
             return c, out
 
-        c, ys = lax.scan(row, (y, kc, bound, pending, alive, done), counts)
+        c, ys = lax.scan(row, (y, kc, tuple(bound[p] for p in range(dim)), pending, alive, done), counts)
         return ys, c[5], c[4]
 
     _STEPS[key] = (run, tab)  # the tableau is kept, so its id is never reused
     return run
 
 
-def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64", unroll=None):
+def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64", unroll=None,
+        kernel=None):
     """Integrate the rows of ``y0`` (one chunk), writing ``ys`` (B, rows, dim)
     in place; returns ``(steps completed, status)`` per instance. The output
     points ``idx`` are grid steps (``theta`` all zero). ``unroll``: steps per
-    loop iteration (default: :data:`UNROLL` of jax's default platform)."""
-    unroll = UNROLL.get(jax.default_backend(), 1) if unroll is None else unroll
+    XLA loop iteration (default: :data:`UNROLL` of jax's default platform);
+    ``kernel``: one of :data:`KERNELS` (default: :data:`KERNEL` of that
+    platform)."""
+    platform = jax.default_backend()
+    unroll = UNROLL.get(platform, 1) if unroll is None else unroll
     if isinstance(unroll, bool) or not isinstance(unroll, int) or unroll < 1:
         raise ValueError(f"`unroll` must be an integer >= 1, got {unroll!r}")
+    kernel = KERNEL.get(platform, "xla") if kernel is None else kernel
+    if kernel not in KERNELS:
+        raise ValueError(f"`kernel` must be one of {KERNELS}, got {kernel!r}")
     if not kern.has_scalar():
         raise ValueError(f"backend='jax' needs a force with a straight-line form (at most "
                          f"{kern.MAX_SCALAR_DOF} degrees of freedom), got {kern.n_dof}; use backend='numba'")
     dt = np.dtype(dtype)
-    fn = _runner(tab, kern, dtype, unroll)
+    fn = _runner(tab, kern, dtype, unroll, kernel)
     counts = np.diff(np.concatenate([[0], idx])).astype(np.int64)
     big = np.finfo(dt).max
-    out, done, alive = fn(jnp.asarray(fp.T, dtype=dt), jnp.asarray(mass.T, dtype=dt), jnp.asarray(y0.T, dtype=dt),
-                          jnp.asarray(np.minimum(bound, big).T, dtype=dt), jnp.asarray(pending, dtype=dt),
+    B = y0.shape[0]
+    pad = (-B) % LANES if kernel != "xla" else 0
+
+    def lanes(a, fill):  # (B, k) -> (k, B + pad), the padding lanes a copy of `fill`
+        a = np.asarray(a).T
+        return jnp.asarray(np.concatenate([a, np.broadcast_to(fill, (a.shape[0], pad))], axis=1) if pad else a,
+                           dtype=dt)
+
+    # Padding lanes: the first instance's parameters, a zero state and no growth test: finite, never read back.
+    out, done, alive = fn(lanes(fp, fp[:1].T), lanes(mass, mass[:1].T), lanes(y0, 0.0),
+                          lanes(np.minimum(bound, big), big), lanes(np.asarray(pending)[:, None], 0.0)[0],
                           jnp.asarray(step, dtype=dt), jnp.asarray(counts))
-    ys[...] = np.swapaxes(np.asarray(out, dtype=np.float64), 0, 1)
-    return np.asarray(done, dtype=np.int64), np.where(np.asarray(alive), 0, -1).astype(np.int64)
+    ys[...] = np.swapaxes(np.asarray(out, dtype=np.float64), 0, 1)[:B]
+    return (np.asarray(done, dtype=np.int64)[:B],
+            np.where(np.asarray(alive)[:B], 0, -1).astype(np.int64))
