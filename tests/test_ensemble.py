@@ -133,6 +133,45 @@ def test_jax_gpu_loops_are_bit_for_bit_the_one_step_loop(monkeypatch, method, va
     assert np.array_equal(one.t_fail, other.t_fail, equal_nan=True)
 
 
+def test_jax_pallas_programs_follow_lanes(monkeypatch):
+    # A compiled kernel is kept per programs' width: after a run with 4
+    # instances per program, a run with 2 must not reuse the 4-wide kernel
+    # (5 instances padded to 6 would leave a program's worth unrun).
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4h.batch import _jax
+
+    masses, y0 = _diverging()
+    kw = dict(params={"masses": masses}, t_eval=[0.0, 1.0, 3.0], backend="jax")
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "xla", "gpu": "xla"})
+    ref = ensemble(chain([1.0, 1.0]), y0, (0.0, 3.0), h=0.05, **kw)
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "pallas-interpret", "gpu": "pallas-interpret"})
+    for lanes in (4, 2, 8):
+        monkeypatch.setattr(_jax, "LANES", lanes)
+        res = ensemble(chain([1.0, 1.0]), y0, (0.0, 3.0), h=0.05, **kw)
+        assert np.array_equal(res.y, ref.y, equal_nan=True), lanes
+        assert np.array_equal(res.n_steps, ref.n_steps) and np.array_equal(res.status, ref.status)
+
+
+def test_jax_without_pallas_triton_runs_xla_loops_and_says_so(monkeypatch):
+    # jax 0.11 deprecates Pallas' Triton backend: without it the default GPU
+    # kernel becomes jax's own loops with one warning (same numbers), and an
+    # explicit request for the Pallas kernel is refused.
+    pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
+    from rk4h.batch import _jax
+
+    y0 = np.random.default_rng(6).uniform(-0.01, 0.01, (3, 4))
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "xla", "gpu": "xla"})
+    ref = ensemble(chain([0.815, 3.099]), y0, (0.0, 0.5), h=0.01, backend="jax")
+    monkeypatch.setattr(_jax, "KERNEL", {"cpu": "pallas-interpret", "gpu": "pallas"})
+    monkeypatch.setattr(_jax, "_has_pallas_triton", lambda: False)
+    with pytest.warns(RuntimeWarning, match="has no Pallas Triton backend"):
+        res = ensemble(chain([0.815, 3.099]), y0, (0.0, 0.5), h=0.01, backend="jax")
+    assert np.array_equal(res.y, ref.y)
+    with pytest.raises(ValueError, match="needs jax's Pallas Triton backend"):
+        _jax.run(None, None, None, None, None, 0.0, 0.01, 1, np.array([1]), None, None, None, None,
+                 kernel="pallas")
+
+
 def test_jax_pallas_kernel_float32_and_bad_settings(monkeypatch):
     pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
     from rk4h.batch import _jax

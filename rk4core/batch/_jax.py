@@ -11,15 +11,25 @@ instance -- so the batch is the vector width; ``math.f`` of the printed
 expressions is ``jax.numpy.f``.
 
 The steps run in a ``lax.scan`` over the output rows, each row after the
-steps up to it: a ``lax.fori_loop`` whose body is :data:`UNROLL` steps written
-out one after the other, then one loop of single steps for the remainder. The
-written-out body is what makes a GPU fast: XLA fuses it into one kernel, so the
-state stays in registers for ``UNROLL`` steps instead of going through device
-memory (and a loop iteration's launch) after every step. Unrolling changes no
-arithmetic: every instance does the same operations in the same order for
-any ``UNROLL`` (tests/test_ensemble.py checks it bit for bit).
-An instance whose new state fails the instability test keeps its last
-accepted state and is marked dead (its later rows are NaN); the others run on.
+steps up to it, by one of two loop kernels (:data:`KERNEL`, by platform):
+
+* ``"pallas"`` (GPU): one Pallas kernel (Triton) per output row. Each program
+  loads :data:`LANES` instances' states once, runs all the row's steps with
+  them in registers and stores them once: on an H200, about 4 us per step for
+  10^6 instances (derived from two timed calls in docs/performance.md).
+* ``"xla"`` (CPU, and the GPU when jax lacks Pallas' Triton backend): a
+  ``lax.fori_loop`` whose body is :data:`UNROLL` steps written out, then the
+  remainder one at a time. On a GPU every iteration still sends the state
+  through device memory: a whole call of 10^6 instances for 10^4 steps took
+  0.066 ns per instance-step at 16 steps per iteration, against 0.050 with
+  the Pallas kernel (H200, docs/performance.md).
+
+Both trace one function (step, then the instability test), so they run the
+same operations in the same order: tests/test_ensemble.py checks them bit
+for bit against each other on the CPU (the Pallas program through Pallas'
+interpreter, ``"pallas-interpret"``). An instance whose new state fails the
+instability test keeps its last accepted state and is marked dead (its later
+rows are NaN); the others run on.
 
 Importing this module switches jax's x64 mode on (float64 arithmetic;
 ``jax.config.update("jax_enable_x64", True)``).
@@ -27,6 +37,7 @@ Importing this module switches jax's x64 mode on (float64 arithmetic;
 from __future__ import annotations
 
 import types
+import warnings
 
 import numpy as np
 
@@ -38,13 +49,12 @@ from ..fast.codegen import _force, _Plan, step_lines
 
 jax.config.update("jax_enable_x64", True)
 
-__all__ = ["run", "step_source", "UNROLL"]
+__all__ = ["run", "step_source", "KERNEL", "KERNELS", "LANES", "UNROLL"]
 
-#: Steps written out in one loop iteration, by jax platform (see the module's
-#: docstring); any other platform: 1. On the CPU, XLA's code for a written-out
-#: body is slower per step (2.7x at 16 steps, docs/performance.md), so it
-#: stays 1 there; the GPU figure is measured by
-#: ``benchmarks/bench_ensemble.py --unroll``.
+#: Steps written out in one iteration of the ``"xla"`` kernel, by jax platform
+#: (any other: 1). On the CPU a written-out body is slower per step (2.7x at
+#: 16 steps, docs/performance.md), so it stays 1 there. Measured by
+#: ``benchmarks/bench_ensemble.py --kernels xla:1 xla:16``.
 UNROLL = {"cpu": 1, "gpu": 16}
 
 _MATH = types.SimpleNamespace(**{name: getattr(jnp, name) for name in dir(jnp) if not name.startswith("_")})
@@ -154,6 +164,8 @@ def _pallas_steps(one, names, coefs, dt, lanes, interpret):
         ins = (*fpt, *mt, *y, *kc, *bound, pending, alive.astype(jnp.int32), done)
         sizes = (len(fpt), len(mt), len(y), len(kc), len(bound))
         B = pending.shape[0]
+        if B % lanes:
+            raise ValueError(f"{B} instances do not fill programs of {lanes} (the caller pads)")
 
         def kernel(count_ref, h_ref, *refs):
             loaded = [r[...] for r in refs[:len(ins)]]
@@ -203,8 +215,8 @@ KERNELS = ("xla", "pallas", "pallas-interpret")
 KERNEL = {"cpu": "xla", "gpu": "pallas"}
 
 
-def _runner(tab, kern, dtype: str, unroll: int, kernel: str):
-    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype, unroll, kernel)
+def _runner(tab, kern, dtype: str, unroll: int, kernel: str, lanes: int):
+    key = (tab.name, id(tab), kern.key(), kern.scalar_key(), dtype, unroll, kernel, lanes)
     hit = _STEPS.get(key)
     if hit is not None:
         return hit[0]
@@ -215,23 +227,36 @@ def _runner(tab, kern, dtype: str, unroll: int, kernel: str):
     coefs = [float(line.strip().split(" * ")[1]) for line in plan.products("")]
     dt = jnp.dtype(dtype)
     dim = 2 * kern.n_dof
-    one = _checked_step(step, dim, float(np.finfo(dt).max))
+    big = float(np.finfo(dt).max)
+    one = _checked_step(step, dim, big)
     if kernel == "xla":
         steps = _xla_steps(one, unroll)
     else:
-        steps = _pallas_steps(one, names, coefs, dt, LANES, interpret=kernel == "pallas-interpret")
+        steps = _pallas_steps(one, names, coefs, dt, lanes, interpret=kernel == "pallas-interpret")
 
     @jax.jit
     def run(fp, m, y0, bound, pending, h, counts):
-        # fp (n_fp, B), m (n_dof, B), y0 (dim, B), bound (dim, B), pending (B,)
-        fpt = tuple(fp[j] for j in range(fp.shape[0]))
-        mt = tuple(m[j] for j in range(m.shape[0]))
-        y = tuple(y0[p] for p in range(dim))
+        # instance-major, as the caller holds them: fp (B, n_fp), m (B, n_dof), y0 (B, dim),
+        # bound (B, dim) and pending (B,) in float64; the lanes are formed here, on the device.
+        B = y0.shape[0]
+        pad = (-B) % lanes
+
+        def lane_arrays(a, fill):  # (B, k) -> k arrays of B + pad lanes, the padding a copy of `fill`
+            a = a.T.astype(dt)
+            if pad:
+                a = jnp.concatenate([a, jnp.broadcast_to(jnp.asarray(fill, dtype=dt), (a.shape[0], pad))], axis=1)
+            return tuple(a[j] for j in range(a.shape[0]))
+
+        # padding lanes: the first instance's parameters, a zero state, no growth test; never read back
+        fpt = lane_arrays(fp, fp[:1].T)
+        mt = lane_arrays(m, m[:1].T)
+        y = lane_arrays(y0, 0.0)
+        bounds = lane_arrays(jnp.minimum(bound, big), big)
+        (pending,) = lane_arrays(pending[:, None], 0.0)
         hs = {nm: h * jnp.asarray(c, dtype=dt) for nm, c in zip(names, coefs)}
         kc = first(fpt, mt, y) if first is not None else ()
-        B = y0.shape[1]
-        alive = jnp.ones(B, dtype=bool)
-        done = jnp.zeros(B, dtype=jnp.int64)
+        alive = jnp.ones(B + pad, dtype=bool)
+        done = jnp.zeros(B + pad, dtype=jnp.int64)
         per_step = h if kernel != "xla" else hs  # the Pallas kernel forms the products itself
 
         def row(c, count):
@@ -239,11 +264,21 @@ def _runner(tab, kern, dtype: str, unroll: int, kernel: str):
             out = jnp.stack([jnp.where(c[4], yp, jnp.nan) for yp in c[0]], axis=-1)
             return c, out
 
-        c, ys = lax.scan(row, (y, kc, tuple(bound[p] for p in range(dim)), pending, alive, done), counts)
-        return ys, c[5], c[4]
+        c, ys = lax.scan(row, (y, kc, bounds, pending, alive, done), counts)
+        return jnp.swapaxes(ys, 0, 1)[:B].astype(jnp.float64), c[5][:B], c[4][:B]
 
     _STEPS[key] = (run, tab)  # the tableau is kept, so its id is never reused
     return run
+
+
+def _has_pallas_triton() -> bool:
+    """Whether jax's Pallas has its Triton backend (deprecated in jax 0.11, to
+    be removed: then the GPU runs jax's own loops, with a warning)."""
+    try:
+        from jax.experimental.pallas import triton  # noqa: F401
+    except ImportError:
+        return False
+    return hasattr(triton, "CompilerParams")
 
 
 def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *, dtype="float64", unroll=None,
@@ -258,28 +293,25 @@ def run(tab, kern, fp, mass, y0, t0, step, n, idx, theta, ys, bound, pending, *,
     unroll = UNROLL.get(platform, 1) if unroll is None else unroll
     if isinstance(unroll, bool) or not isinstance(unroll, int) or unroll < 1:
         raise ValueError(f"`unroll` must be an integer >= 1, got {unroll!r}")
-    kernel = KERNEL.get(platform, "xla") if kernel is None else kernel
+    chosen = kernel is None
+    kernel = KERNEL.get(platform, "xla") if chosen else kernel
     if kernel not in KERNELS:
         raise ValueError(f"`kernel` must be one of {KERNELS}, got {kernel!r}")
+    if kernel != "xla" and not _has_pallas_triton():
+        if not chosen:
+            raise ValueError(f"`kernel` = {kernel!r} needs jax's Pallas Triton backend, which this jax "
+                             f"({jax.__version__}) does not have")
+        warnings.warn(f"rk4h.ensemble: this jax ({jax.__version__}) has no Pallas Triton backend; the "
+                      f"{platform} batch runs jax's own loops (slower, same numbers)", RuntimeWarning, stacklevel=3)
+        kernel = "xla"
     if not kern.has_scalar():
         raise ValueError(f"backend='jax' needs a force with a straight-line form (at most "
                          f"{kern.MAX_SCALAR_DOF} degrees of freedom), got {kern.n_dof}; use backend='numba'")
     dt = np.dtype(dtype)
-    fn = _runner(tab, kern, dtype, unroll, kernel)
+    fn = _runner(tab, kern, dtype, unroll, kernel, LANES if kernel != "xla" else 1)
     counts = np.diff(np.concatenate([[0], idx])).astype(np.int64)
-    big = np.finfo(dt).max
-    B = y0.shape[0]
-    pad = (-B) % LANES if kernel != "xla" else 0
-
-    def lanes(a, fill):  # (B, k) -> (k, B + pad), the padding lanes a copy of `fill`
-        a = np.asarray(a).T
-        return jnp.asarray(np.concatenate([a, np.broadcast_to(fill, (a.shape[0], pad))], axis=1) if pad else a,
-                           dtype=dt)
-
-    # Padding lanes: the first instance's parameters, a zero state and no growth test: finite, never read back.
-    out, done, alive = fn(lanes(fp, fp[:1].T), lanes(mass, mass[:1].T), lanes(y0, 0.0),
-                          lanes(np.minimum(bound, big), big), lanes(np.asarray(pending)[:, None], 0.0)[0],
-                          jnp.asarray(step, dtype=dt), jnp.asarray(counts))
-    ys[...] = np.swapaxes(np.asarray(out, dtype=np.float64), 0, 1)[:B]
-    return (np.asarray(done, dtype=np.int64)[:B],
-            np.where(np.asarray(alive)[:B], 0, -1).astype(np.int64))
+    out, done, alive = fn(jnp.asarray(fp, dtype=np.float64), jnp.asarray(mass, dtype=np.float64),
+                          jnp.asarray(y0, dtype=np.float64), jnp.asarray(bound, dtype=np.float64),
+                          jnp.asarray(pending, dtype=np.float64), jnp.asarray(step, dtype=dt), jnp.asarray(counts))
+    ys[...] = np.asarray(out)
+    return np.asarray(done, dtype=np.int64), np.where(np.asarray(alive), 0, -1).astype(np.int64)
