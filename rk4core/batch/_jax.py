@@ -196,8 +196,8 @@ def _pallas_steps(one, names, coefs, dt, lanes, interpret):
             interpret=interpret,
             compiler_params=pltriton.CompilerParams(),  # Triton: jax's default GPU lowering is Mosaic
         )(jnp.reshape(count, (1,)).astype(jnp.int64), jnp.reshape(h, (1,)), *ins)
-        nq, nk, nb = len(y), len(kc), len(bound)
-        return (tuple(outs[:nq]), tuple(outs[nq:nq + nk]), tuple(outs[nq + nk:nq + nk + nb]),
+        ny, nk, nb = len(y), len(kc), len(bound)
+        return (tuple(outs[:ny]), tuple(outs[ny:ny + nk]), tuple(outs[ny + nk:ny + nk + nb]),
                 outs[-3], outs[-2] != 0, outs[-1])
 
     return steps
