@@ -52,3 +52,25 @@ def test_kernel_sweep_compares_and_restores(bench):
     b = a.copy()
     b[1, 1, 2] += 1e-9
     assert abs(bench.rel_diff(b, a) - 1e-9) < 1e-15
+
+
+def test_overhead_benchmark_times_calls(capsys):
+    spec = importlib.util.spec_from_file_location(
+        "bench_ensemble_overhead", BENCH.parent / "bench_ensemble_overhead.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ts = mod.per_call("numba", 300, 2, 3)
+    assert len(ts) == 3 and all(t > 0 for t in ts)
+    assert mod.main(["--B", "200", "--repeats", "2"]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("numba: B = 2e+02, 2 steps: median") and "load average" in line
+
+
+def test_gpu_script_parses():
+    import subprocess
+
+    script = BENCH.parent / "gpu_ensemble.sh"
+    assert subprocess.run(["bash", "-n", str(script)]).returncode == 0
+    # it asks for the arguments it needs instead of running with none
+    r = subprocess.run(["bash", str(script)], capture_output=True, text=True)
+    assert r.returncode != 0 and "usage: gpu_ensemble.sh OUTDIR" in r.stderr
