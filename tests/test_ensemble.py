@@ -103,8 +103,15 @@ def test_diverging_instances_stop_alone(backend):
             assert _rel(res.y[b:b + 1, :rows], ref.y.T[None]) <= 1e-13
 
 
-@pytest.mark.parametrize("variant", [("xla", 5, 128), ("pallas-interpret", 1, 4)], ids=["xla-unroll5", "pallas"])
-@pytest.mark.parametrize("method", METHODS + ["yoshida4", "forest-ruth"], ids=_name)
+_XLA5, _PALLAS = ("xla", 5, 128), ("pallas-interpret", 1, 4)
+
+
+# The Pallas kernel (the GPU's default) with every kind of method: classical, a
+# scene tableau, partitioned with a carried force, a composition with and
+# without one; jax's written-out loop (the GPU's fallback) with two.
+@pytest.mark.parametrize("method, variant", [(m, _PALLAS) for m in METHODS + ["yoshida4", "forest-ruth"]]
+                         + [("rk4", _XLA5), ("yoshida4", _XLA5)],
+                         ids=lambda v: v[0] if isinstance(v, tuple) else _name(v))
 def test_jax_gpu_loops_are_bit_for_bit_the_one_step_loop(monkeypatch, method, variant):
     # The GPU's loops must change no arithmetic: on the CPU, jax's loop with 5
     # steps written out per iteration, and the Pallas kernel (run by Pallas'
