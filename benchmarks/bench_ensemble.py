@@ -315,9 +315,17 @@ def main(argv=None) -> int:
         except ImportError:
             print("jax is not installed: its column is skipped")
             a.backends = [b for b in a.backends if b != "jax"]
-    if a.jax_kernel is not None and "jax" in a.backends:
+    if "jax" in a.backends:
         from rk4h.batch import _jax
-        _jax.KERNEL[_jax.jax.default_backend()] = a.jax_kernel
+        asked = [a.jax_kernel or _jax.KERNEL.get(_jax.jax.default_backend(), "xla")]
+        asked += [v.split(":")[0] for v in a.kernels or []]
+        if any(k != "xla" for k in asked) and not _jax._has_pallas_triton():
+            # rk4h would run jax's own loops instead (with a warning): a row named pallas would not be
+            print(f"error: this jax ({_jax.jax.__version__}) has no Pallas Triton backend: the Pallas kernel "
+                  f"cannot be measured; ask for --jax-kernel xla and xla:U variants only", file=sys.stderr)
+            return 2
+        if a.jax_kernel is not None:
+            _jax.KERNEL[_jax.jax.default_backend()] = a.jax_kernel
     rng = np.random.default_rng(1)
     rows = []
     for B in sizes:

@@ -7,18 +7,22 @@
 #     bash benchmarks/gpu_ensemble.sh OUTDIR [COMMIT]
 #
 # Run from the repository root with rk4h importable. If the Pallas kernel fails
-# on the GPU, the table is measured with jax's own loops (xla) and the smoke
-# log says why; nothing falls back silently.
+# on the GPU (or jax has no Pallas Triton backend, which rk4h would replace
+# by jax's loops with a warning: an error here), the table is measured with
+# jax's own loops (xla) and the smoke log says why; nothing falls back
+# silently.
 set -uo pipefail
 out=${1:?usage: gpu_ensemble.sh OUTDIR [COMMIT]}
 commit=${2:-unknown}
+mkdir -p "$out" || exit 2
 export PYTHONUNBUFFERED=1 PYTHONDONTWRITEBYTECODE=1
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>&1 | tee "$out/env.txt"
 python3 -c "import jax, numba, numpy, scipy, rk4h; print('jax', jax.__version__, jax.devices(), 'numba', numba.__version__, 'numpy', numpy.__version__, 'scipy', scipy.__version__, rk4h.__file__)" 2>&1 | tee -a "$out/env.txt"
 
 kernels="xla:1 xla:16"
 jk=xla
-if timeout 100 python3 - <<'PY' 2>&1 | tee "$out/smoke.log"
+# -W error: rk4h's warning that it fell back to jax's loops (no Pallas Triton) fails the check
+if timeout 100 python3 -W "error:rk4h.ensemble:RuntimeWarning" - <<'PY' 2>&1 | tee "$out/smoke.log"
 import time
 import numpy as np
 import rk4h

@@ -74,3 +74,19 @@ def test_gpu_script_parses():
     # it asks for the arguments it needs instead of running with none
     r = subprocess.run(["bash", str(script)], capture_output=True, text=True)
     assert r.returncode != 0 and "usage: gpu_ensemble.sh OUTDIR" in r.stderr
+
+
+def test_pallas_rows_refused_without_triton(bench, monkeypatch, capsys):
+    # without Pallas' Triton backend rk4h runs jax's loops (with a warning): the
+    # benchmark must not label such a row "pallas"
+    pytest.importorskip("jax")
+    from rk4h.batch import _jax
+
+    monkeypatch.setattr(_jax, "_has_pallas_triton", lambda: False)
+    monkeypatch.setattr(_jax, "KERNEL", dict(_jax.KERNEL))  # main sets the kernel it is asked for
+    args = ["--sizes", "4", "--work", "40", "--min-steps", "10", "--repeats", "1", "--chains", "--diffrax"]
+    assert bench.main(args + ["--kernels", "xla:1", "pallas:4"]) == 2
+    assert bench.main(args + ["--jax-kernel", "pallas"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("has no Pallas Triton backend") == 2
+    assert _jax.KERNEL.get("cpu") == "xla"  # refused before anything was set

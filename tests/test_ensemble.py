@@ -161,7 +161,7 @@ def test_jax_pallas_programs_follow_lanes(monkeypatch):
 
 def test_jax_without_pallas_triton_runs_xla_loops_and_says_so(monkeypatch):
     # jax 0.11 deprecates Pallas' Triton backend: without it the default GPU
-    # kernel becomes jax's own loops with one warning (same numbers), and an
+    # kernel becomes jax's own loops with one warning (equal numbers here), and an
     # explicit request for the Pallas kernel is refused.
     pytest.importorskip("jax", reason="jax is not installed (the gpu extra)")
     from rk4h.batch import _jax
