@@ -23,25 +23,27 @@ kernels="xla:1 xla:16"
 jk=xla
 # -W error: rk4h's warning that it fell back to jax's loops (no Pallas Triton) fails the check
 if timeout 100 python3 -W "error:rk4h.ensemble:RuntimeWarning" - <<'PY' 2>&1 | tee "$out/smoke.log"
+import sys
 import time
 import numpy as np
 import rk4h
 from rk4h.batch import _jax
-model = rk4h.make_model("chain", {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]})
+sys.path.insert(0, "benchmarks")
+from bench_ensemble import MASSES, SPRINGS, rel_diff
+model = rk4h.make_model("chain", {"masses": MASSES, "springs": SPRINGS})
 rng = np.random.default_rng(9)
 B, h = 1000, 1e-3
 y0 = rng.uniform(-0.005, 0.005, (B, 4))
 masses = rng.uniform(0.3, 4.0, (B, 2))
 worst = 0.0
 for method in ["rk4", "stormer-verlet", "yoshida4"]:
+    kw = dict(h=h, method=method, params={"masses": masses}, t_eval=[0.0, 0.777, 2.0])
+    ref = rk4h.ensemble(model, y0, (0.0, 2.0), backend="numba", **kw).y
     for dtype in ["float64", "float32"]:
         t = time.perf_counter()
-        r = rk4h.ensemble(model, y0, (0.0, 2.0), h=h, method=method, params={"masses": masses},
-                          t_eval=[0.0, 0.777, 2.0], backend="jax", dtype=dtype)
+        r = rk4h.ensemble(model, y0, (0.0, 2.0), backend="jax", dtype=dtype, **kw)
         t = time.perf_counter() - t
-        ref = rk4h.ensemble(model, y0, (0.0, 2.0), h=h, method=method, params={"masses": masses},
-                            t_eval=[0.0, 0.777, 2.0], backend="numba").y
-        d = np.max(np.max(np.abs(r.y - ref), axis=(1, 2)) / np.max(np.abs(ref), axis=(1, 2)))
+        d = rel_diff(r.y, ref)
         print(f"pallas on {_jax.jax.default_backend()}: {method} {dtype}: {t:.1f} s, status all 0: "
               f"{bool((r.status == 0).all())}, relative difference from numba {d:.1e}", flush=True)
         if dtype == "float64":
