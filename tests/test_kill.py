@@ -85,7 +85,9 @@ def _assert_complete_new(out: Path):
     assert atomic.read_marker(out)["state"] == "complete"
     index = (out / "index.md").read_text()
     linked = set(re.findall(r"\]\(([^)]+)\)", index))
-    assert files == linked | {"index.md"}, (files, linked)
+    # index.md says each table is also written as NAME.parquet, beside its linked NAME.csv
+    twins = {n[:-len(".csv")] + ".parquet" for n in linked if n.endswith(".csv")}
+    assert files == linked | twins | {"index.md"}, (files, linked)
     assert "2 scene(s)" in index and "## Environment" in index
     acc = pd.read_csv(out / "accuracy.csv")
     assert acc.groupby("scene").size().to_dict() == ROWS
