@@ -959,4 +959,6 @@ def _energy_main(args) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from rk4h.validation.process_exit import exit_process
+
+    exit_process(main())

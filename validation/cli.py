@@ -104,9 +104,10 @@ def _help_without_extras(command: str, module: str, lack: str) -> int:
 
 
 def entry() -> None:
-    """The console script: an interrupted ``rk4h run`` ends as ``run_all.py`` does."""
+    """The console script. The process ends as ``run_all.py`` and ``advise.py``
+    end theirs (:func:`rk4h.validation.process_exit.exit_process`)."""
     code = main()
-    from rk4h.validation.run_all import exit_process
+    from rk4h.validation.process_exit import exit_process
 
     exit_process(code)
 

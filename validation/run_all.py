@@ -99,6 +99,7 @@ if __name__ == "__main__" and __package__ in (None, ""):
 
 __all__ = ["main", "run", "Interrupted", "exit_process"]
 
+from rk4h.validation.process_exit import exit_process  # noqa: E402,F401 - re-exported
 from rk4h.validation.runner import (  # noqa: E402,F401 - the pipeline, re-exported
     DEFAULT_OUT, MAX_REPEATS, REPEATS_FULL, REPEATS_QUICK, Interrupted, _crossover_job, run)
 
@@ -370,21 +371,6 @@ def _print_report(report) -> int:
     for f in report.failures:
         print(f"FAILED: {f}")
     return report.status
-
-
-def exit_process(code: int):
-    """End the process with ``code``. After an interrupt (``code >= 128``)
-    everything the run owns is settled (report swapped or untouched,
-    temporary directory removed, records kept for ``--resume``), so the
-    process ends at once with ``os._exit``: the worker processes it killed
-    can leave a ``concurrent.futures`` manager thread waiting on a queue
-    forever, and the interpreter joins those threads at exit (seen once in
-    CI under load: a SIGTERM'd run printed its line, then hung 120 s)."""
-    if code >= 128:
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    sys.exit(code)
 
 
 if __name__ == "__main__":
