@@ -235,6 +235,15 @@ def test_every_sundials_object_is_freed(name, fail_at, monkeypatch):
     assert rec.log[-1] == "SUNContext_Free"
 
 
+def test_every_compiled_runner_names_the_loop_it_steps():
+    """warm.py prepares COMPILED_LOOPS' loops: each compiled runner has one,
+    and CVODE's two methods share their callbacks (one compile)."""
+    from rk4h.references.solvers import COMPILED_LOOPS
+
+    assert set(COMPILED_LOOPS) == set(COMPILED_RUNNERS)
+    assert {COMPILED_LOOPS[s] for s in SOLVERS} == {"cvode"}
+
+
 def test_registered_for_untimed_work_only(monkeypatch):
     """integrate_compiled runs the compiled CVODE; integrate (the timed rows)
     still runs scikit-sundae's."""

@@ -51,8 +51,6 @@ BATCH = "<batch>"
 #: DOP853's loop on the model's right-hand side, CVODE's C callbacks), which
 #: the confirmation runs step: ``COMPILED + "dop853"``.
 COMPILED = "<compiled>"
-#: The compiled loop of each such reference adapter (CVODE's two share their callbacks).
-_COMPILED_LOOP = {"dop853": "dop853", "cvode-adams": "cvode", "cvode-bdf": "cvode"}
 
 
 def _stability_tableau(scene):
@@ -86,7 +84,9 @@ def _loop_key(scene, solver):
         tab = _tableau(scene.method(solver[len(BATCH):]))
         return None if tab is None else ("batch",) + batch_key(tab, kern, len(y0))[0]
     if solver.startswith(COMPILED):
-        loop = _COMPILED_LOOP.get(scene.method(solver[len(COMPILED):]).runner_key)
+        from rk4h.references.solvers import COMPILED_LOOPS
+
+        loop = COMPILED_LOOPS.get(scene.method(solver[len(COMPILED):]).runner_key)
         return None if loop is None else ("compiled", loop, kern.key())
     if solver == STABILITY:
         tab = _stability_tableau(scene)

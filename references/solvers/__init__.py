@@ -78,8 +78,8 @@ from .stepper import run_python
 from .taylor import run_heyoka
 from .tolerances import absolute_tolerance
 
-__all__ = ["integrate", "integrate_compiled", "COMPILED_RUNNERS", "check_setting", "check_model", "as_model",
-           "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
+__all__ = ["integrate", "integrate_compiled", "COMPILED_RUNNERS", "COMPILED_LOOPS", "check_setting", "check_model",
+           "as_model", "MECHANICAL_ONLY", "mechanical_only", "SOLVER_NAMES", "FIXED_STEP", "ADAPTIVE", "Status",
            "SolverRun", "absolute_tolerance"]
 
 
@@ -257,6 +257,10 @@ def _fixed_short(solver, model, y0, t_eval, setting, max_steps):
 COMPILED_RUNNERS = {"dop853": run_dop853_compiled,
                     "cvode-adams": lambda *a: run_cvode_compiled("cvode-adams", *a),
                     "cvode-bdf": lambda *a: run_cvode_compiled("cvode-bdf", *a)}
+#: The compiled code each of :data:`COMPILED_RUNNERS` steps, by adapter
+#: (:mod:`rk4h.validation.warm` prepares each once per machine): DOP853's
+#: loop on the model's right-hand side; CVODE's two share their C callbacks.
+COMPILED_LOOPS = {"dop853": "dop853", "cvode-adams": "cvode", "cvode-bdf": "cvode"}
 
 
 def integrate_compiled(solver, model, y0, t_eval, setting: float, *, atol=None,
