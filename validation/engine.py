@@ -62,6 +62,7 @@ import sys
 import time
 
 from .atomic import EnvironmentRefused
+from .process_exit import flush_streams
 from .records import failed_record
 
 __all__ = ["run_plan", "default_workers", "PlanStats", "LocalPools", "WorkerDied", "SchedulerLost"]
@@ -147,11 +148,7 @@ def _tracked(tag, fn, *args):
 
 def _exit_now():
     """Flush the standard streams and end the process (exit status 0)."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError, AttributeError):
-            pass
+    flush_streams()
     os._exit(0)
 
 

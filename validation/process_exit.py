@@ -35,7 +35,7 @@ import os
 import sys
 import threading
 
-__all__ = ["exit_process", "settled"]
+__all__ = ["exit_process", "settled", "flush_streams"]
 
 
 def settled() -> bool:
@@ -48,7 +48,8 @@ def settled() -> bool:
     return mp is None or not mp.active_children()
 
 
-def _flush():
+def flush_streams():
+    """Flush ``sys.stdout`` and ``sys.stderr`` (a closed or missing one is skipped)."""
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
@@ -63,5 +64,5 @@ def exit_process(code: int):
         sys.exit(code)
     if code < 128:
         atexit._run_exitfuncs()  # what the interpreter runs at exit, before its teardown
-    _flush()
+    flush_streams()
     os._exit(code)
