@@ -1,11 +1,16 @@
 """A command's process ends without the interpreter's teardown only where
 nothing is left to do: atexit handlers run, buffered output arrives, a live
 thread or child process is waited for as the interpreter would."""
+import os
 import subprocess
 import sys
 import textwrap
 
 import pytest
+
+#: The children's environment: block-buffered output (as in a pipe or a
+#: file), so that a line arrives only if the exit flushes it.
+_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
 
 #: Prints "teardown" when the interpreter tears the module down: the marker
 #: of the slow path (a fast exit skips it).
@@ -21,9 +26,9 @@ _HEAD = textwrap.dedent("""
 """)
 
 
-def _run(body: str):
-    r = subprocess.run([sys.executable, "-c", _HEAD + textwrap.dedent(body)], capture_output=True, text=True,
-                       timeout=60)
+def _run(body: str, stdout=subprocess.PIPE):
+    r = subprocess.run([sys.executable, "-c", _HEAD + textwrap.dedent(body)], stdout=stdout,
+                       stderr=subprocess.PIPE, text=True, timeout=60, env=_ENV)
     return r.returncode, r.stdout, r.stderr
 
 
@@ -86,6 +91,30 @@ def test_the_advise_command_prints_its_whole_answer_into_a_pipe():
     import json
 
     r = subprocess.run([sys.executable, "-m", "rk4h.validation.advise", "thesis-2dof-case1", "--target", "1e-3",
-                        "--json"], capture_output=True, text=True, timeout=300)
+                        "--json"], capture_output=True, text=True, timeout=300, env=_ENV)
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["target"] == 1e-3
+
+
+@pytest.mark.parametrize("code, expected", [(0, 120), (2, 2)])
+def test_output_that_cannot_be_written_is_not_a_silent_success(code, expected):
+    # /dev/full: every write fails with ENOSPC, as on a full disk
+    with open("/dev/full", "w") as full:
+        rc, _, err = _run(f"""
+            print("the answer")  # fits the buffer: only the flush at exit writes it
+            exit_process({code})
+        """, stdout=full)
+    assert rc == expected, err
+    assert "standard output could not be written" in err and "teardown" not in err
+
+
+@pytest.mark.parametrize("argv, code", [(["rk4h", "schema", "--markdown"], 0), (["rk4h", "advise", "x.toml"], 2)])
+def test_the_console_script_takes_the_fast_exit(argv, code):
+    rc, out, err = _run(f"""
+        sys.argv = {argv!r}
+        from rk4h.validation.cli import entry
+        entry()
+    """)
+    assert rc == code, err
+    assert "teardown" not in err
+    assert (len(out) > 1000) if code == 0 else ("--target" in err)

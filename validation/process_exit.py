@@ -14,6 +14,9 @@ Python's is still running:
 
 * the ``atexit`` handlers run first (a ``weakref.finalize`` with
   ``atexit=True``, such as a ``TemporaryDirectory``'s clean-up, is one);
+* standard output is flushed, and a flush that fails (a full disk, a
+  closed pipe) is not hidden: one line on stderr, and exit status 120 in
+  place of 0, as the interpreter's own exit does;
 * a non-daemon thread still alive (an unjoined pool's thread, a user's) or
   a ``multiprocessing`` child still running means the interpreter's own
   exit, which joins them, so the process ends with :func:`sys.exit` there;
@@ -57,6 +60,26 @@ def flush_streams():
             pass
 
 
+def _flush_stdout(code: int) -> int:
+    """Flush ``sys.stdout`` as the interpreter's exit would, and return the
+    exit status: where the flush fails (a full disk, a closed pipe) the
+    output is incomplete, so one line on stderr says so and a status of 0
+    becomes 120, the status Python's own exit gives then (another status is
+    kept: it already says the command failed)."""
+    try:
+        sys.stdout.flush()
+    except OSError as e:
+        name = os.path.basename(sys.argv[0] or "") or "python"
+        try:
+            sys.stderr.write(f"{name}: standard output could not be written: {e.strerror or e}\n")
+        except (OSError, ValueError, AttributeError):
+            pass
+        return code or 120
+    except (ValueError, AttributeError):  # closed (flushed when it was closed) or missing
+        pass
+    return code
+
+
 def exit_process(code: int):
     """End the process with exit status ``code`` (see the module docstring)."""
     code = int(code or 0)
@@ -64,5 +87,6 @@ def exit_process(code: int):
         sys.exit(code)
     if code < 128:
         atexit._run_exitfuncs()  # what the interpreter runs at exit, before its teardown
+        code = _flush_stdout(code)
     flush_streams()
     os._exit(code)
