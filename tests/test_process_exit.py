@@ -96,7 +96,7 @@ def test_the_advise_command_prints_its_whole_answer_into_a_pipe():
     assert json.loads(r.stdout)["target"] == 1e-3
 
 
-@pytest.mark.parametrize("code, expected", [(0, 120), (2, 2)])
+@pytest.mark.parametrize("code, expected", [(0, 3), (2, 2)])
 def test_output_that_cannot_be_written_is_not_a_silent_success(code, expected):
     # /dev/full: every write fails with ENOSPC, as on a full disk
     with open("/dev/full", "w") as full:
@@ -105,7 +105,7 @@ def test_output_that_cannot_be_written_is_not_a_silent_success(code, expected):
             exit_process({code})
         """, stdout=full)
     assert rc == expected, err
-    assert "standard output could not be written" in err and "teardown" not in err
+    assert "cannot write standard output: No space left on device" in err and "teardown" not in err
 
 
 @pytest.mark.parametrize("argv, code", [(["rk4h", "schema", "--markdown"], 0), (["rk4h", "advise", "x.toml"], 2)])
@@ -118,3 +118,49 @@ def test_the_console_script_takes_the_fast_exit(argv, code):
     assert rc == code, err
     assert "teardown" not in err
     assert (len(out) > 1000) if code == 0 else ("--target" in err)
+
+
+def test_a_reader_that_goes_away_is_one_line_and_status_3():
+    # `rk4h schema --json-schema | head -1`: 1e5 bytes, more than a pipe holds
+    p = subprocess.Popen([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "schema",
+                          "--json-schema"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_ENV)
+    p.stdout.read(10)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=60) == 3, err
+    assert err.splitlines() == ["-c: cannot write standard output: Broken pipe"], err
+
+
+def test_a_full_disk_inside_main_is_one_line_and_status_3():
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "schema",
+                            "--markdown"], stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, env=_ENV)
+    assert r.returncode == 3, r.stderr
+    assert r.stderr.splitlines() == ["-c: cannot write: No space left on device"], r.stderr
+
+
+def test_other_errors_of_main_are_not_taken_for_a_refused_write():
+    rc, out, err = _run("""
+        from rk4h.validation.process_exit import run_main
+        def main():
+            raise PermissionError(13, "Permission denied", "/etc/shadow")
+        exit_process(run_main(main))
+    """)
+    assert rc == 1 and "Traceback" in err and "PermissionError" in err, err
+
+
+def test_a_run_whose_reader_goes_away_stops_and_leaves_no_partial_report(tmp_path):
+    # `rk4h run ... | head -1`: the run stops at its next progress line
+    out = tmp_path / "report"
+    p = subprocess.Popen([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "run",
+                          "--scene", "thesis-2dof-case1", "--out", str(out), "--no-figures", "--repeats", "1",
+                          "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_ENV)
+    first = p.stdout.readline()
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert first.startswith(b"[1/"), err
+    assert p.wait(timeout=300) == 3, err
+    assert err.splitlines()[-1] == "-c: cannot write standard output: Broken pipe" and "Traceback" not in err
+    assert not out.exists()
+    # no temporary report left beside it (the lock file and the records for --resume stay, by design)
+    assert [q.name for q in tmp_path.iterdir() if ".tmp-" in q.name] == []

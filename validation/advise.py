@@ -959,6 +959,6 @@ def _energy_main(args) -> int:
 
 
 if __name__ == "__main__":
-    from rk4h.validation.process_exit import exit_process
+    from rk4h.validation.process_exit import exit_process, run_main
 
-    exit_process(main())
+    exit_process(run_main(main))

@@ -106,10 +106,9 @@ def _help_without_extras(command: str, module: str, lack: str) -> int:
 def entry() -> None:
     """The console script. The process ends as ``run_all.py`` and ``advise.py``
     end theirs (:func:`rk4h.validation.process_exit.exit_process`)."""
-    code = main()
-    from rk4h.validation.process_exit import exit_process
+    from rk4h.validation.process_exit import exit_process, run_main
 
-    exit_process(code)
+    exit_process(run_main(main))
 
 
 if __name__ == "__main__":

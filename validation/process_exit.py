@@ -15,8 +15,8 @@ Python's is still running:
 * the ``atexit`` handlers run first (a ``weakref.finalize`` with
   ``atexit=True``, such as a ``TemporaryDirectory``'s clean-up, is one);
 * standard output is flushed, and a flush that fails (a full disk, a
-  closed pipe) is not hidden: one line on stderr, and exit status 120 in
-  place of 0, as the interpreter's own exit does;
+  closed pipe) is not hidden: one line on stderr, and exit status 3 (the
+  environment refused: it cannot be written) in place of 0;
 * a non-daemon thread still alive (an unjoined pool's thread, a user's) or
   a ``multiprocessing`` child still running means the interpreter's own
   exit, which joins them, so the process ends with :func:`sys.exit` there;
@@ -30,15 +30,29 @@ What this asks of a command: every file it writes is closed (``with``
 blocks, :mod:`rk4h.validation.atomic`) before ``main`` returns. A file object
 left open would lose its buffer, where the interpreter's teardown would
 have flushed it.
+
+:func:`run_main` calls a command's ``main`` so that a write that fails
+because the environment refused it (the reader of standard output has
+gone, a full disk or quota) ends the command with one line and status 3,
+not a traceback: ``rk4h compare OLD NEW | head -1`` is a normal use.
 """
 from __future__ import annotations
 
 import atexit
+import errno
 import os
 import sys
 import threading
 
-__all__ = ["exit_process", "settled", "flush_streams"]
+__all__ = ["exit_process", "run_main", "settled", "flush_streams"]
+
+#: The exit status of a command whose output the environment refused (the
+#: harness's status for "cannot write, disk full").
+REFUSED = 3
+#: Errors of a write that say the environment refused it, not that the
+#: command is wrong: a full disk, a full quota (a closed pipe is
+#: ``BrokenPipeError``).
+_REFUSED_WRITE = (errno.ENOSPC, errno.EDQUOT)
 
 
 def settled() -> bool:
@@ -60,24 +74,58 @@ def flush_streams():
             pass
 
 
+def _say_refused(e: OSError, what: str = "") -> None:
+    """One line on stderr: the command could not write (``what``: which file)."""
+    name = os.path.basename(sys.argv[0] or "") or "python"
+    where = what or (f" {e.filename}" if e.filename else "")
+    try:
+        sys.stderr.write(f"{name}: cannot write{where}: {e.strerror or e}\n")
+        sys.stderr.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _drop_stdout() -> None:
+    """Point standard output at the null device, so that nothing buffered
+    for a reader that is gone is tried again at exit."""
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, sys.stdout.fileno())
+        os.close(null)
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def _flush_stdout(code: int) -> int:
     """Flush ``sys.stdout`` as the interpreter's exit would, and return the
     exit status: where the flush fails (a full disk, a closed pipe) the
     output is incomplete, so one line on stderr says so and a status of 0
-    becomes 120, the status Python's own exit gives then (another status is
-    kept: it already says the command failed)."""
+    becomes :data:`REFUSED` (another status is kept: it already says the
+    command did not succeed)."""
     try:
         sys.stdout.flush()
     except OSError as e:
-        name = os.path.basename(sys.argv[0] or "") or "python"
-        try:
-            sys.stderr.write(f"{name}: standard output could not be written: {e.strerror or e}\n")
-        except (OSError, ValueError, AttributeError):
-            pass
-        return code or 120
+        _say_refused(e, " standard output")
+        _drop_stdout()
+        return code or REFUSED
     except (ValueError, AttributeError):  # closed (flushed when it was closed) or missing
         pass
     return code
+
+
+def run_main(main) -> int:
+    """``main()``'s exit status; where a write fails because the environment
+    refused it (``BrokenPipeError``: the reader of standard output has gone;
+    a full disk or quota), one line on stderr and :data:`REFUSED` in place
+    of a traceback. Any other exception goes on as it would."""
+    try:
+        return main()
+    except OSError as e:
+        if not (isinstance(e, BrokenPipeError) or e.errno in _REFUSED_WRITE):
+            raise
+        _say_refused(e, " standard output" if isinstance(e, BrokenPipeError) and not e.filename else "")
+        _drop_stdout()
+        return REFUSED
 
 
 def exit_process(code: int):

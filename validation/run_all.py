@@ -99,7 +99,7 @@ if __name__ == "__main__" and __package__ in (None, ""):
 
 __all__ = ["main", "run", "Interrupted", "exit_process"]
 
-from rk4h.validation.process_exit import exit_process  # noqa: E402,F401 - re-exported
+from rk4h.validation.process_exit import exit_process, run_main  # noqa: E402,F401 - exit_process re-exported
 from rk4h.validation.runner import (  # noqa: E402,F401 - the pipeline, re-exported
     DEFAULT_OUT, MAX_REPEATS, REPEATS_FULL, REPEATS_QUICK, Interrupted, _crossover_job, run)
 
@@ -374,4 +374,4 @@ def _print_report(report) -> int:
 
 
 if __name__ == "__main__":
-    exit_process(main(restore_signals=False))
+    exit_process(run_main(lambda: main(restore_signals=False)))
