@@ -164,3 +164,16 @@ def test_a_run_whose_reader_goes_away_stops_and_leaves_no_partial_report(tmp_pat
     assert not out.exists()
     # no temporary report left beside it (the lock file and the records for --resume stay, by design)
     assert [q.name for q in tmp_path.iterdir() if ".tmp-" in q.name] == []
+
+
+def test_a_full_disk_under_another_file_keeps_the_lines_already_printed():
+    # ENOSPC from a file that is not standard output: the answer printed before it still arrives
+    rc, out, err = _run("""
+        from rk4h.validation.process_exit import run_main
+        def main():
+            print("the answer so far")
+            raise OSError(28, "No space left on device", "/cache/truth.npz")
+        exit_process(run_main(main))
+    """)
+    assert (rc, out) == (3, "the answer so far\n"), (rc, out, err)
+    assert err.splitlines() == ["-c: cannot write /cache/truth.npz: No space left on device"], err

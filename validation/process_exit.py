@@ -96,6 +96,17 @@ def _drop_stdout() -> None:
         pass
 
 
+def _flushed() -> bool:
+    """Whether ``sys.stdout`` flushes (a closed or missing one counts as flushed)."""
+    try:
+        sys.stdout.flush()
+    except OSError:
+        return False
+    except (ValueError, AttributeError):
+        pass
+    return True
+
+
 def _flush_stdout(code: int) -> int:
     """Flush ``sys.stdout`` as the interpreter's exit would, and return the
     exit status: where the flush fails (a full disk, a closed pipe) the
@@ -123,8 +134,13 @@ def run_main(main) -> int:
     except OSError as e:
         if not (isinstance(e, BrokenPipeError) or e.errno in _REFUSED_WRITE):
             raise
-        _say_refused(e, " standard output" if isinstance(e, BrokenPipeError) and not e.filename else "")
-        _drop_stdout()
+        # Standard output is the one refused when a pipe broke or it cannot be
+        # flushed now; then what it still buffers goes nowhere. Another file
+        # (a full disk under a cache) leaves standard output and its lines alone.
+        stdout = (isinstance(e, BrokenPipeError) and not e.filename) or not _flushed()
+        _say_refused(e, " standard output" if stdout and not e.filename else "")
+        if stdout:
+            _drop_stdout()
         return REFUSED
 
 
