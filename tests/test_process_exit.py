@@ -11,6 +11,8 @@ import pytest
 #: The children's environment: block-buffered output (as in a pipe or a
 #: file), so that a line arrives only if the exit flushes it.
 _ENV = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+#: The ``rk4h`` console script, run from a fresh interpreter (its ``argv[0]`` is ``-c``).
+_RK4H = [sys.executable, "-c", "from rk4h.validation.cli import entry; entry()"]
 
 #: Prints "teardown" when the interpreter tears the module down: the marker
 #: of the slow path (a fast exit skips it).
@@ -122,8 +124,8 @@ def test_the_console_script_takes_the_fast_exit(argv, code):
 
 def test_a_reader_that_goes_away_is_one_line_and_status_3():
     # `rk4h schema --json-schema | head -1`: 1e5 bytes, more than a pipe holds
-    p = subprocess.Popen([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "schema",
-                          "--json-schema"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_ENV)
+    p = subprocess.Popen([*_RK4H, "schema", "--json-schema"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         env=_ENV)
     p.stdout.read(10)
     p.stdout.close()
     err = p.stderr.read().decode()
@@ -133,8 +135,8 @@ def test_a_reader_that_goes_away_is_one_line_and_status_3():
 
 def test_a_full_disk_inside_main_is_one_line_and_status_3():
     with open("/dev/full", "w") as full:
-        r = subprocess.run([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "schema",
-                            "--markdown"], stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, env=_ENV)
+        r = subprocess.run([*_RK4H, "schema", "--markdown"], stdout=full, stderr=subprocess.PIPE, text=True,
+                           timeout=60, env=_ENV)
     assert r.returncode == 3, r.stderr
     assert r.stderr.splitlines() == ["-c: cannot write: No space left on device"], r.stderr
 
@@ -152,9 +154,8 @@ def test_other_errors_of_main_are_not_taken_for_a_refused_write():
 def test_a_run_whose_reader_goes_away_stops_and_leaves_no_partial_report(tmp_path):
     # `rk4h run ... | head -1`: the run stops at its next progress line
     out = tmp_path / "report"
-    p = subprocess.Popen([sys.executable, "-c", "from rk4h.validation.cli import entry; entry()", "run",
-                          "--scene", "thesis-2dof-case1", "--out", str(out), "--no-figures", "--repeats", "1",
-                          "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_ENV)
+    p = subprocess.Popen([*_RK4H, "run", "--scene", "thesis-2dof-case1", "--out", str(out), "--no-figures",
+                          "--repeats", "1", "--workers", "1"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=_ENV)
     first = p.stdout.readline()
     p.stdout.close()
     err = p.stderr.read().decode()

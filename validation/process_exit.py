@@ -96,32 +96,16 @@ def _drop_stdout() -> None:
         pass
 
 
-def _flushed() -> bool:
-    """Whether ``sys.stdout`` flushes (a closed or missing one counts as flushed)."""
-    try:
-        sys.stdout.flush()
-    except OSError:
-        return False
-    except (ValueError, AttributeError):
-        pass
-    return True
-
-
-def _flush_stdout(code: int) -> int:
-    """Flush ``sys.stdout`` as the interpreter's exit would, and return the
-    exit status: where the flush fails (a full disk, a closed pipe) the
-    output is incomplete, so one line on stderr says so and a status of 0
-    becomes :data:`REFUSED` (another status is kept: it already says the
-    command did not succeed)."""
+def _stdout_error() -> OSError | None:
+    """Flush ``sys.stdout``; the error if it cannot be written (a closed or
+    missing stream counts as flushed: it was flushed when it was closed)."""
     try:
         sys.stdout.flush()
     except OSError as e:
-        _say_refused(e, " standard output")
-        _drop_stdout()
-        return code or REFUSED
-    except (ValueError, AttributeError):  # closed (flushed when it was closed) or missing
+        return e
+    except (ValueError, AttributeError):
         pass
-    return code
+    return None
 
 
 def run_main(main) -> int:
@@ -137,7 +121,7 @@ def run_main(main) -> int:
         # Standard output is the one refused when a pipe broke or it cannot be
         # flushed now; then what it still buffers goes nowhere. Another file
         # (a full disk under a cache) leaves standard output and its lines alone.
-        stdout = (isinstance(e, BrokenPipeError) and not e.filename) or not _flushed()
+        stdout = (isinstance(e, BrokenPipeError) and not e.filename) or _stdout_error() is not None
         _say_refused(e, " standard output" if stdout and not e.filename else "")
         if stdout:
             _drop_stdout()
@@ -147,10 +131,19 @@ def run_main(main) -> int:
 def exit_process(code: int):
     """End the process with exit status ``code`` (see the module docstring)."""
     code = int(code or 0)
-    if code < 128 and not settled():
+    if code >= 128:  # interrupted: everything is settled, end at once
+        flush_streams()
+        os._exit(code)
+    if not settled():
         sys.exit(code)
-    if code < 128:
-        atexit._run_exitfuncs()  # what the interpreter runs at exit, before its teardown
-        code = _flush_stdout(code)
+    atexit._run_exitfuncs()  # what the interpreter runs at exit, before its teardown
+    # A flush that fails (a full disk, a closed pipe): the output is incomplete,
+    # so one line says so and a status of 0 becomes REFUSED (another status is
+    # kept: it already says the command did not succeed).
+    e = _stdout_error()
+    if e is not None:
+        _say_refused(e, " standard output")
+        _drop_stdout()
+        code = code or REFUSED
     flush_streams()
     os._exit(code)
