@@ -146,8 +146,12 @@ _MAX_FOLD_EXPONENT = 64
 #: floating point), so ``(5e-324^-64 * 2)^64`` never builds a 4-million-bit integer.
 MAX_FOLD_BITS = 8192
 _EXACT_INT = 2 ** 53
-#: Integer powers up to this exponent reach heyoka as products (:func:`to_heyoka`).
-_HEYOKA_PRODUCT_MAX = 64
+#: Integer powers ``b**n`` with ``2 <= n <=`` this exponent are evaluated as
+#: products by binary powering (``b**3 = b * (b*b)``, ``b**4 = (b*b) * (b*b)``)
+#: in :func:`lambdify`'s source and in :func:`to_heyoka`; numba evaluates
+#: ``b**n`` with an integer literal ``n`` by the same multiplications, so the
+#: numpy, ``math``, numba and heyoka forms of a polynomial agree to the bit.
+POWER_PRODUCTS_MAX = 64
 
 
 class ExprError(ValueError):
@@ -916,7 +920,9 @@ class _Printer:
     constants); ``temps``: when true, shared nodes, deeply nested pieces and
     long chunks of sums become assignments ``_tN = ...`` (``temp_prefix``
     then ``N``) appended to ``lines`` (keeps every line far inside Python's
-    parser and compiler limits).
+    parser and compiler limits); ``products`` (with ``temps``): integer
+    powers ``2 <= n <=`` :data:`POWER_PRODUCTS_MAX` printed as binary
+    powering, each square a temporary (:meth:`_integer_power`).
     """
 
     #: A piece whose syntax tree is deeper than this becomes a temporary.
@@ -925,8 +931,13 @@ class _Printer:
     CHUNK = 40
 
     def __init__(self, names: Mapping[str, str] | None, func: Callable[[str], str], *, source: bool,
-                 temps: bool = False, literal: Callable[[float], str] | None = None, temp_prefix: str = "_t"):
+                 temps: bool = False, literal: Callable[[float], str] | None = None, temp_prefix: str = "_t",
+                 products: bool = False):
+        if products and not temps:
+            raise ValueError("_Printer: `products` needs `temps` (each square is a temporary)")
         self.names, self.func, self.source = names, func, source
+        self.products = products
+        self.squares: dict[str, str] = {}
         self.temp_prefix = temp_prefix
         self.literal = literal
         self.use_temps = temps
@@ -991,6 +1002,28 @@ class _Printer:
             count += 1
         return text, prec, depth
 
+    def _integer_power(self, piece, n: int):
+        """``piece ** n`` as numba evaluates a float to an integer literal
+        power (binary powering): the squares ``b*b``, ``(b*b)*(b*b)``, ...
+        each a temporary, and the product of those the bits of ``n`` select,
+        from the lowest bit up. Every step is one correctly rounded multiply,
+        the same for a numpy array, a float and numba; ``pow`` is not (libm's
+        and numpy's SIMD ``pow`` differ in the last bit, and numpy's takes a
+        scalar path for a negative base, some 40 times slower)."""
+        text, prec, _ = piece
+        square = text if prec == _P_ATOM else self._temp(text)
+        out = None
+        while n:
+            if n & 1:
+                out = square if out is None else f"{out}*{square}"
+            n >>= 1
+            if n:
+                product = f"{square}*{square}"
+                if product not in self.squares:  # x**2 and x**3 share x*x
+                    self.squares[product] = self._temp(product)
+                square = self.squares[product]
+        return out, (_P_ATOM if "*" not in out else _P_MUL), 2
+
     def _node(self, node: Expr):
         if isinstance(node, Num):
             v = node.value
@@ -1009,6 +1042,9 @@ class _Printer:
         if isinstance(node, Pow):
             if isinstance(node.exp, Num) and node.exp.value < 0.0:
                 return self._product((node,))
+            n = _int_exponent(node.exp) if self.products else None
+            if n is not None and 2 <= n <= POWER_PRODUCTS_MAX:
+                return self._integer_power(self._get(node.base), n)
             base = self._wrap(self._get(node.base), _P_ATOM)
             if isinstance(node.exp, Num) and node.exp.value.is_integer() and abs(node.exp.value) < 2**31:
                 exp = (str(int(node.exp.value)), _P_ATOM, 1)
@@ -1164,7 +1200,8 @@ def lambdify(exprs, names: Sequence[str], backend: str = "numpy", *, broadcast: 
         ``1/0`` gives inf).
         ``"math"``: floats in, floats out, with the ``math`` module and
         Python's semantics (``math.log(-1)`` and ``1/0`` raise, an overflow
-        in ``**`` raises).
+        in ``**`` raises; an integer power is products, see Notes, and
+        overflows to inf).
     broadcast : bool
         numpy backend only. False skips converting and broadcasting: the
         arguments must already be numpy scalars (``numpy.float64``, e.g. the
@@ -1189,6 +1226,14 @@ def lambdify(exprs, names: Sequence[str], backend: str = "numpy", *, broadcast: 
     ``_k0, _k1, ...``) and no builtins. Shared subexpressions are computed
     once (temporaries ``_t0, _t1, ...``); long sums and deep nesting are split
     into temporaries so the source stays inside Python's parser limits.
+
+    A power ``b**n`` with an integer ``2 <= n <=`` :data:`POWER_PRODUCTS_MAX`
+    is printed as products by binary powering (``b**3 = b * (b*b)``), the
+    multiplications numba performs for ``b**n`` with an integer literal: so
+    a model's numpy path equals its compiled loop bit for bit, on every
+    processor (numpy's SIMD ``pow`` and libm's differ in the last bit), and
+    a negative base costs what a positive one does (numpy's ``pow`` takes a
+    scalar path for it, about 40 times slower). Other powers call ``**``.
     """
     items, single = _as_list(exprs)
     if backend not in ("numpy", "math"):
@@ -1222,7 +1267,8 @@ def lambdify(exprs, names: Sequence[str], backend: str = "numpy", *, broadcast: 
     else:
         ns = _math_namespace()
         literal = None
-    printer = _Printer(dict(zip(names, args)), lambda f: f"_f_{f}", source=True, temps=True, literal=literal)
+    printer = _Printer(dict(zip(names, args)), lambda f: f"_f_{f}", source=True, temps=True, literal=literal,
+                       products=True)
     printer.mark_shared(items)
     results = [printer.print(e) for e in items]
     body = []
@@ -1325,7 +1371,7 @@ def to_heyoka(exprs, symbols: Mapping):
                 if node.exp.value < 0.0:
                     return product((node,))
                 n = _int_exponent(node.exp)
-                if n is not None and 0 < n <= _HEYOKA_PRODUCT_MAX:
+                if n is not None and 0 < n <= POWER_PRODUCTS_MAX:
                     return integer_power(get(node.base), n)
                 return get(node.base) ** hy.expression(node.exp.value)
             return get(node.base) ** get(node.exp)

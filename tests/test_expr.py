@@ -374,6 +374,59 @@ def test_lambdify_vectorises_and_broadcasts():
     assert lambdify(e[0], NAMES, broadcast=False)(*np.array([0.5, 2.0, 1.0])) == 2.0
 
 
+# Exponents around each bit boundary of binary powering, and the largest.
+_INT_POWERS = (2, 3, 4, 5, 6, 7, 8, 15, 16, 17, 31, 32, 33, 63, ex.POWER_PRODUCTS_MAX)
+
+
+def _awkward_values():
+    rng = np.random.default_rng(29)
+    v = rng.standard_normal(4000) * 10.0 ** rng.uniform(-12, 12, 4000)
+    return np.concatenate([v, [0.0, -0.0, 5e-324, -5e-324, 1e-310, -1e-310, 1e300, -1e300,
+                               np.inf, -np.inf, np.nan, 0.5, -0.7, 1.0 + 2.0 ** -52]])
+
+
+def test_integer_powers_are_products_equal_to_numba_bit_for_bit():
+    # numba evaluates x**n for an integer literal n by binary powering; numpy's
+    # and libm's pow round otherwise (and numpy's SIMD pow differs from libm's):
+    # the numpy and math backends print the same products, so a model's numpy
+    # path and its compiled loop agree to the bit (tests/test_fast.py).
+    numba = pytest.importorskip("numba")
+    x, = ex.symbols("x")
+    body = "".join(f"        out[{j}, i] = v[i]**{n}\n" for j, n in enumerate(_INT_POWERS))
+    src = f"def powers(v, out):\n    for i in range(v.size):\n{body}"
+    ns = {}
+    exec(src, ns)  # noqa: S102 - a test's own fixed text
+    v = _awkward_values()
+    want = np.empty((len(_INT_POWERS), v.size))
+    with np.errstate(all="ignore"):
+        numba.njit(error_model="numpy")(ns["powers"])(v, want)
+        for j, n in enumerate(_INT_POWERS):
+            f = lambdify(x**n, ["x"])
+            assert f"**{n}" not in f.source, f.source
+            got = f(v)
+            np.testing.assert_array_equal(got, want[j], err_msg=f"x**{n}")
+            assert np.array_equal(np.signbit(got), np.signbit(want[j])), f"x**{n}: sign of a zero"
+            g = lambdify(x**n, ["x"], backend="math")
+            for a, b in zip(v[:200], want[j, :200]):
+                assert g(float(a)) == b or (math.isnan(b) and math.isnan(g(float(a))))
+
+
+def test_other_powers_stay_pow_and_squares_are_shared():
+    x, y = ex.symbols("x", "y")
+    f = lambdify([x**(ex.POWER_PRODUCTS_MAX + 1), x**2.5, x**y, x**-3 + x**2], ["x", "y"])
+    assert f"**{ex.POWER_PRODUCTS_MAX + 1}" in f.source and "**_k" in f.source and "_x0**_x1" in f.source
+    assert f.source.count("_x0*_x0") == 1  # x**2 and the denominator x**3 share one square
+    with np.errstate(invalid="ignore"):  # (-0.5)**2.5 is nan
+        a, b, c, d = f(np.array([1.5, -0.5]), 2.0)
+    np.testing.assert_array_equal(a, np.array([1.5, -0.5]) ** (ex.POWER_PRODUCTS_MAX + 1))
+    np.testing.assert_array_equal(d, 1.0 / (np.array([1.5, -0.5]) * (np.array([1.5, -0.5]) ** 2))
+                                  + np.array([1.5, -0.5]) ** 2)
+    # a compound base is evaluated once, then squared
+    g = lambdify((x + y)**4, ["x", "y"])
+    assert g.source.count("_x0 + _x1") == 1
+    assert g(0.5, -1.25) == ((0.5 - 1.25) * (0.5 - 1.25)) * ((0.5 - 1.25) * (0.5 - 1.25))
+
+
 def test_numpy_backend_gives_nan_not_exceptions():
     f = lambdify(parse("log(x) + 1/y + sqrt(x) + (-8)^(1/3)", ["x", "y"]), ["x", "y"])
     with np.errstate(all="ignore"):

@@ -32,6 +32,13 @@ MODEL_CASES = [
     ("triangle", "triangle", {"m": 1.0, "k": 10.0, "side": 1.0},
      [0.05, -0.02, 0.0, 0.03, -0.04, 0.01], [0.0, 0.1, -0.1, 0.0, 0.05, 0.0]),
     ("oscillator2d", "oscillator2d", {"m": 1.0, "kx": 2.0, "ky": 4.0}, [0.005, 0.002], [0.0, 0.01]),
+    # Integer powers above 2 in the force (the FPUT beta tension, a quartic and a
+    # quintic potential): products in both paths, so exact (rk4h.expr.POWER_PRODUCTS_MAX)
+    ("chain-fput-alpha-beta", "chain", {"masses": [1.0, 1.5, 0.8], "springs": [1.0, 2.0, 1.5, 1.0],
+                                        "alpha": 0.25, "beta": 0.5}, [0.6, -0.8, 0.4], [0.0, 0.1, 0.0]),
+    ("potential-quintic", "potential", {"coordinates": ["x", "y"], "masses": 1.0, "constants": {"c": 0.5},
+                                        "potential": "x^4/4 + y^4/4 + c*x^2*y^2 - y^3/3 + x^5/5"},
+     [0.9, -0.7], [0.1, 0.0]),
 ]
 METHODS = ["rk4", "euler", "symplectic-euler"]
 
