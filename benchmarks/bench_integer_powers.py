@@ -6,9 +6,10 @@
 products numba and heyoka use (binary powering). This prints, for ``n`` = 3
 and 4 on ``N`` arguments with positive, mixed-sign and negative bases:
 
-* ns per element of numpy's ``x**n`` (``np.power``) and of the same
-  products written as numpy expressions (``x*(x*x)``, ``(x*x)*(x*x)``), the
-  median of ``R`` timed calls each, in one process, with the load average;
+* ns per element of numpy's ``x**n`` (``np.power``) and of the products
+  lambdify prints, as numpy expressions (``s = x*x``, then ``x*s`` or
+  ``s*s``), the median of ``R`` timed calls each, in one process, with the
+  load average;
 * the fraction of arguments where numpy's ``pow``, libm's (``math.pow``)
   and the products disagree (0 between numpy and libm unless numpy uses a
   SIMD ``pow``, as on AVX-512).
@@ -57,7 +58,7 @@ def main(argv=None) -> int:
     for n in (3, 4):
         f = ex.lambdify(x**n, ["x"])
         for name, v in bases.items():
-            products = (lambda: v * (v * v)) if n == 3 else (lambda: (v * v) * (v * v))
+            products = (lambda: v * (v * v)) if n == 3 else (lambda: (lambda sq: sq * sq)(v * v))
             assert np.array_equal(products(), f(v))  # what lambdify prints
             a = _ns_per_element(lambda: v**n, args.size, args.repeats)
             b = _ns_per_element(products, args.size, args.repeats)

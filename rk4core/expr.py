@@ -1009,20 +1009,23 @@ class _Printer:
         from the lowest bit up. Every step is one correctly rounded multiply,
         the same for a numpy array, a float and numba; ``pow`` is not (libm's
         and numpy's SIMD ``pow`` differ in the last bit, and numpy's takes a
-        scalar path for a negative base, some 40 times slower)."""
-        text, prec, _ = piece
-        square = text if prec == _P_ATOM else self._temp(text)
-        out = None
+        scalar path for a negative base, some 40 times slower than for a
+        positive one)."""
+        text, prec, depth = piece
+        # a name or a number is repeated; anything else (a call, a sum) is computed once
+        square = text if (prec == _P_ATOM and depth == 1) else self._temp(text)
+        out, factors = None, 0
         while n:
             if n & 1:
                 out = square if out is None else f"{out}*{square}"
+                factors += 1
             n >>= 1
             if n:
                 product = f"{square}*{square}"
                 if product not in self.squares:  # x**2 and x**3 share x*x
                     self.squares[product] = self._temp(product)
                 square = self.squares[product]
-        return out, (_P_ATOM if "*" not in out else _P_MUL), 2
+        return out, (_P_ATOM if factors == 1 else _P_MUL), factors
 
     def _node(self, node: Expr):
         if isinstance(node, Num):
@@ -1233,7 +1236,8 @@ def lambdify(exprs, names: Sequence[str], backend: str = "numpy", *, broadcast: 
     a model's numpy path equals its compiled loop bit for bit, on every
     processor (numpy's SIMD ``pow`` and libm's differ in the last bit), and
     a negative base costs what a positive one does (numpy's ``pow`` takes a
-    scalar path for it, about 40 times slower). Other powers call ``**``.
+    scalar path for it, about 40 times slower than for a positive base).
+    Other powers call ``**``.
     """
     items, single = _as_list(exprs)
     if backend not in ("numpy", "math"):
