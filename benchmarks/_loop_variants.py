@@ -16,6 +16,7 @@ import numpy as np
 
 from rk4h.fast.codegen import (_ARRAY_OUTPUT_START, _ARRAY_STEP_END, _HEADER, _Plan, _array_close, _array_head,
                                _array_new_state, _array_output_rest, _array_stage_parts, _dependencies_digest,
+                               _slope_copy,
                                _rhs_lines)
 
 
@@ -47,13 +48,7 @@ def one_call_site_source(tab, kern) -> str:
     ends = []
     for e, (row, state, arr) in enumerate(((plan.start, "y", "f0"),
                                           (plan.fsal[1] if plan.fsal else None, "y_new", "f1"))):
-        if row is None:
-            ends.append(None)
-        elif not plan.partitioned:
-            ends.append([f"for p in range(dim):", f"    {arr}[0, p] = k[{row}, p]"])
-        else:
-            ends.append(["for p in range(nq):", f"    {arr}[0, p] = {state}[nq + p]",
-                         f"    {arr}[0, nq + p] = k[{row}, nq + p]"])
+        ends.append(None if row is None else _slope_copy(plan, row, state, arr))
     start_array = "f0"
     if ends[0] is not None and not plan.partitioned and plan.start == 0:
         ends[0], start_array = [], "k"  # the first stage's slope is the start slope

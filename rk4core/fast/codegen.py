@@ -399,28 +399,29 @@ def array_source(tab: Tableau, kern) -> str:
         L += _array_stage(plan, i)
     L += _array_new_state(plan)
     # Dense-output slopes: from the stages when the method has them.
+    pad = "                    "
+    start_array = "f0"
     if plan.start is None:
-        start = ["                    rhs(fp, ip, mass, y, f0, 0, nq, w)", "                    n_extra += 1"]
-        start_array = "f0"
-    elif not plan.partitioned:
-        start, start_array = [], "k" if plan.start == 0 else "f0"
-        if plan.start != 0:
-            start = ["                    for p in range(dim):",
-                     f"                        f0[0, p] = k[{plan.start}, p]"]
+        start = [pad + "rhs(fp, ip, mass, y, f0, 0, nq, w)", pad + "n_extra += 1"]
+    elif not plan.partitioned and plan.start == 0:
+        start, start_array = [], "k"  # the first stage's slope is the start slope
     else:
-        start = ["                    for p in range(nq):",
-                 "                        f0[0, p] = y[nq + p]",
-                 f"                        f0[0, nq + p] = k[{plan.start}, nq + p]"]
-        start_array = "f0"
+        start = [pad + line for line in _slope_copy(plan, plan.start, "y", "f0")]
     if not plan.fsal:
-        end = ["                    rhs(fp, ip, mass, y_new, f1, 0, nq, w)", "                    n_extra += 1"]
-    elif not plan.partitioned:
-        end = ["                    for p in range(dim):", f"                        f1[0, p] = k[{plan.fsal[1]}, p]"]
+        end = [pad + "rhs(fp, ip, mass, y_new, f1, 0, nq, w)", pad + "n_extra += 1"]
     else:
-        end = ["                    for p in range(nq):",
-               "                        f1[0, p] = y_new[nq + p]",
-               f"                        f1[0, nq + p] = k[{plan.fsal[1]}, nq + p]"]
+        end = [pad + line for line in _slope_copy(plan, plan.fsal[1], "y_new", "f1")]
     return "\n".join(L + _ARRAY_STEP_END + start + end + _array_output_rest(start_array) + _array_close(plan))
+
+
+def _slope_copy(plan: _Plan, row: int, state: str, arr: str) -> list:
+    """Lines (not indented) copying the slope at one end of a step, stage
+    ``row``'s, into the dense output's ``arr`` (``f0`` or ``f1``): a classical
+    method's whole slope; a partitioned one's velocity half from the state
+    ``state`` at that end (``q' = v``) and its acceleration from the stage."""
+    if not plan.partitioned:
+        return ["for p in range(dim):", f"    {arr}[0, p] = k[{row}, p]"]
+    return ["for p in range(nq):", f"    {arr}[0, p] = {state}[nq + p]", f"    {arr}[0, nq + p] = k[{row}, nq + p]"]
 
 
 # The array loop in pieces, which benchmarks/_loop_variants.py builds its
