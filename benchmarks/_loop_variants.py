@@ -16,7 +16,7 @@ import numpy as np
 
 from rk4h.fast.codegen import (_ARRAY_OUTPUT_START, _ARRAY_STEP_END, _HEADER, _Plan, _array_close, _array_head,
                                _array_new_state, _array_output_rest, _array_stage_parts, _dependencies_digest,
-                               _slope_copy,
+                               _slope_copy, _start_slope,
                                _rhs_lines)
 
 
@@ -45,13 +45,8 @@ def one_call_site_source(tab, kern) -> str:
     # Dense-output slopes at both ends of the step: from the stages when the
     # method has them (a copy), else one force call each -- through one call
     # site when both ends need one.
-    ends = []
-    for e, (row, state, arr) in enumerate(((plan.start, "y", "f0"),
-                                          (plan.fsal[1] if plan.fsal else None, "y_new", "f1"))):
-        ends.append(None if row is None else _slope_copy(plan, row, state, arr))
-    start_array = "f0"
-    if ends[0] is not None and not plan.partitioned and plan.start == 0:
-        ends[0], start_array = [], "k"  # the first stage's slope is the start slope
+    start, start_array = _start_slope(plan)
+    ends = [start, _slope_copy(plan, plan.fsal[1], "y_new", "f1") if plan.fsal else None]
     pad = "                    "
     call = ["rhs(fp, ip, mass, src, dst, 0, nq, w)", "n_extra += 1"]
     if ends[0] is None and ends[1] is None:

@@ -400,18 +400,28 @@ def array_source(tab: Tableau, kern) -> str:
     L += _array_new_state(plan)
     # Dense-output slopes: from the stages when the method has them.
     pad = "                    "
-    start_array = "f0"
-    if plan.start is None:
+    copy, start_array = _start_slope(plan)
+    if copy is None:
         start = [pad + "rhs(fp, ip, mass, y, f0, 0, nq, w)", pad + "n_extra += 1"]
-    elif not plan.partitioned and plan.start == 0:
-        start, start_array = [], "k"  # the first stage's slope is the start slope
     else:
-        start = [pad + line for line in _slope_copy(plan, plan.start, "y", "f0")]
+        start = [pad + line for line in copy]
     if not plan.fsal:
         end = [pad + "rhs(fp, ip, mass, y_new, f1, 0, nq, w)", pad + "n_extra += 1"]
     else:
         end = [pad + line for line in _slope_copy(plan, plan.fsal[1], "y_new", "f1")]
     return "\n".join(L + _ARRAY_STEP_END + start + end + _array_output_rest(start_array) + _array_close(plan))
+
+
+def _start_slope(plan: _Plan) -> tuple:
+    """``(lines, array)`` for the slope at a step's start: ``(None, "f0")``
+    where no stage holds it (one force call fills ``f0``), ``([], "k")`` where
+    a classical method's first stage is it (read in place), else the lines
+    copying it into ``f0`` (:func:`_slope_copy`) and ``"f0"``."""
+    if plan.start is None:
+        return None, "f0"
+    if not plan.partitioned and plan.start == 0:
+        return [], "k"
+    return _slope_copy(plan, plan.start, "y", "f0"), "f0"
 
 
 def _slope_copy(plan: _Plan, row: int, state: str, arr: str) -> list:
