@@ -115,6 +115,12 @@ def _compile(text: str, name: str):
     return ns[name]
 
 
+def _step_products(h, names, coefs, dt) -> dict:
+    """The tableau's products ``h a_ij``, ``h b_i`` (``names``: their locals in
+    the printed step) for the step ``h``, in dtype ``dt``."""
+    return {nm: h * jnp.asarray(cf, dtype=dt) for nm, cf in zip(names, coefs)}
+
+
 def _checked_step(step, dim, big):
     """``one(c, fp, m, hs)``: one step of every lane of the carry ``c = (y, kc,
     bound, pending, alive, done)`` (tuples of lane arrays for ``y``, ``kc`` and
@@ -185,7 +191,7 @@ def _pallas_steps(one, names, coefs, dt, lanes, interpret):
             fpk, mk, yk, kck, boundk = parts
             pendk, alivek, donek = loaded[at], loaded[at + 1] != 0, loaded[at + 2]
             hk = h_ref[0]
-            hs = {nm: hk * jnp.asarray(cf, dtype=dt) for nm, cf in zip(names, coefs)}
+            hs = _step_products(hk, names, coefs, dt)
 
             def single(_, c):
                 return one(c, fpk, mk, hs)
@@ -262,7 +268,7 @@ def _runner(tab, kern, dtype: str, unroll: int, kernel: str, lanes: int):
         y = lane_arrays(y0, 0.0)
         bounds = lane_arrays(jnp.minimum(bound, big), big)
         (pending,) = lane_arrays(pending[:, None], 0.0)
-        hs = {nm: h * jnp.asarray(c, dtype=dt) for nm, c in zip(names, coefs)}
+        hs = _step_products(h, names, coefs, dt)
         kc = first(fpt, mt, y) if first is not None else ()
         alive = jnp.ones(B + pad, dtype=bool)
         done = jnp.zeros(B + pad, dtype=jnp.int64)
