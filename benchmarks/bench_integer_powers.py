@@ -24,23 +24,20 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import statistics
-import time
+import sys
+from pathlib import Path
 
 import numpy as np
 
 from rk4h import expr as ex
 from rk4h.models import network
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _timing import median_time  # noqa: E402
+
 
 def _ns_per_element(fn, size, repeats):
-    fn()
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times) / size * 1e9
+    return median_time(fn, repeats) / size * 1e9
 
 
 def main(argv=None) -> int:

@@ -38,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repositor
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import _tight  # noqa: E402
+from _timing import median_time  # noqa: E402
 
 import rk4h  # noqa: E402
 import rk4h.fast as fast  # noqa: E402
@@ -74,17 +75,6 @@ def lattice(side: int = 30, d: float = 0.1):
     return model, y0
 
 
-def median_time(fn, repeats):
-    """Median CPU time (s, the process's clock: less inflated by other processes than the wall clock)."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.process_time()
-        fn()
-        times.append(time.process_time() - start)
-    return float(np.median(times))
-
-
 def compare(label, model, y0, n, h, repeats):
     X = model.X.ravel().copy()
     A = model.A.ravel().copy()
@@ -92,8 +82,8 @@ def compare(label, model, y0, n, h, repeats):
     gen = lambda: fast.solve_model(model, (0.0, n * h), y0, n_steps=n, record_every=n)  # noqa: E731
     res = gen()
     tight_y = _tight.rk4_network(*args, y0, res.h, n)
-    t_gen = median_time(gen, repeats)
-    t_tight = median_time(lambda: _tight.rk4_network(*args, y0, res.h, n), repeats)
+    t_gen = median_time(gen, repeats, time.process_time)
+    t_tight = median_time(lambda: _tight.rk4_network(*args, y0, res.h, n), repeats, time.process_time)
     ns = model.k.shape[0]
     per_gen, per_tight = t_gen / (n * ns) * 1e9, t_tight / (n * ns) * 1e9
     same = np.array_equal(res.y[:, -1], tight_y)

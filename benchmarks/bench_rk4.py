@@ -67,6 +67,7 @@ from rk4h.references.solvers.dop853 import run_dop853
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/_tight.py, beside this script
 import _tight  # noqa: E402
+from _timing import median_time  # noqa: E402 - the wall clock
 
 CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8], "walls": "both"}
 X0 = [0.005, 0.005]
@@ -83,17 +84,6 @@ SIZES = {
 SECTIONS = ("python", "matched", "chains", "batch", "tight", "chains-tight", "references")
 REFERENCE_SOLVERS = ("dop853", "cvode-adams", "cvode-bdf")
 SAME_Y_RTOL = 1e-12
-
-
-def median_time(fn, repeats):
-    """Median wall time (s) of ``repeats`` calls of ``fn`` after one untimed call."""
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def python_rk4(fun, t0, y0, h, n):
