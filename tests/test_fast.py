@@ -6,12 +6,15 @@ involved (correctly rounded everywhere) and to round-off (1e-14 relative, as
 issue 5 asks) where numpy's and libm's sin/cos may differ in the last bit --
 including where and how a run blows up.
 """
+import re
+
 import numpy as np
 import pytest
 
 import rk4h
 import rk4h.fast as fast
-from rk4h.methods import Tableau
+from rk4h.methods import METHODS as METHODS_ALL
+from rk4h.methods import Tableau, make_tableau
 
 CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]}
 
@@ -307,6 +310,69 @@ def test_generated_source_skips_zero_coefficients():
     assert "* 0.0" not in text
     # The force is inline straight-line code: the stages and the Hermite end slope each divide by m1.
     assert text.count("/ m0") == RK4.n_stages + 1
+
+
+# Sums that extend the stage state's (rk4h.fast.codegen._Held): a splitting
+# method's stage is the one before plus one drift, so the loop adds that term
+# to the held value -- the same roundings as the whole sum. A row that shares
+# only slopes with the held one (Kutta's third-order method: a_10 = 1/2,
+# a_20 = -1) must start from the state; one that begins with it
+# (``extending``: a_20 = a_10) starts from the held value in a classical
+# method too. Each on both loop forms (2 masses: straight-line, 3: arrays).
+KUTTA3 = make_tableau("kutta3", A=[[0, 0, 0], ["1/2", 0, 0], [-1, 2, 0]], b=["1/6", "2/3", "1/6"])
+EXTENDING = make_tableau("extending", A=[[0, 0, 0], ["1/2", 0, 0], ["1/2", "1/2", 0]], b=["1/2", 0, "1/2"])
+HELD_METHODS = ["stormer-verlet", "yoshida4", "blanes-moan4", KUTTA3, EXTENDING]
+OTHER_METHODS = [m for m in sorted(METHODS_ALL) if m not in HELD_METHODS + METHODS]
+
+
+def _held_cases(methods):
+    return [(MODEL_CASES[i], m) for i in (0, 1) for m in methods]
+
+
+def _held_ids(methods):
+    return [f"{case[0]}-{m if isinstance(m, str) else m.name}" for case, m in _held_cases(methods)]
+
+
+def _equals_generic_with_outputs(case, method):
+    model, y0 = _model(case)
+    t_eval = np.array([0.0, 0.013, 0.25, 0.7071, 1.5])
+    for kw in (dict(h=0.01, method=method), dict(h=0.01, method=method, t_eval=t_eval)):
+        _assert_same(fast.solve_model(model, (0.0, 1.5), y0, **kw), rk4h.solve(model.rhs, (0.0, 1.5), y0, **kw),
+                     exact=True)
+
+
+@pytest.mark.parametrize("case, method", _held_cases(HELD_METHODS), ids=_held_ids(HELD_METHODS))
+def test_sums_from_the_held_stage_equal_generic(case, method):
+    _equals_generic_with_outputs(case, method)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case, method", _held_cases(OTHER_METHODS), ids=_held_ids(OTHER_METHODS))
+def test_every_builtin_method_equals_generic(case, method):
+    _equals_generic_with_outputs(case, method)
+
+
+def test_a_splitting_stage_adds_one_drift_and_kutta3_starts_from_the_state():
+    from rk4h.fast import codegen
+    from rk4h.methods import get_method
+
+    model, _ = _model(MODEL_CASES[1])
+    kern = fast.force_kernel(model)
+    yoshida6 = get_method("yoshida6")
+    text = codegen.array_source(yoshida6, kern)
+    sums = [line.split("=", 1)[1] for line in text.splitlines() if line.strip().startswith(("yi[p] =", "v ="))]
+    # Seven Stormer-Verlet sub-steps: each sum adds at most two slopes to the
+    # held value (a sub-step's position row has two).
+    assert max(s.count("* k[") for s in sums) <= 2
+    assert sum(s.count("* k[") for s in sums) < 30  # 134 when every sum starts from the state
+    # The new position is the last stage's, as the drift-kick loop has it.
+    assert "            v = yi[p]" in text
+    # Only the products the loop uses are formed.
+    assert text.count("= step *") == len(set(re.findall(r"\bh[qv]b?_[0-9_]+\b", text.split("for i in range(n)")[1])))
+    kutta = codegen.array_source(KUTTA3, kern)
+    assert "yi[p] = y[p] + hq_2_0 * k[0, p] + hq_2_1 * k[1, p]" in kutta
+    extending = codegen.array_source(EXTENDING, kern)
+    assert "yi[p] = yi[p] + hq_2_1 * k[1, p]" in extending
 
 
 def _kernel_args(model):

@@ -26,7 +26,9 @@ methods with equal tableaux (``forest-ruth`` and a scene's
 The arithmetic is that of ``rk4h.rk_step``: stage ``s`` is
 ``y + (h a_s0) k_0 + (h a_s1) k_1 + ...`` summed left to right over the
 nonzero ``a_sj`` (position and velocity halves with their own coefficients for
-a partitioned method), the new state ``y + (h b_0) k_0 + ...``, and off-grid
+a partitioned method), the new state ``y + (h b_0) k_0 + ...``, each sum
+that begins with the one the stage state holds continued from it
+(:class:`_Held`: the same additions, so the same double), and off-grid
 outputs the cubic Hermite interpolant of ``_kernels._hermite``; with the
 force printed in the numpy path's operation order, the results equal
 ``rk4h.solve(model.rhs, ...)`` bit for bit wherever the elementary
@@ -63,6 +65,7 @@ import inspect
 import linecache
 import os
 import pathlib
+import re
 import secrets
 import stat
 import sys
@@ -135,27 +138,87 @@ class _Plan:
         self.evaluate = [bool(e) and i != reused for i, e in enumerate(tab.stage_evaluated)]
         self.v_first = [self.A_v[i, i] == 0.0 for i in range(self.ns)]
 
-    def q_terms(self, i, k):
-        """Position terms of stage ``i``: ``(product name, slope)`` over ``j <= i``
-        (``j < i`` when the position comes first); ``k(j)`` names slope ``j``."""
+    def q_row(self, i) -> tuple:
+        """Position sum of stage ``i`` as ``((j, a_ij, product name), ...)``
+        over the nonzero ``a_ij``, ``j <= i`` (``j < i`` when the position
+        comes first)."""
         upto = i + 1 if self.v_first[i] else i
-        return [(f"hq_{i}_{j}", k(j)) for j in range(upto) if self.A[i, j] != 0.0]
+        return tuple((j, float(self.A[i, j]), f"hq_{i}_{j}") for j in range(upto) if self.A[i, j] != 0.0)
 
-    def v_terms(self, i, k, diagonal=False):
+    def v_row(self, i, diagonal=False) -> tuple:
+        """Velocity sum of stage ``i`` (as :meth:`q_row`): ``j < i``, and
+        ``j = i`` too when ``diagonal``."""
         upto = i + 1 if diagonal else i
-        return [(f"hv_{i}_{j}", k(j)) for j in range(upto) if self.A_v[i, j] != 0.0]
+        return tuple((j, float(self.A_v[i, j]), f"hv_{i}_{j}") for j in range(upto) if self.A_v[i, j] != 0.0)
 
-    def products(self, indent):
-        """``h a_ij`` and ``h b_i`` formed once, before the loop (nonzero only)."""
+    def new_row(self, half: str) -> tuple:
+        """The new state's sum of ``half`` (``"q"``: weights ``b``, ``"v"``:
+        ``b_v``) as :meth:`q_row`."""
+        bh = self.b if half == "q" else self.b_v
+        return tuple((j, float(bh[j]), f"h{half}b_{j}") for j in range(self.ns) if bh[j] != 0.0)
+
+    def products(self, indent, used=None):
+        """``h a_ij`` and ``h b_i`` formed once, before the loop (nonzero
+        only; only the names in ``used`` when given)."""
         L = []
         for half, (Ah, bh) in (("q", (self.A, self.b)), ("v", (self.A_v, self.b_v))):
             for i in range(self.ns):
                 for j in range(i + 1):
-                    if Ah[i, j] != 0.0:
+                    if Ah[i, j] != 0.0 and (used is None or f"h{half}_{i}_{j}" in used):
                         L.append(f"{indent}h{half}_{i}_{j} = step * {float(Ah[i, j])!r}")
-                if bh[i] != 0.0:
+                if bh[i] != 0.0 and (used is None or f"h{half}b_{i}" in used):
                     L.append(f"{indent}h{half}b_{i} = step * {float(bh[i])!r}")
         return L
+
+
+class _Held:
+    """The sums a step's stage state holds while the step is written out, so
+    that a sum beginning with the held one is written as the held value plus
+    its new terms.
+
+    ``y + c0 k0 + c1 k1 + c2 k2`` is added left to right: after ``c1 k1`` the
+    running value is the double ``y + c0 k0 + c1 k1``, which a held sum with
+    the same slopes and coefficients in the same order is. Adding ``c2 k2``
+    to the held value performs the same roundings as the whole sum, so the
+    result is the same double. A splitting method's stage ``i`` is stage
+    ``i - 1`` plus one drift (``A[i][j] = a_j``; HLW sec. III.2.2), so its
+    loop adds one term per stage instead of ``i``, and its new position is
+    its last stage's. ``half``: ``"q"``, ``"v"`` (the state's halves), or
+    ``"all"`` (a classical method's array loop, one pass over both).
+    """
+
+    def __init__(self):
+        self._rows: dict[str, tuple] = {}
+
+    def split(self, half: str, row: tuple) -> tuple:
+        """``(True, the terms after the held ones)`` when ``half`` holds a
+        nonempty sum that ``row`` begins with (the same slopes and
+        coefficients, in order), else ``(False, row)``."""
+        held = self._rows.get(half, ())
+        n = len(held)
+        if n and len(row) >= n and [t[:2] for t in row[:n]] == [t[:2] for t in held]:
+            return True, row[n:]
+        return False, row
+
+    def hold(self, half: str, row: tuple) -> None:
+        """The stage state's ``half`` now holds the sum ``row``."""
+        self._rows[half] = row
+
+
+def _sum_text(held, half: str, row: tuple, base: str, here: str, k) -> str | None:
+    """The sum ``row`` from the state ``base``, or from ``here`` (the stage
+    state's element) when it holds a sum ``row`` extends (``held``: a
+    :class:`_Held`, or None); None when ``here`` holds ``row`` already.
+    ``k(j)`` names slope ``j``."""
+    extends, rest = held.split(half, row) if held is not None else (False, row)
+    if extends and not rest:
+        return None
+    return _combination(here if extends else base, [(name, k(j)) for j, _, name in rest])
+
+
+def _used_products(lines) -> set:
+    """The product names (``hq_i_j``, ``hvb_j``...) the lines use."""
+    return set(re.findall(r"\bh(?:q|v)b?_[0-9_]+\b", "\n".join(lines)))
 
 
 def _combination(base, terms):
@@ -262,8 +325,9 @@ def source(tab: Tableau, kern) -> str:
     L += [f"    b{p} = bound[{p}]" for p in range(dim)]
     L += [f"    m{p} = mass[{p}]" for p in range(nq)]
     L += ["    " + line for line in hoisted]
+    loop = ["    " + line for line in _loop(plan, kern, dim)]
     # h a_ij and h b_i as the generic path forms them (step * coefficient).
-    L += plan.products("    ")
+    L += plan.products("    ", _used_products(loop))
     if plan.fsal:  # the first step's evaluation of the reused stage, at y_start
         i0 = plan.fsal[0]
         L += ["    " + line for line in _force(kern, [f"y{p}" for p in range(nq)])]
@@ -276,7 +340,7 @@ def source(tab: Tableau, kern) -> str:
     ]
     L += [f"        ys[ptr, {p}] = y{p}" for p in range(dim)]
     L += ["        ptr += 1"]
-    L += ["    " + line for line in _loop(plan, kern, dim)]
+    L += loop
     L += ["    return n, ptr, K.STATUS_OK, n_extra", ""]
     return "\n".join(L)
 
@@ -286,38 +350,53 @@ def step_lines(plan: _Plan, kern, dim) -> list:
     slopes ``k{i}_*`` from the state ``y0 .. y{dim-1}``, masses ``m*`` and the
     products of :meth:`_Plan.products`, then the new state ``n0 ..
     n{dim-1}``; each evaluated stage runs the force kernel's straight-line
-    code. The numba loops (:func:`source`) and the jax backend
+    code, and a sum that extends the one the stage state holds starts from
+    it (:class:`_Held`). The numba loops (:func:`source`) and the jax backend
     (``rk4h.batch._jax``) print their step from this one text, so the two
     dialects do the same arithmetic in the same order."""
     ns, nq = plan.ns, dim // 2
+    held = _Held()
     L = []
+
+    def half_sum(half, row, name_of):
+        # "s{p} = ..." for each component of the half, unless it holds `row` already
+        out = []
+        for p in range(nq):
+            e = _sum_text(held, half, row, name_of("y", p), name_of("s", p), lambda j: name_of(f"k{j}_", p))
+            if e is not None:
+                out.append(f"    {name_of('s', p)} = {e}")
+        held.hold(half, row)
+        return out
+
+    def q_name(prefix, p):
+        return f"{prefix}{p}"
+
+    def v_name(prefix, p):
+        return f"{prefix}{nq + p}"
+
     for i in range(ns):
         L.append(f"    # stage {i}")
         force = ["    " + line for line in _force(kern, [f"s{p}" for p in range(nq)])]
         force += [f"    k{i}_{nq + p} = _Fo{p} / m{p}" for p in range(nq)]
         if plan.v_first[i]:  # V_i from earlier accelerations, then Q_i (which may use V_i)
-            for p in range(nq):
-                L.append(f"    s{nq + p} = {_combination(f'y{nq + p}', plan.v_terms(i, lambda j: f'k{j}_{nq + p}'))}")
+            L += half_sum("v", plan.v_row(i), v_name)
             # q' = v is the stage's own velocity; v' = F / m.
             L += [f"    k{i}_{p} = s{nq + p}" for p in range(nq)]
             if plan.evaluate[i]:
-                for p in range(nq):
-                    L.append(f"    s{p} = {_combination(f'y{p}', plan.q_terms(i, lambda j: f'k{j}_{p}'))}")
+                L += half_sum("q", plan.q_row(i), q_name)
                 L += force
         else:  # Q_i first, its acceleration, then V_i with it
-            for p in range(nq):
-                L.append(f"    s{p} = {_combination(f'y{p}', plan.q_terms(i, lambda j: f'k{j}_{p}'))}")
+            L += half_sum("q", plan.q_row(i), q_name)
             if plan.evaluate[i]:
                 L += force
-            for p in range(nq):
-                terms = plan.v_terms(i, lambda j: f"k{j}_{nq + p}", diagonal=True)
-                L.append(f"    s{nq + p} = {_combination(f'y{nq + p}', terms)}")
+            L += half_sum("v", plan.v_row(i, diagonal=True), v_name)
             L += [f"    k{i}_{p} = s{nq + p}" for p in range(nq)]
     L.append("    # new state")
-    for p in range(dim):
-        half, bh = ("q", plan.b) if p < nq else ("v", plan.b_v)
-        terms = [(f"h{half}b_{i}", f"k{i}_{p}") for i in range(ns) if bh[i] != 0.0]
-        L.append(f"    n{p} = {_combination(f'y{p}', terms)}")
+    for half, name_of in (("q", q_name), ("v", v_name)):
+        row = plan.new_row(half)
+        for p in range(nq):
+            e = _sum_text(held, half, row, name_of("y", p), name_of("s", p), lambda j: name_of(f"k{j}_", p))
+            L.append(f"    {name_of('n', p)} = {name_of('s', p) if e is None else e}")
     return L
 
 
@@ -394,10 +473,12 @@ def array_source(tab: Tableau, kern) -> str:
     pending, y_fail) -> (n_done, n_out, status, n_extra)``; the same numbers
     as :func:`source` bit for bit."""
     plan = _Plan(tab)
-    L = _array_head(plan, kern)
+    held = _Held()
+    body = []
     for i in range(plan.ns):
-        L += _array_stage(plan, i)
-    L += _array_new_state(plan)
+        body += _array_stage(plan, i, held)
+    body += _array_new_state(plan, held)
+    L = _array_head(plan, kern, _used_products(body)) + body
     # Dense-output slopes: from the stages when the method has them.
     pad = "                    "
     copy, start_array = _start_slope(plan)
@@ -472,10 +553,10 @@ _ARRAY_STEP_END = [
 ]
 
 
-def _array_head(plan: _Plan, kern) -> list:
+def _array_head(plan: _Plan, kern, used=None) -> list:
     """The array loop's text up to the head of its step loop: the force, the
-    signature, the work arrays, the products, a FSAL method's first
-    evaluation and the output points at t0."""
+    signature, the work arrays, the products (those in ``used`` when given),
+    a FSAL method's first evaluation and the output points at t0."""
     L = [
         "# Generated by rk4h.fast.codegen: an array loop; do not edit.",
         f"# depends on: {_dependencies_digest()}",
@@ -491,24 +572,28 @@ def _array_head(plan: _Plan, kern) -> list:
         "    y = y_start.copy()",
         "    y_new = np.empty(dim)",
     ]
-    L += plan.products("    ")
+    L += plan.products("    ", used)
     if plan.fsal:  # the first step's evaluation of the reused stage, at y_start
         L.append(f"    rhs(fp, ip, mass, y, k, {plan.fsal[0]}, nq, w)")
     return L + _ARRAY_OUTPUT_START
 
 
-def _array_new_state(plan: _Plan) -> list:
-    """The new state ``y + h sum b_i k_i`` with the instability test."""
-    ns = plan.ns
-    tq = [(f"hqb_{i}", f"k[{i}, p]") for i in range(ns) if plan.b[i] != 0.0]
-    tv = [(f"hvb_{i}", f"k[{i}, p]") for i in range(ns) if plan.b_v[i] != 0.0]
+def _array_new_state(plan: _Plan, held=None) -> list:
+    """The new state ``y + h sum b_i k_i`` with the instability test (from
+    the stage state where it holds a sum the new one extends: ``held``, a
+    :class:`_Held` or None)."""
+    k = lambda j: f"k[{j}, p]"  # noqa: E731
     L = ["        accept = True"]
     # The instability test NOT(|y_p| <= bound_p) folded into the same pass,
     # without a short circuit (no branch in the loop).
-    halves = [("0", "dim", tq)] if not plan.partitioned else [("0", "nq", tq), ("nq", "dim", tv)]
-    for lo, hi, terms in halves:
+    if not plan.partitioned:
+        halves = [("0", "dim", "all", plan.new_row("q"))]
+    else:
+        halves = [("0", "nq", "q", plan.new_row("q")), ("nq", "dim", "v", plan.new_row("v"))]
+    for lo, hi, half, row in halves:
+        e = _sum_text(held, half, row, "y[p]", "yi[p]", k)
         L += [f"        for p in range({lo}, {hi}):",
-              f"            v = {_combination('y[p]', terms)}",
+              f"            v = {'yi[p]' if e is None else e}",
               "            y_new[p] = v",
               "            accept &= abs(v) <= bound[p]"]
     return L
@@ -543,40 +628,48 @@ def _array_close(plan: _Plan) -> list:
     ]
 
 
-def _array_stage(plan: _Plan, i: int) -> list:
+def _array_stage(plan: _Plan, i: int, held=None) -> list:
     """Lines (indented for the step loop) of stage ``i`` of the array loop."""
-    before, ev, src, after = _array_stage_parts(plan, i, "        ")
+    before, ev, src, after = _array_stage_parts(plan, i, "        ", held)
     return before + ([f"        rhs(fp, ip, mass, {src}, k, {i}, nq, w)"] if ev else []) + after
 
 
-def _array_stage_parts(plan: _Plan, i: int, pad: str) -> tuple:
+def _array_stage_parts(plan: _Plan, i: int, pad: str, held=None) -> tuple:
     """Stage ``i`` of the array loop around its force call: ``(lines before
     the call, whether the stage calls the force, the state it calls it at,
-    lines after the call)``, the lines indented by ``pad``."""
+    lines after the call)``, the lines indented by ``pad``. ``held`` (a
+    :class:`_Held`, or None: every sum from the state) follows the stage
+    state ``yi`` from stage to stage of one step, in order."""
     ev = plan.evaluate[i]
+    k = lambda j: f"k[{j}, p]"  # noqa: E731
+
+    def half_sum(half, lo, hi, row):
+        e = _sum_text(held, half, row, "y[p]", "yi[p]", k)
+        if held is not None:
+            held.hold(half, row)
+        return [] if e is None else [pad + f"for p in range({lo}, {hi}):", pad + f"    yi[p] = {e}"]
+
     if not plan.partitioned:  # a classical method: one pass over the whole state
         if not ev:  # the reused first stage
             return [], False, "y", []
-        terms = [(f"hq_{i}_{j}", f"k[{j}, p]") for j in range(i) if plan.A[i, j] != 0.0]
-        if not terms:  # the stage state is the state itself
+        row = tuple(t for t in plan.q_row(i) if t[0] < i)
+        if not row:  # the stage state is the state itself
             return [], True, "y", []
-        return [pad + "for p in range(dim):", pad + f"    yi[p] = {_combination('y[p]', terms)}"], True, "yi", []
-    tq = plan.q_terms(i, lambda j: f"k[{j}, p]")
-    tv = plan.v_terms(i, lambda j: f"k[{j}, p]")
+        return half_sum("all", "0", "dim", row), True, "yi", []
+    tq, tv = plan.q_row(i), plan.v_row(i)
     if plan.v_first[i]:  # V_i from earlier accelerations, then Q_i (which may use V_i)
         if ev and not tq and not tv:  # the stage state is the state itself
             return [], True, "y", []
-        L = [pad + "for p in range(nq, dim):", pad + f"    yi[p] = {_combination('y[p]', tv)}"]
+        L = half_sum("v", "nq", "dim", tv)
         if plan.A[i, i] != 0.0 or not ev:  # q' = v: the stage's velocity (rhs writes it when called)
             L += [pad + "for p in range(nq):", pad + f"    k[{i}, p] = yi[nq + p]"]
         if ev:
-            L += [pad + "for p in range(nq):", pad + f"    yi[p] = {_combination('y[p]', tq)}"]
+            L += half_sum("q", "0", "nq", tq)
         return L, ev, "yi", []
     # Q_i first, its acceleration, then V_i with it
-    L = [pad + "for p in range(nq):", pad + f"    yi[p] = {_combination('y[p]', tq)}",
-         pad + "for p in range(nq, dim):", pad + f"    yi[p] = {_combination('y[p]', tv)}"]
-    after = [pad + "for p in range(nq, dim):", pad + f"    yi[p] = yi[p] + hv_{i}_{i} * k[{i}, p]",
-             pad + "for p in range(nq):", pad + f"    k[{i}, p] = yi[nq + p]"]
+    L = half_sum("q", "0", "nq", tq) + half_sum("v", "nq", "dim", tv)
+    after = half_sum("v", "nq", "dim", plan.v_row(i, diagonal=True))
+    after += [pad + "for p in range(nq):", pad + f"    k[{i}, p] = yi[nq + p]"]
     return L, ev, "yi", after
 
 
