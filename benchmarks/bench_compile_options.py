@@ -1,7 +1,7 @@
 """What a numba option or a variant of a generated loop's text does to its
 compile time and its speed (issue 29, cold start round 3).
 
-    python benchmarks/bench_compile_options.py METHOD N VARIANT
+    python benchmarks/bench_compile_options.py METHOD N VARIANT [fput]
     NUMBA_OPT=2 python benchmarks/bench_compile_options.py rk4 3 base
 
 Generates the loop ``rk4h.fast.codegen`` would generate for ``METHOD`` on a
@@ -19,7 +19,8 @@ loop's dense-output slopes through a called, not inlined, wrapper). Designs
 (other generators of the array loop, ``benchmarks/_loop_variants.py``; N >=
 3): ``one_call_site`` (the stages in a run-time loop, the slope inlined
 once), ``as_data`` and ``as_data_inline`` (one text per force structure,
-the method passed as data). Run each
+the method passed as data). ``fput``: an FPUT chain (alpha 0.25, beta 0.5:
+a slope with powers) instead of a linear one. Run each
 variant several times, interleaved: one compile's CPU time varies by
 20-40% on a loaded machine.
 """
@@ -37,13 +38,14 @@ from rk4h.fast import codegen
 from rk4h.methods import get_method
 from rk4h.models import Chain
 
-VARIANTS = ("base", "noinline", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
+VARIANTS = ("base", "noinline", "slope_call", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
 #: Other array-loop designs (``benchmarks/_loop_variants.py``; N >= 3).
 DESIGNS = ("one_call_site", "as_data", "as_data_inline")
 
 
-def model(N):
-    return Chain([1.0 + 0.1*i for i in range(N)], [1.0]*(N+1))
+def model(N, fput=False):
+    extra = {"alpha": 0.25, "beta": 0.5} if fput else {}
+    return Chain([1.0 + 0.1*i for i in range(N)], [1.0]*(N+1), **extra)
 
 
 def variant(text, v):
@@ -51,6 +53,10 @@ def variant(text, v):
         return text
     if v == "noinline":   # slope/rhs inlined by LLVM instead of numba's IR inliner
         return text.replace('@njit(inline="always", error_model="numpy")', '@njit(error_model="numpy")')
+    if v == "slope_call":  # the slope called; the rhs wrapper still inlined at numba's level
+        a = text.replace('@njit(inline="always", error_model="numpy")\ndef slope', '@njit(error_model="numpy")\ndef slope')
+        assert a != text
+        return a
     if v == "nonrt":
         return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", _nrt=False)  # on-disk')
     if v == "nocfunc":
@@ -87,17 +93,18 @@ def run(fn, m, kern, unrolled, nsteps, plan=()):
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if len(argv) != 3 or argv[2] not in VARIANTS + DESIGNS or not argv[1].isdigit() or int(argv[1]) < 1:
-        print(f"usage: bench_compile_options.py METHOD N VARIANT (N >= 1, VARIANT one of "
+    if len(argv) not in (3, 4) or argv[2] not in VARIANTS + DESIGNS or not argv[1].isdigit() or int(argv[1]) < 1 \
+            or argv[3:] not in ([], ["fput"]):
+        print(f"usage: bench_compile_options.py METHOD N VARIANT [fput] (N >= 1, VARIANT one of "
               f"{', '.join(VARIANTS + DESIGNS)}), got {' '.join(argv)!r}", file=sys.stderr)
         return 2
-    method, N, v = argv[0], int(argv[1]), argv[2]
+    method, N, v, fput = argv[0], int(argv[1]), argv[2], argv[3:] == ["fput"]
     try:
         tab = get_method(method)
     except ValueError as e:
         print(e, file=sys.stderr)
         return 2
-    m = model(N)
+    m = model(N, fput)
     kern = fast.force_kernel(m)
     unrolled = not codegen.array_loop(kern, 2 * N)
     plan = ()
@@ -117,7 +124,7 @@ def main(argv=None) -> int:
     text += f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
     mod = codegen._in_memory(codegen.module_name(text), text)
     tc, ns, yend = run(mod.integrate, m, kern, unrolled, 200000 if unrolled else 50000, plan)
-    print(f"{method} N={N} {v}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
+    print(f"{method} N={N} {v}{' fput' if fput else ''}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
           f"y_end {hashlib.sha1(yend.tobytes()).hexdigest()[:10]}")
     return 0
 

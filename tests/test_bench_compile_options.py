@@ -14,11 +14,11 @@ SCRIPT = ROOT / "benchmarks" / "bench_compile_options.py"
 LINE = re.compile(r"^(\S+) N=(\d+) (\S+): compile\+1run [0-9.]+ s CPU, [0-9.]+ ns/step, y_end ([0-9a-f]{10})$")
 
 
-def _digest(method, n, variant):
-    proc = subprocess.run([sys.executable, str(SCRIPT), method, str(n), variant], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300)
+def _digest(method, n, variant, *extra):
+    proc = subprocess.run([sys.executable, str(SCRIPT), method, str(n), variant, *extra], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    m = LINE.match(proc.stdout.strip())
+    m = LINE.match(proc.stdout.strip().replace(" fput:", ":"))
     assert m and m.group(3) == variant, proc.stdout
     return m.group(4)
 
@@ -28,6 +28,14 @@ def _digest(method, n, variant):
 def test_each_design_gives_the_package_loops_numbers(method):
     base = _digest(method, 3, "base")
     assert [_digest(method, 3, v) for v in ("one_call_site", "as_data", "as_data_inline")] == [base] * 3
+
+
+@pytest.mark.slow
+def test_a_called_slope_gives_the_same_numbers_on_an_fput_chain():
+    # the variant whose speed docs/performance.md compares (twenty-second round)
+    base = _digest("yoshida4", 3, "base", "fput")
+    assert _digest("yoshida4", 3, "slope_call", "fput") == base
+    assert base != _digest("yoshida4", 3, "base")  # the FPUT chain is another model
 
 
 @pytest.mark.slow
