@@ -316,12 +316,31 @@ def test_generated_source_skips_zero_coefficients():
 # method's stage is the one before plus one drift, so the loop adds that term
 # to the held value -- the same roundings as the whole sum. A row that shares
 # only slopes with the held one (Kutta's third-order method: a_10 = 1/2,
-# a_20 = -1) must start from the state; one that begins with it
-# (``extending``: a_20 = a_10) starts from the held value in a classical
-# method too. Each on both loop forms (2 masses: straight-line, 3: arrays).
+# a_20 = -1) must start from the state; one that begins with it starts from
+# the held value in a classical method too (``gap`` below). Each on both loop
+# forms (2 masses: straight-line, 3: arrays); the other built-in methods
+# (yoshida4 and the rest) in the slow set.
 KUTTA3 = make_tableau("kutta3", A=[[0, 0, 0], ["1/2", 0, 0], [-1, 2, 0]], b=["1/6", "2/3", "1/6"])
-EXTENDING = make_tableau("extending", A=[[0, 0, 0], ["1/2", 0, 0], ["1/2", "1/2", 0]], b=["1/2", 0, "1/2"])
-HELD_METHODS = ["stormer-verlet", "yoshida4", "blanes-moan4", KUTTA3, EXTENDING]
+# Partitioned tableaux (not methods anyone would use: consistent, low order)
+# that reach the branches no built-in method does: position-first stages
+# after the first, whose velocity sums extend the held one before and after
+# the diagonal term (``pos_first``); a velocity-first stage that is not
+# evaluated, one with a diagonal position term, and a velocity row that
+# falls back to the state (``mixed``). And a classical tableau with an
+# empty row between two that extend each other (``gap``: the held sum
+# survives a call at the state). Found by a review of the change.
+POS_FIRST = make_tableau(
+    "pos_first", A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], ["1/2", 0, 0, 0], ["1/2", "1/4", "1/4", 0]],
+    b=["1/2", "1/4", "1/3", 0], A_v=[[0, 0, 0, 0], ["1/3", 0, 0, 0], ["1/3", "1/6", "1/5", 0], ["1/3", "1/6", "1/5", "1/7"]],
+    b_v=["1/3", "1/6", "1/5", "2/7"])
+MIXED = make_tableau(
+    "mixed", A=[[0, 0, 0, 0, 0], ["1/2", "1/3", 0, 0, 0], ["1/2", 0, 0, 0, 0], ["1/2", "1/3", "1/5", 0, 0],
+                ["1/2", "1/3", "1/5", "1/9", 0]], b=["1/2", "1/3", "1/5", "1/9", "1/11"],
+    A_v=[[0, 0, 0, 0, 0], ["1/4", 0, 0, 0, 0], ["1/4", "1/8", 0, 0, 0], ["1/4", 0, 0, 0, 0], ["1/4", "1/8", 0, "1/6", "1/7"]],
+    b_v=["1/4", "1/8", 0, "1/6", "1/3"])
+GAP = make_tableau("gap", A=[[0, 0, 0, 0], ["1/2", 0, 0, 0], [0, 0, 0, 0], ["1/2", 0, "1/2", 0]],
+                   b=["1/2", 0, "1/4", "1/4"])
+HELD_METHODS = ["stormer-verlet", "blanes-moan4", KUTTA3, POS_FIRST, MIXED, GAP]
 OTHER_METHODS = [m for m in sorted(METHODS_ALL) if m not in HELD_METHODS + METHODS]
 
 
@@ -371,8 +390,8 @@ def test_a_splitting_stage_adds_one_drift_and_kutta3_starts_from_the_state():
     assert text.count("= step *") == len(set(re.findall(r"\bh[qv]b?_[0-9_]+\b", text.split("for i in range(n)")[1])))
     kutta = codegen.array_source(KUTTA3, kern)
     assert "yi[p] = y[p] + hq_2_0 * k[0, p] + hq_2_1 * k[1, p]" in kutta
-    extending = codegen.array_source(EXTENDING, kern)
-    assert "yi[p] = yi[p] + hq_2_1 * k[1, p]" in extending
+    gap = codegen.array_source(GAP, kern)  # stage 3 extends stage 1 across stage 2, taken at the state
+    assert "yi[p] = yi[p] + hq_3_2 * k[2, p]" in gap
 
 
 def _kernel_args(model):
