@@ -38,7 +38,7 @@ from rk4h.fast import codegen
 from rk4h.methods import get_method
 from rk4h.models import Chain
 
-VARIANTS = ("base", "noinline", "slope_call", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
+VARIANTS = ("base", "noinline", "slope_call", "straight_line", "nonrt", "nocfunc", "both", "nocfunc_arr", "dense_call")
 #: Other array-loop designs (``benchmarks/_loop_variants.py``; N >= 3).
 DESIGNS = ("one_call_site", "as_data", "as_data_inline")
 
@@ -53,6 +53,8 @@ def variant(text, v):
         return text
     if v == "noinline":   # slope/rhs inlined by LLVM instead of numba's IR inliner
         return text.replace('@njit(inline="always", error_model="numpy")', '@njit(error_model="numpy")')
+    if v == "straight_line":  # the text is codegen.source's (chosen in main)
+        return text
     if v == "slope_call":  # the slope called; the rhs wrapper still inlined at numba's level
         a = text.replace('@njit(inline="always", error_model="numpy")\ndef slope', '@njit(error_model="numpy")\ndef slope')
         assert a != text
@@ -107,6 +109,13 @@ def main(argv=None) -> int:
     m = model(N, fput)
     kern = fast.force_kernel(m)
     unrolled = not codegen.array_loop(kern, 2 * N)
+    nsteps = 200000 if unrolled else 50000  # as the package's choice, so that variants compare
+    if v == "straight_line":
+        if not kern.has_scalar():
+            print(f"bench_compile_options.py: straight_line: N must be <= {kern.MAX_SCALAR_DOF}, got {N}",
+                  file=sys.stderr)
+            return 2
+        unrolled = True
     plan = ()
     if v in DESIGNS:
         if unrolled:
@@ -123,7 +132,7 @@ def main(argv=None) -> int:
         text = variant(codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern), v)
     text += f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
     mod = codegen._in_memory(codegen.module_name(text), text)
-    tc, ns, yend = run(mod.integrate, m, kern, unrolled, 200000 if unrolled else 50000, plan)
+    tc, ns, yend = run(mod.integrate, m, kern, unrolled, nsteps, plan)
     print(f"{method} N={N} {v}{' fput' if fput else ''}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
           f"y_end {hashlib.sha1(yend.tobytes()).hexdigest()[:10]}")
     return 0

@@ -39,9 +39,16 @@ def test_a_called_slope_gives_the_same_numbers_on_an_fput_chain():
 
 
 @pytest.mark.slow
+def test_the_straight_line_variant_gives_the_array_loops_numbers():
+    # docs/performance.md (twenty-second round) compares the two forms on 3-8 masses
+    assert _digest("rk4", 4, "straight_line", "fput") == _digest("rk4", 4, "base", "fput")
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("argv, why", [
     (["rk4", "2", "as_data"], "as_data is an array loop: N must be >= 3, got 2"),
     (["rk4", "3", "no-such-design"], "VARIANT one of"),
+    (["rk4", "9", "straight_line"], "straight_line: N must be <= 8, got 9"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(argv, why):
     proc = subprocess.run([sys.executable, str(SCRIPT), *argv], cwd=ROOT, capture_output=True, text=True,
