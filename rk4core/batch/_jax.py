@@ -83,8 +83,7 @@ def step_source(tab, kern) -> str:
     L += [f"    y{p} = y[{p}]" for p in range(dim)]
     L += [f"    m{p} = m[{p}]" for p in range(nq)]
     L += ["    " + line for line in hoisted]
-    names = [line.strip().split(" = ")[0] for line in plan.products("")]
-    L += [f"    {nm} = hs[{nm!r}]" for nm in names]
+    L += [f"    {nm} = hs[{nm!r}]" for nm, _ in plan.coefficients()]
     if plan.fsal:
         i0 = plan.fsal[0]
         L += [f"    k{i0}_{nq + p} = kc[{p}]" for p in range(nq)]
@@ -238,8 +237,7 @@ def _runner(tab, kern, dtype: str, unroll: int, kernel: str, lanes: int):
     plan = _Plan(tab)
     step = _compile(step_source(tab, kern), "step")
     first = _compile(_first_force_source(tab, kern), "first") if plan.fsal else None
-    names = [line.strip().split(" = ")[0] for line in plan.products("")]
-    coefs = [float(line.strip().split(" * ")[1]) for line in plan.products("")]
+    names, coefs = zip(*plan.coefficients())
     dt = jnp.dtype(dtype)
     dim = 2 * kern.n_dof
     big = float(np.finfo(dt).max)

@@ -157,18 +157,24 @@ class _Plan:
         bh = self.b if half == "q" else self.b_v
         return tuple((j, float(bh[j]), f"h{half}b_{j}") for j in range(self.ns) if bh[j] != 0.0)
 
-    def products(self, indent, used=None):
-        """``h a_ij`` and ``h b_i`` formed once, before the loop (nonzero
-        only; only the names in ``used`` when given)."""
-        L = []
+    def coefficients(self, used=None) -> list:
+        """``(product name, coefficient)`` for every nonzero ``a_ij`` and
+        ``b_i`` of both halves (only the names in ``used`` when given): the
+        products ``h a_ij``, ``h b_i`` a loop forms once, before its steps."""
+        out = []
         for half, (Ah, bh) in (("q", (self.A, self.b)), ("v", (self.A_v, self.b_v))):
             for i in range(self.ns):
                 for j in range(i + 1):
-                    if Ah[i, j] != 0.0 and (used is None or f"h{half}_{i}_{j}" in used):
-                        L.append(f"{indent}h{half}_{i}_{j} = step * {float(Ah[i, j])!r}")
-                if bh[i] != 0.0 and (used is None or f"h{half}b_{i}" in used):
-                    L.append(f"{indent}h{half}b_{i} = step * {float(bh[i])!r}")
-        return L
+                    if Ah[i, j] != 0.0:
+                        out.append((f"h{half}_{i}_{j}", float(Ah[i, j])))
+                if bh[i] != 0.0:
+                    out.append((f"h{half}b_{i}", float(bh[i])))
+        return out if used is None else [(name, c) for name, c in out if name in used]
+
+    def products(self, indent, used=None):
+        """The lines forming :meth:`coefficients`' products (``step *
+        coefficient``, as the generic path forms them)."""
+        return [f"{indent}{name} = step * {c!r}" for name, c in self.coefficients(used)]
 
 
 class _Held:
