@@ -8,7 +8,8 @@ Two planar networks of harmonic springs:
 
 ``network_web``
     The scene ``validation/scenes/network_web.toml``: 2 masses, 4 anchors,
-    5 springs (8 state components: the array loop).
+    5 springs (8 state components: the straight-line loop, from the
+    twenty-third round; the array loop before).
 ``lattice 30x30``
     900 masses (0.5 kg) on a square grid of spacing 0.1 m, springs
     (k = 40 N/m) between horizontal and vertical neighbours, each edge mass

@@ -153,14 +153,16 @@ def test_the_advice_is_the_same_with_one_thread_or_several(monkeypatch):
     assert _without_timing(one) == _without_timing(several)
 
 
-@pytest.mark.parametrize("model_name", ["thesis-2dof-case1", "three-blocks"])
-def test_the_compiled_loops_release_the_interpreter_lock(model_name):
-    """The generated loop (straight-line for 2-DOF, array loop for 3 masses)
+@pytest.mark.parametrize("model_name, array", [("thesis-2dof-case1", False), ("chain10-mode2", True)])
+def test_the_compiled_loops_release_the_interpreter_lock(model_name, array):
+    """The generated loop (straight-line for 2-DOF, array loop for 10 masses)
     is compiled ``nogil``: side by side runs use several cores."""
+    from rk4h.fast import codegen
     from rk4h.fast import solve as fast_solve
     from rk4h.validation.execute import problem
 
     model, _ = problem(_scene(model_name))
+    assert codegen.array_loop(fast_solve.force_kernel(model), 2 * model.n_dof) is array
     fast_solve.warm_up(model, "rk4")
     loop = fast_solve._loop_of(model, "rk4")
     assert loop.targetoptions.get("nogil") is True

@@ -200,18 +200,18 @@ def test_jax_pallas_kernel_float32_and_bad_settings(monkeypatch):
 
 
 def test_array_loop_and_off_grid_output_bit_for_bit():
-    # five masses: the array loop (beyond the straight-line size); t_eval off the grid: Hermite
+    # nine masses: the array loop (beyond the straight-line loop's 8); t_eval off the grid: Hermite
     rng = np.random.default_rng(3)
-    base = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6})
+    base = rk4h.make_model("chain", {"masses": [1.0] * 9, "springs": [10.0] * 10})
     B = 4
-    y0 = rng.uniform(-0.1, 0.1, (B, 10))
-    springs = rng.uniform(5.0, 50.0, (B, 6))
+    y0 = rng.uniform(-0.1, 0.1, (B, 18))
+    springs = rng.uniform(5.0, 50.0, (B, 10))
     t_eval = np.linspace(0.0, 1.0, 7)
     for method in ("rk4", "stormer-verlet"):
         res = ensemble(base, y0, (0.0, 1.0), h=0.03, params={"springs": springs}, t_eval=t_eval, backend="numba",
                        method=method)
         for b in range(B):
-            m = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": list(springs[b])})
+            m = rk4h.make_model("chain", {"masses": [1.0] * 9, "springs": list(springs[b])})
             ref = rk4h.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03, t_eval=t_eval, method=method)
             assert np.array_equal(res.y[b], ref.y.T), (method, b)
 

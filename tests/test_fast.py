@@ -21,8 +21,11 @@ CASE1 = {"masses": [0.815, 3.099], "springs": [41.5, 138.0, 157.8]}
 # (id, model name, parameters, x0, v0): every built-in model and chain wall variant.
 MODEL_CASES = [
     ("chain-2dof-case1", "chain", CASE1, [0.005, 0.005], [0.0, 0.0]),
-    ("chain-walls-none", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0], "walls": "none"},
-     [0.003, -0.001, 0.002], [0.01, 0.0, -0.02]),
+    # nine masses: above the straight-line loop's 8 degrees of freedom, the array loop
+    ("chain-walls-none", "chain", {"masses": [1.0, 2.0, 1.5, 0.7, 1.2, 0.9, 1.8, 1.1, 0.6],
+                                   "springs": [3.0, 5.0, 4.0, 2.5, 6.0, 3.5, 4.5, 5.5], "walls": "none"},
+     [0.003, -0.001, 0.002, 0.0, -0.002, 0.001, 0.0, 0.004, -0.003],
+     [0.01, 0.0, -0.02, 0.005, 0.0, 0.0, -0.01, 0.0, 0.02]),
     ("chain-walls-left", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0, 4.0], "walls": "left"},
      [0.003, -0.001, 0.002], [0.0, 0.01, 0.0]),
     ("chain-walls-right", "chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0, 4.0], "walls": "right"},
@@ -76,8 +79,9 @@ def _assert_same(fast_res, gen_res, rtol=1e-14, exact=False):
     assert np.max(np.abs(fast_res.y - gen_res.y)) <= rtol * scale
 
 
-# Every model with RK4, and every method on the two loop forms (a 2-mass chain:
-# straight-line; a 3-mass chain: arrays). The method is data the generator
+# Every model with RK4 (the models of up to 8 degrees of freedom on the
+# straight-line loop, the 9-mass chain on the array loop), and every method on
+# the two loop forms (a 2-mass chain: straight-line; a 9-mass chain: arrays). The method is data the generator
 # reads; the model is the force text it inlines: together they cover the
 # product without compiling a loop for each (model, method) pair (each costs
 # about a second on a cold cache).
@@ -318,7 +322,7 @@ def test_generated_source_skips_zero_coefficients():
 # only slopes with the held one (Kutta's third-order method: a_10 = 1/2,
 # a_20 = -1) must start from the state; one that begins with it starts from
 # the held value in a classical method too (``gap`` below). 2 masses run
-# the straight-line loop, 3 the array loop.
+# the straight-line loop, 9 the array loop.
 KUTTA3 = make_tableau("kutta3", A=[[0, 0, 0], ["1/2", 0, 0], [-1, 2, 0]], b=["1/6", "2/3", "1/6"])
 # Partitioned tableaux (not methods anyone would use: consistent, low order)
 # that reach the branches no built-in method does: position-first stages

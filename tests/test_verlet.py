@@ -79,8 +79,12 @@ def test_energy_error_bounded_over_1e5_periods():
 
 MODELS = [
     ("oscillator2d", {"m": 1.0, "kx": 2.0, "ky": 4.0}, [0.005, 0.002], [0.0, 0.01]),  # straight-line loop
-    ("chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0], "walls": "none"},  # array loop
+    ("chain", {"masses": [1.0, 2.0, 1.5], "springs": [3.0, 5.0], "walls": "none"},  # straight-line, 3 masses
      [0.003, -0.001, 0.002], [0.01, 0.0, -0.02]),
+    ("chain", {"masses": [1.0, 2.0, 1.5, 0.7, 1.2, 0.9, 1.8, 1.1, 0.6],  # array loop (above 8 masses)
+               "springs": [3.0, 5.0, 4.0, 2.5, 6.0, 3.5, 4.5, 5.5], "walls": "none"},
+     [0.003, -0.001, 0.002, 0.0, -0.002, 0.001, 0.0, 0.004, -0.003],
+     [0.01, 0.0, -0.02, 0.005, 0.0, 0.0, -0.01, 0.0, 0.02]),
 ]
 
 

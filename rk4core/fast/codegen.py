@@ -6,10 +6,10 @@ definition (:mod:`rk4h.models.compiled`). The loop is written out for one
 tableau: the products ``h a_ij`` and ``h b_i`` are formed once and terms with
 a zero coefficient are left out.
 
-* :func:`source` -- a small state (``dim <= MAX_UNROLLED_DIM``): the state and
-  the stage slopes are scalar locals and the force is the kernel's
-  straight-line code inlined on them (a 2-DOF step is about 40 flops, so
-  overhead is everything);
+* :func:`source` -- a small state (``dim <= MAX_UNROLLED_DIM``, up to 8
+  degrees of freedom): the state and the stage slopes are scalar locals and
+  the force is the kernel's straight-line code inlined on them (a 2-DOF step
+  is about 40 flops, so overhead is everything);
 * :func:`array_source` -- any size: arrays, one fused pass per stage (a
   classical method's position and velocity halves together), the kernel's
   ``slope`` (a chain's force, velocity copy and division by the mass in one
@@ -19,7 +19,7 @@ a zero coefficient are left out.
 
 A loop's text depends on the definition's structure, not on its numbers
 (those are the ``fp``/``ip`` arrays), so one compiled loop serves every model
-of that structure; nor on the method's name, only its coefficients, so two
+of that structure (and, for the straight-line loop, that size); nor on the method's name, only its coefficients, so two
 methods with equal tableaux (``forest-ruth`` and a scene's
 ``forest-ruth-as-data``) share one file and one compile in every process.
 
@@ -82,12 +82,16 @@ from . import _kernels as K
 __all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "array_loop",
            "model_module", "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
 
-#: Largest state size (2 n_dof) that gets a generated loop: the two-degree-of-
-#: freedom models, where the loop overhead is most of the cost. Larger states
-#: run the array loop. (Each generated loop costs a compilation of about a
-#: second, which the test suite, run on a cold cache, pays per method and
-#: structure it exercises.)
-MAX_UNROLLED_DIM = 4
+#: Largest state size (2 n_dof) that gets the straight-line loop: up to 8
+#: degrees of freedom, the largest force a kernel writes as straight-line code
+#: (``ForceKernel.MAX_SCALAR_DOF``). On 3 to 8 masses that loop ran 1.4-3.3x
+#: faster than the array loop (whose vectorized passes pay run-time alias
+#: checks and remainders on short arrays) and compiled in at most the same time
+#: (half for the many-stage methods; docs/performance.md, twenty-second and
+#: twenty-third rounds). Its text holds the size, so it is compiled per number
+#: of degrees of freedom; larger states run the array loop, one text per force
+#: structure for every size.
+MAX_UNROLLED_DIM = 16
 
 _HERE = pathlib.Path(__file__).resolve().parent
 _KERNELS: dict[tuple, object] = {}

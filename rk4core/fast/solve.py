@@ -432,10 +432,11 @@ def solve_model(model, t_span, y0, *, h=None, n_steps=None, t_eval=None, method=
 
     Notes
     -----
-    A state of up to ``codegen.MAX_UNROLLED_DIM`` components (the 2-DOF
-    models) runs a loop generated from the method's tableau with the state in
-    registers (:mod:`rk4h.fast.codegen`); larger states run an array loop
-    generated from the same tableau. Both give the numbers of
+    A state of up to ``codegen.MAX_UNROLLED_DIM`` components (up to 8
+    degrees of freedom, where the force has a straight-line form) runs a loop
+    generated from the method's tableau with the state in registers
+    (:mod:`rk4h.fast.codegen`); larger states run an array loop generated
+    from the same tableau. Both give the numbers of
     ``rk4h.solve(model.rhs, ...)`` bit for bit wherever the elementary
     functions agree. The first call in a process for a method and a force
     structure compiles the loop,
@@ -531,8 +532,9 @@ def warm_up(model=None, method="rk4") -> float:
 
     Each (method, force structure) has its own generated loop
     (:mod:`rk4h.fast.codegen`): straight-line up to ``MAX_UNROLLED_DIM``
-    state components, an array loop beyond. Without ``model`` the loops of a
-    two-mass chain and of a longer chain are prepared.
+    state components (one per size), an array loop beyond. Without ``model``
+    the loops of a two-mass chain and of a chain too long for the
+    straight-line loop are prepared.
 
     A model's loop that an earlier ``warm_up`` of this process already ran
     is not run again (the first call costs one step, later ones a look-up).
@@ -553,7 +555,7 @@ def warm_up(model=None, method="rk4") -> float:
         if loop is not None and id(loop) in _WARMED:
             return time.perf_counter() - start
     if model is None:  # a two-mass chain and a chain too long to unroll
-        models = [Chain([1.0] * N, [1.0] * (N + 1)) for N in (2, MAX_UNROLLED_DIM)]
+        models = [Chain([1.0] * N, [1.0] * (N + 1)) for N in (2, MAX_UNROLLED_DIM // 2 + 1)]
     else:
         models = [model]
     for m in models:
