@@ -300,10 +300,14 @@ def test_generated_loop_equals_the_numpy_path(case):
     # sin/cos/exp/log, numpy's and libm's may differ in the last bit.
     import rk4h
     from rk4h.fast import codegen
+    from rk4h.fast.solve import _loop_of
+    from rk4h.methods import RK4
 
     model = _model(case.id)
     kern = fast.force_kernel(model)
-    assert not codegen.array_loop(kern, 2 * model.n_dof)  # solve_model runs the straight-line loop
+    # solve_model runs the straight-line loop (up to 8 degrees of freedom and
+    # a force of at most codegen.MAX_UNROLLED_FORCE_LINES lines: every case here)
+    assert _loop_of(model, "rk4") is codegen.kernel(RK4, kern)
     y0 = np.ascontiguousarray(_states(case, m=1, seed=3)[:, 0])
     n, step = 200, 0.1 / model.omega_bound()  # h omega <= 0.1: a stable, accurate run
     t_eval = np.array([0.0, 0.37, 0.5, 0.999, 1.0]) * n * step  # on and off the grid (Hermite)

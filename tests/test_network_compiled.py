@@ -60,6 +60,7 @@ def test_fused_slope_equals_numpy_and_two_pass(dim, n, n_anchors, seed):
     np.testing.assert_array_equal(rhs(0.0, y), out[1])
 
 
+# 4 degrees of freedom, an 84-line force: the straight-line loop; 24: the array loop
 @pytest.mark.parametrize("dim, n, n_anchors, seed", [(2, 2, 4, 5), (2, 12, 6, 6)])
 def test_network_loop_equals_python_loop(dim, n, n_anchors, seed):
     model, y = _random_network(dim, n, n_anchors, seed)
@@ -70,6 +71,33 @@ def test_network_loop_equals_python_loop(dim, n, n_anchors, seed):
     assert res.success and ref.success
     np.testing.assert_array_equal(res.y, ref.y)
 
+
+
+def test_a_force_longer_than_the_bound_runs_the_array_loop():
+    # 4 masses in the plane (8 degrees of freedom), every pair joined and each
+    # tied to two anchors: 14 springs, a straight-line force of 148 lines, over
+    # codegen.MAX_UNROLLED_FORCE_LINES: the array loop (whose compile does not
+    # grow with the edge list), with the same numbers.
+    from rk4h.fast import codegen
+    from rk4h.fast.solve import _loop_of
+    from rk4h.methods import RK4
+
+    n = 4
+    springs = [[i, j, 10.0 + i + j] for i in range(n) for j in range(i + 1, n)] + \
+        [[i, n + 2 * i + a, 5.0 + a] for i in range(n) for a in range(2)]
+    model = rk4h.make_model("network", {
+        "dim": 2, "masses": [1.0 + 0.1 * i for i in range(n)],
+        "positions": [c for i in range(n) for c in (float(i), 0.5 * (i % 2))],
+        "anchors": [c for i in range(n) for c in (float(i), -1.0, float(i) + 0.3, 1.5)], "springs": springs})
+    kern = fast.force_kernel(model)
+    assert kern.has_scalar() and kern.scalar_size() > codegen.MAX_UNROLLED_FORCE_LINES
+    assert _loop_of(model, "rk4") is codegen.array_kernel(RK4, kern)
+    y = np.concatenate([np.linspace(-0.01, 0.02, model.n_dof), np.zeros(model.n_dof)])
+    t = np.linspace(0.0, 0.2, 7)
+    res = fast.solve_model(model, (0.0, 0.2), y, h=0.01, t_eval=t)
+    ref = rk4h.solve(model.rhs, (0.0, 0.2), y, h=0.01, t_eval=t)
+    assert res.success and not np.array_equal(res.y[:, -1], y)
+    np.testing.assert_array_equal(res.y, ref.y)
 
 def test_work_array_holds_forces_positions_and_sums():
     model, _ = _random_network(2, 7, 3, 1)

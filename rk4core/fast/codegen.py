@@ -79,19 +79,31 @@ from ..cachedir import UntrustedCacheError, private_dir
 from ..methods import Tableau
 from . import _kernels as K
 
-__all__ = ["MAX_UNROLLED_DIM", "source", "array_source", "model_source", "kernel", "array_kernel", "array_loop",
-           "model_module", "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
+__all__ = ["MAX_UNROLLED_DIM", "MAX_UNROLLED_FORCE_LINES", "source", "array_source", "model_source", "kernel",
+           "array_kernel", "array_loop", "model_module", "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
 
 #: Largest state size (2 n_dof) that gets the straight-line loop: up to 8
 #: degrees of freedom, the largest force a kernel writes as straight-line code
-#: (``ForceKernel.MAX_SCALAR_DOF``). On 3 to 8 masses that loop ran 1.4-3.3x
-#: faster than the array loop (whose vectorized passes pay run-time alias
-#: checks and remainders on short arrays) and compiled in at most the same time
-#: (half for the many-stage methods; docs/performance.md, twenty-second and
-#: twenty-third rounds). Its text holds the size, so it is compiled per number
-#: of degrees of freedom; larger states run the array loop, one text per force
+#: (``ForceKernel.MAX_SCALAR_DOF``). On chains of 3 to 8 masses that loop ran
+#: 1.4-3.3x faster than the array loop (whose vectorized passes pay run-time
+#: alias checks and remainders on short arrays) and compiled in about half the
+#: time for the many-stage methods, within 15% either way for RK4
+#: (docs/performance.md, twenty-second and twenty-third rounds). Its text holds
+#: the size (and a network's edge list), so it is compiled per number of
+#: degrees of freedom; larger states run the array loop, one text per force
 #: structure for every size.
 MAX_UNROLLED_DIM = 16
+
+#: Largest force, in lines of straight-line code (``ForceKernel.scalar_size``),
+#: that the straight-line loop inlines at each stage; a longer one runs the
+#: array loop. The straight-line loop's compile grows with the force's text
+#: times the stages, the array loop's hardly: on planar networks of 2, 3 and 4
+#: masses (54, 96 and 148 lines) the straight-line RK4 loop compiled in 0.6,
+#: 0.9 and 1.3 times the array loop's time and ran 2.3-2.5, 1.3-2.0 and 1.7-1.8
+#: times as fast (docs/performance.md, twenty-third round). Every shipped scene's
+#: force is within the bound (the largest, network-web's 5 planar springs, 54
+#: lines).
+MAX_UNROLLED_FORCE_LINES = 128
 
 _HERE = pathlib.Path(__file__).resolve().parent
 _KERNELS: dict[tuple, object] = {}
@@ -886,10 +898,12 @@ def load_generated(text: str):
 def array_loop(kern, dim: int) -> bool:
     """Whether a state of ``dim`` components on force kernel ``kern`` runs the
     array loop (:func:`array_kernel`) rather than the straight-line one
-    (:func:`kernel`): above :data:`MAX_UNROLLED_DIM`, or where the kernel has
-    no straight-line form. :func:`rk4h.fast.solve_model`, the ensemble's
-    batch and the warm-up before a multi-worker run all choose by it."""
-    return not (dim <= MAX_UNROLLED_DIM and kern.has_scalar())
+    (:func:`kernel`): above :data:`MAX_UNROLLED_DIM`, where the kernel has
+    no straight-line form, or where that form is longer than
+    :data:`MAX_UNROLLED_FORCE_LINES`. :func:`rk4h.fast.solve_model`, the
+    ensemble's batch and the warm-up before a multi-worker run all choose by
+    it."""
+    return not (dim <= MAX_UNROLLED_DIM and kern.has_scalar() and kern.scalar_size() <= MAX_UNROLLED_FORCE_LINES)
 
 
 def loop_key(tab: Tableau, kern, array: bool) -> tuple:

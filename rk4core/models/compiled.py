@@ -137,6 +137,16 @@ class ForceKernel:
             cached = self.__dict__["_scalar_key"] = digest("\n".join(hoisted + body))
         return cached
 
+    def scalar_size(self) -> int:
+        """Lines of the straight-line force (:meth:`scalar_lines`, the hoisted
+        reads apart): what inlining it at every stage of a loop costs to
+        compile. Only for kernels with :meth:`has_scalar`; computed once."""
+        cached = self.__dict__.get("_scalar_size")
+        if cached is None:
+            _, body = self.scalar_lines([f"q{i}" for i in range(self.n_dof)], [f"f{i}" for i in range(self.n_dof)])
+            cached = self.__dict__["_scalar_size"] = len(body)
+        return cached
+
     def has_scalar(self) -> bool:
         """True when :meth:`scalar_lines` gives straight-line code (computed once)."""
         cached = self.__dict__.get("_has_scalar")
