@@ -217,18 +217,19 @@ def test_array_loop_and_off_grid_output_bit_for_bit():
 
 
 def test_nonlinear_chain_equals_the_scalar_compiled_path():
-    # FPUT-beta chain: the batch runs the loop of rk4h.fast.solve_model, so
-    # it equals that bit for bit (rk4h.fast itself agrees with the numpy
-    # path to round-off where numba's and numpy's arithmetic differ)
+    # FPUT-beta chain of nine masses (the array loop): the batch runs the loop
+    # of rk4h.fast.solve_model, so it equals that bit for bit (rk4h.fast
+    # itself agrees with the numpy path to round-off where numba's and
+    # numpy's arithmetic differ)
     import rk4h.fast
 
     rng = np.random.default_rng(4)
-    base = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": 50.0})
-    y0 = rng.uniform(-0.1, 0.1, (3, 10))
+    base = rk4h.make_model("chain", {"masses": [1.0] * 9, "springs": [10.0] * 10, "beta": 50.0})
+    y0 = rng.uniform(-0.1, 0.1, (3, 18))
     beta = rng.uniform(0.0, 100.0, 3)
     res = ensemble(base, y0, (0.0, 1.0), h=0.03, params={"beta": beta}, backend="numba")
     for b in range(3):
-        m = rk4h.make_model("chain", {"masses": [1.0] * 5, "springs": [10.0] * 6, "beta": float(beta[b])})
+        m = rk4h.make_model("chain", {"masses": [1.0] * 9, "springs": [10.0] * 10, "beta": float(beta[b])})
         ref = rk4h.fast.solve_model(m, (0.0, 1.0), y0[b], h=0.03)
         assert np.array_equal(res.y[b], ref.y.T)
         assert _rel(res.y[b:b + 1], rk4h.solve(m.rhs, (0.0, 1.0), y0[b], h=0.03).y.T[None]) <= 1e-13

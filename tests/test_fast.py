@@ -150,6 +150,7 @@ BLOWUP_CASES = [
     ("planar4-exact-rk4", 4, "rk4", 1.0),
     ("pendulums-linear-rk4", 7, "rk4", 2.0),
     ("triangle-rk4", 8, "rk4", 1.5),
+    ("chain9-array-rk4", 1, "rk4", 1.5),   # the array loop
 ]
 
 
@@ -417,16 +418,22 @@ def _array_loop(kern, fp, ip, mass, y0, step, n, tab, *rest):
     return codegen.array_kernel(tab, kern)(fp, ip, mass, np.zeros(kern.work_size), y0, 0.0, step, n, *rest)
 
 
-@pytest.mark.parametrize("method", METHODS)
-def test_straight_line_loop_is_bit_identical_to_array_loop(method):
+# The two forms on the models of 3 to 8 degrees of freedom that run the
+# straight-line loop: the array loop with one wall, with FPUT tension, and a
+# network's, against it (each compiles one array loop on a cold cache).
+FORM_CASES = [(0, m) for m in METHODS] + [(i, "rk4") for i in (2, 3, 8, 10)]
+
+
+@pytest.mark.parametrize("case_i, method", FORM_CASES, ids=[f"{MODEL_CASES[i][0]}-{m}" for i, m in FORM_CASES])
+def test_straight_line_loop_is_bit_identical_to_array_loop(case_i, method):
     # The two generated forms of one (method, force) pair -- scalar locals and
-    # arrays -- do the same arithmetic in the same order. (The chain's array
-    # loop is the one longer chains run, so this compiles nothing extra.)
+    # arrays -- do the same arithmetic in the same order.
     from rk4h.fast import codegen
     from rk4h.fast.solve import _output_points
     from rk4h.methods import get_method
 
-    model, y0 = _model(MODEL_CASES[0])
+    model, y0 = _model(MODEL_CASES[case_i])
+    assert not codegen.array_loop(fast.force_kernel(model), y0.size)
     kern, (fp, ip, mass) = _kernel_args(model)
     tab = get_method(method)
     n, step = 150, 0.01
