@@ -18,7 +18,7 @@ child process of this script that records, in that process:
   seconds of the computation.
 
 With ``--verbose`` it lists each compile (a generated module by its first
-line, ``dim 4`` or ``array loop``, and a digest of its code without
+line, ``dim 4`` to ``dim 16`` or ``array loop``, and a digest of its code without
 comments) and the duplicates in effect: one function compiled for two
 signatures or in two processes, two generated modules with the same code.
 It prints both ledgers and the split of ``CPU(cold) - CPU(warm)`` into numba

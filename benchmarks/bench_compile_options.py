@@ -1,7 +1,7 @@
 """What a numba option or a variant of a generated loop's text does to its
 compile time and its speed (issue 29, cold start round 3).
 
-    python benchmarks/bench_compile_options.py METHOD N VARIANT [fput]
+    python benchmarks/bench_compile_options.py METHOD N VARIANT [fput | net]
     NUMBA_OPT=2 python benchmarks/bench_compile_options.py rk4 3 base
 
 Generates the loop ``rk4h.fast.codegen`` generates for ``METHOD`` on a chain
@@ -16,12 +16,16 @@ bit). Variants: ``base`` (the text as generated); ``noinline`` (the slope and
 the rhs wrapper inlined by LLVM instead of numba's ``inline="always"``);
 ``nonrt`` and ``nocfunc`` (``_nrt=False``, ``no_cfunc_wrapper=True`` on a
 straight-line loop), ``both``; ``nocfunc_arr`` (the latter on an array loop);
-``dense_call`` (an array loop's dense-output slopes through a called, not
+``dense_call`` (an array loop's dense-output end slope through a called, not
 inlined, wrapper); ``straight_line`` and ``array`` (that loop form at any N,
 the straight-line one up to 8 masses). Designs (other generators of the array
 loop, ``benchmarks/_loop_variants.py``; N >= 3): ``one_call_site`` (the stages
 in a run-time loop, the slope inlined once), ``as_data`` and
 ``as_data_inline`` (one text per force structure, the method passed as data).
+``net``: ``N`` masses in the plane, every pair joined by a spring and each
+mass tied to two anchors (N (N - 1) / 2 + 2 N springs: 5 for N = 2, as
+network-web; 14 for N = 4), instead of a chain; the variants ``base``,
+``straight_line`` and ``array`` only.
 ``fput``: an FPUT chain (alpha 0.25, beta 0.5: a slope with powers) instead of
 a linear one. Run each variant several times, interleaved: one compile's CPU
 time varies by 20-40% on a loaded machine.
@@ -35,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+import rk4h
 import rk4h.fast as fast
 from rk4h.fast import codegen
 from rk4h.methods import get_method
@@ -46,35 +51,54 @@ VARIANTS = ("base", "noinline", "slope_call", "straight_line", "array", "nonrt",
 DESIGNS = ("one_call_site", "as_data", "as_data_inline")
 
 
-def model(N, fput=False):
-    extra = {"alpha": 0.25, "beta": 0.5} if fput else {}
+def model(N, kind=""):
+    if kind == "net":
+        positions = [c for i in range(N) for c in (float(i), 0.5 * (i % 2))]
+        anchors = [c for i in range(N) for c in (float(i), -1.0, float(i) + 0.3, 1.5)]
+        springs = [[i, j, 10.0 + i + j] for i in range(N) for j in range(i + 1, N)] + \
+            [[i, N + 2 * i + a, 5.0 + a] for i in range(N) for a in range(2)]
+        return rk4h.make_model("network", {"dim": 2, "masses": [1.0 + 0.1 * i for i in range(N)],
+                                           "positions": positions, "anchors": anchors, "springs": springs})
+    extra = {"alpha": 0.25, "beta": 0.5} if kind == "fput" else {}
     return Chain([1.0 + 0.1*i for i in range(N)], [1.0]*(N+1), **extra)
 
 
+#: The decorators of the generated loops (``rk4h.fast.codegen``): the
+#: straight-line loop's and the array loop's ``integrate``.
+_SL = '@njit(error_model="numpy", nogil=True)  # on-disk'
+_ARR = '@njit(error_model="numpy", nogil=True)\ndef integrate'
+
+
+def _replace(text, old, new):
+    """``text`` with ``old`` replaced; an error where ``old`` is missing (a
+    variant that changed nothing would time the unmodified loop)."""
+    if old not in text:
+        raise AssertionError(f"variant: {old!r} is not in the generated text")
+    return text.replace(old, new)
+
+
 def variant(text, v):
-    if v == "base":
+    if v in ("base", "straight_line", "array"):  # the form is chosen in main
         return text
     if v == "noinline":   # slope/rhs inlined by LLVM instead of numba's IR inliner
-        return text.replace('@njit(inline="always", error_model="numpy")', '@njit(error_model="numpy")')
-    if v in ("straight_line", "array"):  # the text is codegen.source's or array_source's (chosen in main)
-        return text
+        return _replace(text, '@njit(inline="always", error_model="numpy")', '@njit(error_model="numpy")')
     if v == "slope_call":  # the slope called; the rhs wrapper still inlined at numba's level
-        a = text.replace('@njit(inline="always", error_model="numpy")\ndef slope', '@njit(error_model="numpy")\ndef slope')
-        assert a != text
-        return a
+        return _replace(text, '@njit(inline="always", error_model="numpy")\ndef slope',
+                        '@njit(error_model="numpy")\ndef slope')
     if v == "nonrt":
-        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", _nrt=False)  # on-disk')
+        return _replace(text, _SL, _SL.replace("nogil=True)", "nogil=True, _nrt=False)"))
     if v == "nocfunc":
-        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", no_cfunc_wrapper=True)  # on-disk')
+        return _replace(text, _SL, _SL.replace("nogil=True)", "nogil=True, no_cfunc_wrapper=True)"))
     if v == "both":
-        return text.replace('@njit(error_model="numpy")  # on-disk', '@njit(error_model="numpy", _nrt=False, no_cfunc_wrapper=True)  # on-disk')
+        return _replace(text, _SL, _SL.replace("nogil=True)", "nogil=True, _nrt=False, no_cfunc_wrapper=True)"))
     if v == "nocfunc_arr":
-        return text.replace('@njit(error_model="numpy")\ndef integrate', '@njit(error_model="numpy", no_cfunc_wrapper=True)\ndef integrate')
+        return _replace(text, _ARR, _ARR.replace("nogil=True)", "nogil=True, no_cfunc_wrapper=True)"))
     if v == "dense_call":
-        a = text.replace("                    rhs(fp, ip, mass, y, f0, 0, nq, w)", "                    rhs_dense(fp, ip, mass, y, f0, 0, nq, w)")
-        a = a.replace("                    rhs(fp, ip, mass, y_new, f1, 0, nq, w)", "                    rhs_dense(fp, ip, mass, y_new, f1, 0, nq, w)")
-        assert a != text
-        return a.replace('@njit(error_model="numpy")\ndef integrate', '@njit(error_model="numpy")\ndef rhs_dense(fp, ip, mass, y, out, r, n, w):\n    rhs(fp, ip, mass, y, out, r, n, w)\n\n\n@njit(error_model="numpy")\ndef integrate')
+        # (the start slope is copied from the first stage's since 3fa7aa6: only the end slope is called)
+        a = _replace(text, "                    rhs(fp, ip, mass, y_new, f1, 0, nq, w)",
+                     "                    rhs_dense(fp, ip, mass, y_new, f1, 0, nq, w)")
+        return _replace(a, _ARR, '@njit(error_model="numpy")\ndef rhs_dense(fp, ip, mass, y, out, r, n, w):\n'
+                        '    rhs(fp, ip, mass, y, out, r, n, w)\n\n\n' + _ARR)
     raise KeyError(v)
 
 
@@ -99,28 +123,33 @@ def run(fn, m, kern, unrolled, nsteps, plan=()):
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) not in (3, 4) or argv[2] not in VARIANTS + DESIGNS or not argv[1].isdigit() or int(argv[1]) < 1 \
-            or argv[3:] not in ([], ["fput"]):
-        print(f"usage: bench_compile_options.py METHOD N VARIANT [fput] (N >= 1, VARIANT one of "
+            or argv[3:] not in ([], ["fput"], ["net"]) \
+            or (argv[3:] == ["net"] and argv[2] not in ("base", "straight_line", "array")):
+        print(f"usage: bench_compile_options.py METHOD N VARIANT [fput | net] (N >= 1, VARIANT one of "
               f"{', '.join(VARIANTS + DESIGNS)}), got {' '.join(argv)!r}", file=sys.stderr)
         return 2
-    method, N, v, fput = argv[0], int(argv[1]), argv[2], argv[3:] == ["fput"]
+    method, N, v, kind = argv[0], int(argv[1]), argv[2], "".join(argv[3:])
     try:
         tab = get_method(method)
     except ValueError as e:
         print(e, file=sys.stderr)
         return 2
-    m = model(N, fput)
+    m = model(N, kind)
     kern = fast.force_kernel(m)
     # The variants edit the loop form their rounds measured: straight-line up
     # to 2 masses, the array loop beyond; ``base`` is the package's choice.
+    # (The step count follows the package's choice, so that the variants of
+    # one N compare; on 3 to 8 masses it is 200000 since the twenty-third
+    # round, 50000 before: digests of those sizes differ from older rounds'.)
     unrolled = N <= 2
+    package_array = codegen.array_loop(kern, 2 * m.n_dof)
     if v == "base":
-        unrolled = not codegen.array_loop(kern, 2 * N)
-    nsteps = 200000 if not codegen.array_loop(kern, 2 * N) else 50000  # the package's choice: variants compare
+        unrolled = not package_array
+    nsteps = 50000 if package_array else 200000
     if v == "straight_line":
         if not kern.has_scalar():
-            print(f"bench_compile_options.py: straight_line: N must be <= {kern.MAX_SCALAR_DOF}, got {N}",
-                  file=sys.stderr)
+            print(f"bench_compile_options.py: straight_line: N must be <= "
+                  f"{kern.MAX_SCALAR_DOF * N // m.n_dof}, got {N}", file=sys.stderr)
             return 2
         unrolled = True
     if v == "array":
@@ -138,11 +167,16 @@ def main(argv=None) -> int:
         else:
             text, plan = lv.as_data_source(kern, inline_comb=v == "as_data_inline"), lv.plan_data(tab)
     else:
-        text = variant(codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern), v)
+        try:
+            text = variant(codegen.source(tab, kern) if unrolled else codegen.array_source(tab, kern), v)
+        except AssertionError as e:  # the variant's edit does not apply to this loop form
+            form = "straight-line" if unrolled else "array"
+            print(f"bench_compile_options.py: {v} does not apply to the {form} loop of N={N}: {e}", file=sys.stderr)
+            return 2
     text += f"\n# variant {v} {time.time()}\n"  # a new module name: a cold compile
     mod = codegen._in_memory(codegen.module_name(text), text)
     tc, ns, yend = run(mod.integrate, m, kern, unrolled, nsteps, plan)
-    print(f"{method} N={N} {v}{' fput' if fput else ''}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
+    print(f"{method} N={N} {v}{' ' + kind if kind else ''}: compile+1run {tc:.2f} s CPU, {ns:.1f} ns/step, "
           f"y_end {hashlib.sha1(yend.tobytes()).hexdigest()[:10]}")
     return 0
 

@@ -18,7 +18,7 @@ def _digest(method, n, variant, *extra):
     proc = subprocess.run([sys.executable, str(SCRIPT), method, str(n), variant, *extra], cwd=ROOT,
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    m = LINE.match(proc.stdout.strip().replace(" fput:", ":"))
+    m = LINE.match(proc.stdout.strip().replace(" fput:", ":").replace(" net:", ":"))
     assert m and m.group(3) == variant, proc.stdout
     return m.group(4)
 
@@ -46,7 +46,24 @@ def test_the_straight_line_variant_gives_the_array_loops_numbers():
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("n, variant", [(2, "nonrt"), (2, "nocfunc"), (2, "both"), (3, "noinline"),
+                                        (3, "slope_call"), (3, "nocfunc_arr"), (3, "dense_call")])
+def test_each_variant_edits_its_loop_and_keeps_the_numbers(n, variant):
+    # an edit whose text is not in the loop is refused (exit 2), so a digest
+    # here is that of the edited loop
+    assert _digest("rk4", n, variant) == _digest("rk4", n, "base")
+
+
+@pytest.mark.slow
+def test_a_network_on_both_loop_forms_gives_the_same_numbers():
+    assert _digest("rk4", 2, "base", "net") == _digest("rk4", 2, "array", "net")
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("argv, why", [
+    (["rk4", "3", "nonrt"], "nonrt does not apply to the array loop of N=3"),
+    (["rk4", "2", "noinline", "net"], "VARIANT one of"),
+    (["rk4", "5", "straight_line", "net"], "straight_line: N must be <= 4, got 5"),
     (["rk4", "2", "as_data"], "as_data is an array loop: N must be >= 3, got 2"),
     (["rk4", "3", "no-such-design"], "VARIANT one of"),
     (["rk4", "9", "straight_line"], "straight_line: N must be <= 8, got 9"),
