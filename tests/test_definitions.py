@@ -102,6 +102,13 @@ def _has_straight_line_code(case):
 STRAIGHT_LINE_CASES = [c for c in CASES if _has_straight_line_code(c)]
 
 
+def test_every_definition_of_up_to_8_degrees_of_freedom_has_a_straight_line_form():
+    # so that section 6 below runs on each (a kernel that lost its
+    # straight-line form would otherwise leave it without a word)
+    small = {c.id for c in CASES if _model(c.id).n_dof <= fast.force_kernel(_model(c.id)).MAX_SCALAR_DOF}
+    assert len(small) >= 10 and small == {c.id for c in STRAIGHT_LINE_CASES}
+
+
 def _velocity_scale(case):
     """m/s (rad/s): the coordinate scale times the fastest frequency, so that
     both halves of dy/dt are of comparable size."""
