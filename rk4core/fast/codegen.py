@@ -19,9 +19,10 @@ a zero coefficient are left out.
 
 A loop's text depends on the definition's structure, not on its numbers
 (those are the ``fp``/``ip`` arrays), so one compiled loop serves every model
-of that structure (and, for the straight-line loop, that size); nor on the method's name, only its coefficients, so two
-methods with equal tableaux (``forest-ruth`` and a scene's
-``forest-ruth-as-data``) share one file and one compile in every process.
+of that structure (and, for the straight-line loop, that size); nor on the
+method's name, only its coefficients, so two methods with equal tableaux
+(``forest-ruth`` and a scene's ``forest-ruth-as-data``) share one file and one
+compile in every process.
 
 The arithmetic is that of ``rk4h.rk_step``: stage ``s`` is
 ``y + (h a_s0) k_0 + (h a_s1) k_1 + ...`` summed left to right over the
@@ -80,7 +81,8 @@ from ..methods import Tableau
 from . import _kernels as K
 
 __all__ = ["MAX_UNROLLED_DIM", "MAX_UNROLLED_FORCE_LINES", "source", "array_source", "model_source", "kernel",
-           "array_kernel", "array_loop", "model_module", "load_generated", "loop_key", "compiled_kernels", "module_name", "CacheWarning"]
+           "array_kernel", "array_loop", "model_module", "load_generated", "loop_key", "compiled_kernels",
+           "module_name", "CacheWarning"]
 
 #: Largest state size (2 n_dof) that gets the straight-line loop: up to 8
 #: degrees of freedom, the largest force a kernel writes as straight-line code
@@ -380,11 +382,15 @@ def step_lines(plan: _Plan, kern, dim) -> list:
     held = _Held()
     L = []
 
+    def component(half, row, name_of, p):
+        # component p of the sum `row` (None: the stage state holds it already)
+        return _sum_text(held, half, row, name_of("y", p), name_of("s", p), lambda j: name_of(f"k{j}_", p))
+
     def half_sum(half, row, name_of):
         # "s{p} = ..." for each component of the half, unless it holds `row` already
         out = []
         for p in range(nq):
-            e = _sum_text(held, half, row, name_of("y", p), name_of("s", p), lambda j: name_of(f"k{j}_", p))
+            e = component(half, row, name_of, p)
             if e is not None:
                 out.append(f"    {name_of('s', p)} = {e}")
         held.hold(half, row)
@@ -417,7 +423,7 @@ def step_lines(plan: _Plan, kern, dim) -> list:
     for half, name_of in (("q", q_name), ("v", v_name)):
         row = plan.new_row(half)
         for p in range(nq):
-            e = _sum_text(held, half, row, name_of("y", p), name_of("s", p), lambda j: name_of(f"k{j}_", p))
+            e = component(half, row, name_of, p)
             L.append(f"    {name_of('n', p)} = {name_of('s', p) if e is None else e}")
     return L
 
@@ -600,11 +606,15 @@ def _array_head(plan: _Plan, kern, used=None) -> list:
     return L + _ARRAY_OUTPUT_START
 
 
+def _array_slope(j) -> str:
+    """Component ``p`` of slope ``j`` in the array loop's text."""
+    return f"k[{j}, p]"
+
+
 def _array_new_state(plan: _Plan, held=None) -> list:
     """The new state ``y + h sum b_i k_i`` with the instability test (from
     the stage state where it holds a sum the new one extends: ``held``, a
     :class:`_Held` or None)."""
-    k = lambda j: f"k[{j}, p]"  # noqa: E731
     L = ["        accept = True"]
     # The instability test NOT(|y_p| <= bound_p) folded into the same pass,
     # without a short circuit (no branch in the loop).
@@ -613,7 +623,7 @@ def _array_new_state(plan: _Plan, held=None) -> list:
     else:
         halves = [("0", "nq", "q", plan.new_row("q")), ("nq", "dim", "v", plan.new_row("v"))]
     for lo, hi, half, row in halves:
-        e = _sum_text(held, half, row, "y[p]", "yi[p]", k)
+        e = _sum_text(held, half, row, "y[p]", "yi[p]", _array_slope)
         L += [f"        for p in range({lo}, {hi}):",
               f"            v = {'yi[p]' if e is None else e}",
               "            y_new[p] = v",
@@ -663,10 +673,9 @@ def _array_stage_parts(plan: _Plan, i: int, pad: str, held=None) -> tuple:
     :class:`_Held`, or None: every sum from the state) follows the stage
     state ``yi`` from stage to stage of one step, in order."""
     ev = plan.evaluate[i]
-    k = lambda j: f"k[{j}, p]"  # noqa: E731
 
     def half_sum(half, lo, hi, row):
-        e = _sum_text(held, half, row, "y[p]", "yi[p]", k)
+        e = _sum_text(held, half, row, "y[p]", "yi[p]", _array_slope)
         if held is not None:
             held.hold(half, row)
         return [] if e is None else [pad + f"for p in range({lo}, {hi}):", pad + f"    yi[p] = {e}"]

@@ -127,32 +127,35 @@ class ForceKernel:
                 "        out[i] = y[n + i]\n"
                 "        out[n + i] = out[n + i] / mass[i]\n")
 
+    def _scalar_parts(self):
+        """:meth:`scalar_lines` on locals ``q0 ..`` and ``f0 ..`` (computed
+        once; None without a straight-line form)."""
+        if "_scalar_text" not in self.__dict__:  # (not the method's own name: that would hide the method)
+            self.__dict__["_scalar_text"] = self.scalar_lines([f"q{i}" for i in range(self.n_dof)],
+                                                              [f"f{i}" for i in range(self.n_dof)])
+        return self.__dict__["_scalar_text"]
+
     def scalar_key(self) -> str:
         """Digest of the straight-line text (which also depends on the edge
         list); computed once. Only for kernels with :meth:`has_scalar`."""
         cached = self.__dict__.get("_scalar_key")
         if cached is None:
-            hoisted, body = self.scalar_lines([f"q{i}" for i in range(self.n_dof)],
-                                              [f"f{i}" for i in range(self.n_dof)])
+            hoisted, body = self._scalar_parts()
             cached = self.__dict__["_scalar_key"] = digest("\n".join(hoisted + body))
         return cached
 
     def scalar_size(self) -> int:
         """Lines of the straight-line force (:meth:`scalar_lines`, the hoisted
         reads apart): what inlining it at every stage of a loop costs to
-        compile. Only for kernels with :meth:`has_scalar`; computed once."""
-        cached = self.__dict__.get("_scalar_size")
-        if cached is None:
-            _, body = self.scalar_lines([f"q{i}" for i in range(self.n_dof)], [f"f{i}" for i in range(self.n_dof)])
-            cached = self.__dict__["_scalar_size"] = len(body)
-        return cached
+        compile. Only for kernels with :meth:`has_scalar`."""
+        return len(self._scalar_parts()[1])
 
     def has_scalar(self) -> bool:
         """True when :meth:`scalar_lines` gives straight-line code (computed once)."""
         cached = self.__dict__.get("_has_scalar")
         if cached is None:
             cached = self.__dict__["_has_scalar"] = self.n_dof <= self.MAX_SCALAR_DOF and \
-                self.scalar_lines(["q"] * self.n_dof, ["f"] * self.n_dof) is not None
+                self._scalar_parts() is not None
         return cached
 
 
