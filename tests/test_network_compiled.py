@@ -74,21 +74,26 @@ def test_network_loop_equals_python_loop(dim, n, n_anchors, seed):
 
 
 def test_a_force_longer_than_the_bound_runs_the_array_loop():
-    # 4 masses in the plane (8 degrees of freedom), every pair joined and each
-    # tied to two anchors: 14 springs, a straight-line force of 148 lines, over
+    # The network docs/performance.md measures the bound on
+    # (benchmarks/bench_compile_options.py's `net`): 4 masses in the plane (8
+    # degrees of freedom), every pair joined and each tied to two anchors, 14
+    # springs, a straight-line force of 148 lines, over
     # codegen.MAX_UNROLLED_FORCE_LINES: the array loop (whose compile does not
     # grow with the edge list), with the same numbers.
+    import pathlib
+    import sys
+
     from rk4h.fast import codegen
     from rk4h.fast.solve import _loop_of
     from rk4h.methods import RK4
 
-    n = 4
-    springs = [[i, j, 10.0 + i + j] for i in range(n) for j in range(i + 1, n)] + \
-        [[i, n + 2 * i + a, 5.0 + a] for i in range(n) for a in range(2)]
-    model = rk4h.make_model("network", {
-        "dim": 2, "masses": [1.0 + 0.1 * i for i in range(n)],
-        "positions": [c for i in range(n) for c in (float(i), 0.5 * (i % 2))],
-        "anchors": [c for i in range(n) for c in (float(i), -1.0, float(i) + 0.3, 1.5)], "springs": springs})
+    benchmarks = str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks")
+    sys.path.insert(0, benchmarks)
+    try:
+        import bench_compile_options
+    finally:
+        sys.path.remove(benchmarks)
+    model = bench_compile_options.model(4, "net")
     kern = fast.force_kernel(model)
     assert kern.has_scalar() and kern.scalar_size() > codegen.MAX_UNROLLED_FORCE_LINES
     assert _loop_of(model, "rk4") is codegen.array_kernel(RK4, kern)
