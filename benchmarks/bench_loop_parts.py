@@ -1,0 +1,173 @@
+"""What each part of a straight-line loop costs to compile (issue 29, cold
+start, twenty-fourth round).
+
+    python benchmarks/bench_loop_parts.py [METHOD] [N] [--rounds R]
+
+Generates the straight-line loop ``rk4h.fast.codegen.source`` writes for
+``METHOD`` (default ``rk4``) on a linear chain of ``N`` masses (default 2,
+at most 8), cuts one part of its text at a time and compiles each text in
+memory with a fresh module name (a cold compile, no cache), in this one
+process after an untimed warm-up compile (numba's own first-use cost).
+Printed per text: the CPU seconds (``time.process_time``) of its first call
+(the compile and a 2000-step run), the median over ``R`` rounds (default 3;
+the texts alternate within a round) and that median's share of the
+uncut loop's. The parts:
+
+``as generated``
+    the package's loop;
+``no growth bound``
+    without the block that sets the instability bound after the first
+    step (``if pending > 0.0``);
+``no end slope``
+    the off-grid output without its end slope (the copy of the force at
+    the step's end, where each dense row's last derivative comes from): the
+    velocity rows' end derivative is set to the state's own component;
+``no dense output``
+    without the off-grid output (the end slope, a copy of the force, and
+    the cubic Hermite rows); the on-grid rows stay;
+``no output``
+    without any output rows (the whole ``if ptr < m_out ...`` block);
+``empty body``
+    the same signature and decorator, returning at once: numba's floor for
+    one function of these 13 arguments.
+
+The cut loops do not write what the package's loop writes: only their
+compile times compare, and nothing here is a candidate loop. A text the cut
+does not find refuses with one line and exit 2 (a cut that changed nothing
+would time the uncut loop). Compile times on a shared machine vary by 20-40%
+from one compile to the next: read the medians and the load printed beside
+them.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository, installed or not
+
+#: The texts that open and close each part (``start``, ``end``: the part is
+#: ``text[start:end]``), as ``rk4h.fast.codegen`` writes them.
+PARTS = {
+    "no growth bound": ("        if pending > 0.0:\n", "        if ptr < m_out and idx[ptr] <= i + 1:\n"),
+    "no dense output": ("            if idx[ptr] == i:\n", "            while ptr < m_out and idx[ptr] == i + 1"),
+    "no output": ("        if ptr < m_out and idx[ptr] <= i + 1:\n", "        y0 = n0\n"),
+}
+SIGNATURE = "def integrate(fp, ip, mass, y_start, t0, step, n, idx, theta, ys, bound, pending, y_fail):\n"
+
+
+class CutError(ValueError):
+    """A part's opening or closing text is not in the generated loop."""
+
+
+def cut(text: str, start: str, end: str) -> str:
+    """``text`` without ``text[text.index(start):text.index(end, ...)]``."""
+    i = text.find(start)
+    j = text.find(end, i + 1) if i >= 0 else -1
+    if i < 0 or j < 0:
+        missing = start if i < 0 else end
+        raise CutError(f"the generated loop has no {missing.strip()!r}: the cut would change nothing")
+    return text[:i] + text[j:]
+
+
+def without_end_slope(text: str, n_dof: int) -> str:
+    """``text`` whose dense output's end slope (the force at the step's end)
+    is replaced by ``e_j = n_j`` for the velocity components; None where
+    the loop evaluates no end slope (a method whose last stage is it)."""
+    start, end = "            if idx[ptr] == i:\n", "                n_extra += 1\n"
+    i = text.find(start)
+    if i < 0:
+        raise CutError(f"the generated loop has no dense-output block ({start.strip()!r})")
+    j = text.find(end, i + 1)
+    if j < 0:  # no slope evaluated for the dense output: the last stage's is the end slope (FSAL)
+        return None
+    keep = [f"                e{k} = n{k + n_dof}\n" for k in range(n_dof)]
+    if text[i + len(start):j].find("".join(keep)) != 0:
+        raise CutError("the dense-output block does not open with the end positions' derivatives")
+    block = keep + [f"                e{k} = n{k}\n" for k in range(n_dof, 2 * n_dof)]
+    return text[:i + len(start)] + "".join(block) + text[j:]
+
+
+def texts(source: str, n_dof: int) -> dict[str, str]:
+    """Every variant of the generated loop ``source`` (``n_dof`` degrees of
+    freedom), by name."""
+    out = {"as generated": source}
+    no_end_slope = without_end_slope(source, n_dof)
+    if no_end_slope is not None:
+        out["no end slope"] = no_end_slope
+    for name, (start, end) in PARTS.items():
+        out[name] = cut(source, start, end)
+    head = source.split(SIGNATURE)[0]
+    if head == source:
+        raise CutError(f"the generated loop has no {SIGNATURE.strip()!r}")
+    out["empty body"] = head + SIGNATURE + "    return n, 0, K.STATUS_OK, 0\n"
+    return out
+
+
+def _compile_and_run(text, args):
+    from rk4h.fast import codegen
+
+    text = text + f"\n# bench_loop_parts {time.time()!r} {os.getpid()}\n"  # a new module name: a cold compile
+    mod = codegen._in_memory(codegen.module_name(text), text)
+    t0 = time.process_time()
+    mod.integrate(*args)
+    return time.process_time() - t0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("method", nargs="?", default="rk4")
+    ap.add_argument("n", nargs="?", type=int, default=2, help="masses of the chain, 1..8 (default 2)")
+    ap.add_argument("--rounds", type=int, default=3)
+    args = ap.parse_args(argv)
+    if not 1 <= args.n <= 8:
+        ap.error(f"N: the straight-line loop takes 1..8 masses, got {args.n}")
+    if args.rounds < 1:
+        ap.error(f"--rounds: at least 1, got {args.rounds}")
+
+    import rk4h.fast as fast
+    from rk4h.fast import codegen
+    from rk4h.methods import get_method
+    from rk4h.models import Chain
+
+    try:
+        tab = get_method(args.method)
+    except ValueError as e:
+        print(f"bench_loop_parts.py: METHOD: {e}", file=sys.stderr)
+        return 2
+    model = Chain([1.0 + 0.1 * i for i in range(args.n)], [1.0] * (args.n + 1))
+    kern = fast.force_kernel(model)
+    try:
+        variants = texts(codegen.source(tab, kern), args.n)
+    except CutError as e:
+        print(f"bench_loop_parts.py: {e}", file=sys.stderr)
+        return 2
+    d = 2 * args.n
+    nsteps = 2000
+    call = (np.ascontiguousarray(kern.fp, float), np.ascontiguousarray(kern.ip, np.int64), np.asarray(model.mass, float),
+            np.linspace(0.01, 0.02, d), 0.0, 1e-3, nsteps, np.array([0, nsteps - 1, nsteps], np.int64),
+            np.array([0.0, 0.5, 0.0]), np.empty((3, d)), np.full(d, 1e300), 0.0, np.empty(d))
+
+    load = os.getloadavg()[0]
+    _compile_and_run(variants["as generated"], call)  # numba's first use in this process: not timed
+    cpu = {name: [] for name in variants}
+    for _ in range(args.rounds):
+        for name, text in variants.items():
+            cpu[name].append(_compile_and_run(text, call))
+    full = statistics.median(cpu["as generated"])
+    print(f"{args.method}, chain of {args.n} masses (dim {d}), {args.rounds} round(s), "
+          f"load {load:.2f} -> {os.getloadavg()[0]:.2f}; compile + {nsteps}-step run, CPU s:")
+    for name, values in cpu.items():
+        med = statistics.median(values)
+        print(f"  {name:16s} median {med:6.3f}  ({med / full:4.0%} of the loop's)  "
+              + " ".join(f"{v:.3f}" for v in values))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
