@@ -75,22 +75,27 @@ def cut(text: str, start: str, end: str) -> str:
     return text[:i] + text[j:]
 
 
-def without_end_slope(text: str, n_dof: int) -> str:
+def without_end_slope(text: str, n_dof: int) -> str | None:
     """``text`` whose dense output's end slope (the force at the step's end)
     is replaced by ``e_j = n_j`` for the velocity components; None where
-    the loop evaluates no end slope (a method whose last stage is it)."""
-    start, end = "            if idx[ptr] == i:\n", "                n_extra += 1\n"
+    the loop evaluates no end slope (a method whose last stage is it). A
+    start slope the dense output evaluates (a method without a stage at the
+    step's start) stays."""
+    start = "            if idx[ptr] == i:\n"
+    rows = "                while ptr < m_out and idx[ptr] == i and theta[ptr] > 0.0:\n"
     i = text.find(start)
-    if i < 0:
-        raise CutError(f"the generated loop has no dense-output block ({start.strip()!r})")
-    j = text.find(end, i + 1)
-    if j < 0:  # no slope evaluated for the dense output: the last stage's is the end slope (FSAL)
+    w = text.find(rows, i + 1) if i >= 0 else -1
+    if i < 0 or w < 0:
+        raise CutError(f"the generated loop has no dense-output block ({start.strip()!r} ... {rows.strip()!r})")
+    keep = "".join(f"                e{k} = n{k + n_dof}\n" for k in range(n_dof))
+    a = text.find(keep, i, w)
+    if a < 0:
+        raise CutError("the dense-output block has no end positions' derivatives (e_k = n_(k+n))")
+    b = a + len(keep)
+    j = text.find("                n_extra += 1\n", b, w)
+    if j < 0:  # no slope evaluated at the step's end: the last stage's is the end slope (FSAL)
         return None
-    keep = [f"                e{k} = n{k + n_dof}\n" for k in range(n_dof)]
-    if text[i + len(start):j].find("".join(keep)) != 0:
-        raise CutError("the dense-output block does not open with the end positions' derivatives")
-    block = keep + [f"                e{k} = n{k}\n" for k in range(n_dof, 2 * n_dof)]
-    return text[:i + len(start)] + "".join(block) + text[j:]
+    return text[:b] + "".join(f"                e{k} = n{k}\n" for k in range(n_dof, 2 * n_dof)) + text[j:]
 
 
 def texts(source: str, n_dof: int) -> dict[str, str]:

@@ -26,7 +26,7 @@ def _source(method, n):
     return codegen.source(get_method(method), fast.force_kernel(Chain([1.0 + 0.1 * i for i in range(n)], [1.0] * (n + 1))))
 
 
-@pytest.mark.parametrize("method,n", [("rk4", 2), ("euler", 1), ("yoshida4", 3), ("rk4", 8)])
+@pytest.mark.parametrize("method,n", [("rk4", 2), ("euler", 1), ("yoshida4", 3), ("rk4", 8), ("forest-ruth", 2)])
 def test_each_cut_removes_its_part_and_stays_a_loop(method, n):
     src = _source(method, n)
     variants = parts.texts(src, n)
@@ -44,6 +44,9 @@ def test_each_cut_removes_its_part_and_stays_a_loop(method, n):
     else:
         assert "_Fr = n" in src and "_Fr = n" not in variants["no end slope"]
         assert "K.hermite_weights" in variants["no end slope"]
+        # a start slope the dense output evaluates (forest-ruth: no stage at the step's start) stays
+        assert variants["no end slope"].count("_Fr = y") == src.count("_Fr = y")
+        assert (method == "forest-ruth") == ("d2 = _Fo0 / m0" in variants["no end slope"])
     assert variants["empty body"].rstrip().endswith("return n, 0, K.STATUS_OK, 0")
 
 
@@ -53,6 +56,8 @@ def test_a_missing_part_is_refused():
         parts.texts(src.replace("if pending > 0.0:", "if pending >= 0.0:"), 2)
     with pytest.raises(parts.CutError, match="dense-output"):
         parts.without_end_slope(src.replace("            if idx[ptr] == i:\n", "            if idx[ptr] == i + 0:\n"), 2)
+    with pytest.raises(parts.CutError, match="end positions"):
+        parts.without_end_slope(src.replace("e0 = n2", "e0 = n2 + 0.0"), 2)
 
 
 def test_bad_arguments_exit_2_with_one_line():
