@@ -1,7 +1,7 @@
 """What each part of a straight-line loop costs to compile (issue 29, cold
 start, twenty-fourth round).
 
-    python benchmarks/bench_loop_parts.py [METHOD] [N] [--rounds R]
+    python benchmarks/bench_loop_parts.py [METHOD] [N] [--rounds R] [--helper]
 
 Generates the straight-line loop ``rk4h.fast.codegen.source`` writes for
 ``METHOD`` (default ``rk4``) on a linear chain of ``N`` masses (default 2,
@@ -32,7 +32,17 @@ uncut loop's. The parts:
     one function of these 13 arguments.
 
 The cut loops do not write what the package's loop writes: only their
-compile times compare, and nothing here is a candidate loop. A text the cut
+compile times compare, and nothing here is a candidate loop.
+
+``--helper`` compares instead the package's loop with a candidate that
+writes the same rows: its off-grid (Hermite) rows are written by one
+function outside the loop's text (``HELPER``, compiled once before the
+timed compiles, as a package would compile it once per machine), to which
+the loop hands the old state, the start slope, the new state and the end
+slope in a ``(4, dim)`` array allocated once per call. Printed beside the
+compile medians: the best of 5 runs of 20000 steps with an off-grid row in
+every step (ns per step, both loops) and whether the two loops' rows are
+equal bit for bit. A text the cut
 does not find refuses with one line and exit 2 (a cut that changed nothing
 would time the uncut loop). Compile times on a shared machine vary by 20-40%
 from one compile to the next: read the medians and the load printed beside
@@ -42,6 +52,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import statistics
 import sys
 import time
@@ -65,13 +76,20 @@ class CutError(ValueError):
     """A part's opening or closing text is not in the generated loop."""
 
 
-def cut(text: str, start: str, end: str) -> str:
-    """``text`` without ``text[text.index(start):text.index(end, ...)]``."""
+def _span(text: str, start: str, end: str, what: str) -> tuple[int, int]:
+    """``(i, j)``: where ``start`` opens in ``text`` and where ``end`` opens
+    after it; :class:`CutError` naming ``what`` where either is missing."""
     i = text.find(start)
     j = text.find(end, i + 1) if i >= 0 else -1
     if i < 0 or j < 0:
         missing = start if i < 0 else end
-        raise CutError(f"the generated loop has no {missing.strip()!r}: the cut would change nothing")
+        raise CutError(f"the generated loop has no {what} ({missing.strip()!r}): the cut would change nothing")
+    return i, j
+
+
+def cut(text: str, start: str, end: str) -> str:
+    """``text`` without ``text[text.index(start):text.index(end, ...)]``."""
+    i, j = _span(text, start, end, "such part")
     return text[:i] + text[j:]
 
 
@@ -83,10 +101,7 @@ def without_end_slope(text: str, n_dof: int) -> str | None:
     step's start) stays."""
     start = "            if idx[ptr] == i:\n"
     rows = "                while ptr < m_out and idx[ptr] == i and theta[ptr] > 0.0:\n"
-    i = text.find(start)
-    w = text.find(rows, i + 1) if i >= 0 else -1
-    if i < 0 or w < 0:
-        raise CutError(f"the generated loop has no dense-output block ({start.strip()!r} ... {rows.strip()!r})")
+    i, w = _span(text, start, rows, "dense-output block")
     keep = "".join(f"                e{k} = n{k + n_dof}\n" for k in range(n_dof))
     a = text.find(keep, i, w)
     if a < 0:
@@ -114,6 +129,61 @@ def texts(source: str, n_dof: int) -> dict[str, str]:
     return out
 
 
+#: ``--helper``: the off-grid rows written by one function outside the loop's
+#: text, compiled once (here: before the timed compiles, as the package would
+#: compile it once per machine), the same arithmetic in the same order.
+HELPER = """import numpy as np
+from numba import njit
+
+from rk4h.fast import _kernels as K
+
+
+@njit(error_model="numpy", nogil=True)
+def hermite_rows(ys, idx, theta, ptr, i, step, hb):
+    m_out = idx.shape[0]
+    d = hb.shape[1]
+    while ptr < m_out and idx[ptr] == i and theta[ptr] > 0.0:
+        w00, w10, w01, w11 = K.hermite_weights(theta[ptr], step)
+        for p in range(d):
+            ys[ptr, p] = w00 * hb[0, p] + w10 * hb[1, p] + w01 * hb[2, p] + w11 * hb[3, p]
+        ptr += 1
+    return ptr
+"""
+HELPER_MODULE = "_bench_loop_parts_helper"
+_ROW = re.compile(r"^ {20}ys\[ptr, (\d+)\] = w00 \* (\w+) \+ w10 \* (\w+) \+ w01 \* (\w+) \+ w11 \* (\w+)$")
+
+
+def with_helper(text: str, dim: int) -> str:
+    """``text`` whose off-grid rows are written by :data:`HELPER`'s
+    ``hermite_rows``: the loop stores the old state, the start slope, the
+    new state and the end slope into a ``(4, dim)`` array allocated once per
+    call, and calls it."""
+    start = "                while ptr < m_out and idx[ptr] == i and theta[ptr] > 0.0:\n"
+    end = "                    ptr += 1\n"
+    i, j = _span(text, start, end, "off-grid rows")
+    rows = [_ROW.match(line) for line in text[i + len(start):j].splitlines()[1:]]
+    if len(rows) != dim or not all(rows) or [int(r.group(1)) for r in rows] != list(range(dim)):
+        raise CutError(f"the off-grid rows are not the {dim} Hermite rows this variant rewrites")
+    stores = [f"                hb[{a}, {p}] = {r.group(2 + a)}\n" for a in range(4) for p, r in enumerate(rows)]
+    call = "                ptr = _H.hermite_rows(ys, idx, theta, ptr, i, step, hb)\n"
+    out = text[:i] + "".join(stores) + call + text[j + len(end):]
+    out = out.replace("from rk4h.fast import _kernels as K\n",
+                      f"from rk4h.fast import _kernels as K\nimport {HELPER_MODULE} as _H\n", 1)
+    head = SIGNATURE
+    return out.replace(head, head + f"    hb = np.empty((4, {dim}))\n", 1)
+
+
+def _helper_module():
+    """Compile :data:`HELPER` once, as an importable module."""
+    import types
+
+    if HELPER_MODULE not in sys.modules:
+        mod = types.ModuleType(HELPER_MODULE)
+        exec(compile(HELPER, f"<{HELPER_MODULE}>", "exec"), mod.__dict__)
+        sys.modules[HELPER_MODULE] = mod
+    return sys.modules[HELPER_MODULE]
+
+
 def _compile_and_run(text, args):
     from rk4h.fast import codegen
 
@@ -121,7 +191,23 @@ def _compile_and_run(text, args):
     mod = codegen._in_memory(codegen.module_name(text), text)
     t0 = time.process_time()
     mod.integrate(*args)
-    return time.process_time() - t0
+    return time.process_time() - t0, mod.integrate
+
+
+def _every_step_off_grid(fn, call, nsteps, repeats=5):
+    """Best ns per step of ``fn`` writing one off-grid row (theta 0.5) in
+    every step, and a copy of the rows."""
+    d = call[3].shape[0]
+    idx = np.arange(nsteps, dtype=np.int64)
+    theta = np.full(nsteps, 0.5)
+    ys = np.empty((nsteps, d))
+    args = call[:6] + (nsteps, idx, theta, ys, np.full(d, 1e300), 0.0, np.empty(d))
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn(*args)
+        best = min(best, time.perf_counter() - t0)
+    return best / nsteps * 1e9, ys.copy()
 
 
 def main(argv=None) -> int:
@@ -129,6 +215,8 @@ def main(argv=None) -> int:
     ap.add_argument("method", nargs="?", default="rk4")
     ap.add_argument("n", nargs="?", type=int, default=2, help="masses of the chain, 1..8 (default 2)")
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--helper", action="store_true",
+                    help="compare the loop with one whose off-grid rows a helper writes (compile and run)")
     args = ap.parse_args(argv)
     if not 1 <= args.n <= 8:
         ap.error(f"N: the straight-line loop takes 1..8 masses, got {args.n}")
@@ -148,7 +236,11 @@ def main(argv=None) -> int:
     model = Chain([1.0 + 0.1 * i for i in range(args.n)], [1.0] * (args.n + 1))
     kern = fast.force_kernel(model)
     try:
-        variants = texts(codegen.source(tab, kern), args.n)
+        source = codegen.source(tab, kern)
+        if args.helper:
+            variants = {"as generated": source, "rows by a helper": with_helper(source, 2 * args.n)}
+        else:
+            variants = texts(source, args.n)
     except CutError as e:
         print(f"bench_loop_parts.py: {e}", file=sys.stderr)
         return 2
@@ -159,11 +251,15 @@ def main(argv=None) -> int:
             np.array([0.0, 0.5, 0.0]), np.empty((3, d)), np.full(d, 1e300), 0.0, np.empty(d))
 
     load = os.getloadavg()[0]
+    if args.helper:
+        _helper_module()
     _compile_and_run(variants["as generated"], call)  # numba's first use in this process: not timed
     cpu = {name: [] for name in variants}
+    loops = {}
     for _ in range(args.rounds):
         for name, text in variants.items():
-            cpu[name].append(_compile_and_run(text, call))
+            seconds, loops[name] = _compile_and_run(text, call)
+            cpu[name].append(seconds)
     full = statistics.median(cpu["as generated"])
     print(f"{args.method}, chain of {args.n} masses (dim {d}), {args.rounds} round(s), "
           f"load {load:.2f} -> {os.getloadavg()[0]:.2f}; compile + {nsteps}-step run, CPU s:")
@@ -171,6 +267,11 @@ def main(argv=None) -> int:
         med = statistics.median(values)
         print(f"  {name:16s} median {med:6.3f}  ({med / full:4.0%} of the loop's)  "
               + " ".join(f"{v:.3f}" for v in values))
+    if args.helper:
+        steps = 20000
+        (ns0, ys0), (ns1, ys1) = (_every_step_off_grid(loops[k], call, steps) for k in variants)
+        print(f"  an off-grid row in every step ({steps} steps, best of 5): {ns0:.1f} ns per step as generated, "
+              f"{ns1:.1f} with the helper ({ns1 / ns0:.2f}x); rows equal bit for bit: {np.array_equal(ys0, ys1)}")
     return 0
 
 

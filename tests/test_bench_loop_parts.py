@@ -77,3 +77,30 @@ def test_the_benchmark_times_every_variant():
     assert [name for name, _ in rows] == ["as generated", "no end slope", "no growth bound", "no dense output",
                                           "no output", "empty body"]
     assert all(float(v) > 0 for _, v in rows)
+
+
+@pytest.mark.parametrize("method,n", [("rk4", 2), ("forest-ruth", 3)])
+def test_the_helper_design_moves_only_the_off_grid_rows(method, n):
+    src = _source(method, n)
+    dim = 2 * n
+    out = parts.with_helper(src, dim)
+    ast.parse(out)
+    assert "K.hermite_weights" in src and "K.hermite_weights" not in out
+    assert out.count("hb[") == 4 * dim and out.count("_H.hermite_rows(") == 1
+    assert f"hb = np.empty((4, {dim}))" in out and f"import {parts.HELPER_MODULE} as _H" in out
+    # everything else is the generated loop's, line for line
+    lines = src.splitlines()
+    w = lines.index("                while ptr < m_out and idx[ptr] == i and theta[ptr] > 0.0:")
+    assert lines[w + 2 + dim] == "                    ptr += 1"
+    kept = lines[:w] + lines[w + 3 + dim:]
+    assert [line for line in out.splitlines() if "hb" not in line and "_H" not in line] == kept
+    with pytest.raises(parts.CutError, match="Hermite rows"):
+        parts.with_helper(src, dim + 2)
+
+
+@pytest.mark.slow
+def test_the_helper_design_writes_the_same_rows():
+    proc = subprocess.run([sys.executable, str(SCRIPT), "euler", "1", "--rounds", "1", "--helper"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "rows by a helper" in proc.stdout and "rows equal bit for bit: True" in proc.stdout, proc.stdout
