@@ -149,9 +149,14 @@ _TABLES = {
         "energy_fit_t0": _c("s", "float", "start of the growth exponent's fit range (t_end / 100)"),
         "energy_fit_t1": _c("s", "float", "end of the growth exponent's fit range (t_end)"),
         "phase_error_max": _c("rad", "float", "largest |phase error| of an energetic mode against the exact "
-                                              "modal solution (linear models; NaN otherwise)"),
+                                              "modal solution, over the modes the method keeps resolved to the end "
+                                              "(linear models; NaN otherwise or when it keeps none)"),
         "phase_growth_exponent": _c("1", "float", "slope of log max |phase error| against log t, fitted as the "
                                                   "energy's (linear models; NaN otherwise)"),
+        "phase_modes_damped": _c("1", "int", "energetic modes the method damps to round-off (amplitude below "
+                                             "energy_time.PHASE_RESOLVED_AMPLITUDE of the motion's), whose angle "
+                                             "is then no phase: left out of phase_error_max (linear models; empty "
+                                             "otherwise)"),
     },
     "cheapest": {
         "error_constant": _c("1", "float", "C of error_rel ~ C h^p fitted on the method's runs (s^-p)"),
