@@ -57,9 +57,11 @@ PHASE_MIN_SHARE = 1e-6
 #: motion's (``1e7 eps``, 2.2e-9) for its phase error to count: the round-off
 #: of the steps and of the modal projection, about ``eps`` times the motion's
 #: amplitude, then moves its angle by about 1e-7 rad at most. A method that
-#: damps a mode (RK4 near its stability limit) takes it below, and then its
-#: angle is round-off (``benchmarks/phase_floor.py``: RK4's measured angles
-#: leave its exact lag by 1e-6 rad only at amplitudes of 1.3e-10 or less).
+#: damps a mode (RK4 near its stability limit) takes it below, where the
+#: round-off of the rest of the motion can take over its angle
+#: (``benchmarks/phase_floor.py``: RK4's measured angles leave its exact lag
+#: by 1e-6 rad only at amplitudes of 1.3e-10 or less). A sufficient bar: modes
+#: that share no round-off (uncoupled coordinates) stay resolved below it.
 PHASE_RESOLVED_AMPLITUDE = 1e7 * float(np.finfo(float).eps)
 #: States kept by :func:`long_run` (evenly spaced in steps).
 LONG_SAMPLES = 20000
