@@ -1,18 +1,20 @@
 """Where a damped mode's phase turns to round-off: RK4's measured phase error
-against its lag, step by step (the bar ``energy_time.PHASE_RESOLVED_AMPLITUDE``).
+against its exact lag, step by step, beside the rounding bound that decides
+where the report stops reading it (``energy_time.PHASE_RESOLUTION``).
 
-    python benchmarks/phase_floor.py [SCENE:H ...]     # default: lattice100:0.1 co2:0.1 thesis-2dof-case2:0.1
+    python benchmarks/phase_floor.py [SCENE:H ...]
+    # default: lattice100:0.1 co2:0.1 thesis-2dof-case2:0.1 three-blocks:0.1
+    #          oscillator-aniso-2:0.1 oscillator-aniso-sqrt2:0.1 thesis-2dof-case3:0.1
 
 For each shipped linear scene and RK4 step ``H`` (s): the scene's RK4 run
-(``rk4h.solve`` on the scene's output grid, as the report's run), the
-unwrapped angle between each computed and exact modal coordinate (without
-the bar: ``energy_time.phase_errors``' own computation), and the exact lag
-of RK4 after ``n`` steps, ``-n (theta - arg R(i theta))``. Printed per scene:
-the modes whose measured angle leaves the lag by more than 1e-6 rad, the
-smallest amplitude (the computed mode's ``|omega eta - i eta'|`` over the
-motion's at t = 0, ``sqrt`` of twice its modal energy) at which a mode is still
-on the lag, the largest at which one has left it, and the bar. The bar is safe
-where modes leave the lag only at amplitudes below it.
+(``rk4h.solve`` on the scene's output grid, as the report's run), each
+energetic mode's unwrapped angle against the exact one and its rounding bound
+(``energy_time.phase_angles``), and RK4's exact lag after ``n`` steps,
+``-n (theta - arg R(i theta))``. Printed per scene: how many modes leave the
+lag by more than 1e-6 rad, the smallest rounding bound at which a mode has left
+it (the bar is safe when that is above ``PHASE_RESOLUTION``: every sample the
+report reads is on the lag), the largest bound at which a mode is still on it,
+and how many modes the report counts as damped.
 """
 from __future__ import annotations
 
@@ -23,13 +25,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the repository, installed or not
 
-DEFAULT = ("lattice100:0.1", "co2:0.1", "thesis-2dof-case2:0.1")
+DEFAULT = ("lattice100:0.1", "co2:0.1", "thesis-2dof-case2:0.1", "three-blocks:0.1", "oscillator-aniso-2:0.1",
+           "oscillator-aniso-sqrt2:0.1", "thesis-2dof-case3:0.1")
 TOL = 1e-6  # rad: "on the lag"
 
 
 def measure(scene_name: str, h: float) -> dict:
-    """Per-sample measured angle, lag and relative amplitude of every mode of the
-    scene's RK4 run at step ``h`` that holds ``PHASE_MIN_SHARE`` at t = 0."""
+    """The scene's RK4 run at step ``h``: per mode and sample, the measured
+    angle, RK4's exact lag and the angle's rounding bound (rad)."""
     import rk4h
     from rk4h.methods import RK4
     from rk4h.references.exact import modal_solution
@@ -45,20 +48,14 @@ def measure(scene_name: str, h: float) -> dict:
         raise ValueError(f"{scene_name}:{h:g}: not a linear scene with an RK4 run at h = {h:g} s")
     t = execute.grid(scene, model, specs[0])
     y = rk4h.solve(model.rhs, (t[0], t[-1]), y0, h=h, t_eval=t, method="rk4").y
+    angle, rounding = et.phase_angles(model, y0, t, y)
     ms = modal_solution(model, y0)
-    w = np.where(ms.zero, 1.0, ms.omega)
     e0 = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
     keep = (~ms.zero) & (e0 >= et.PHASE_MIN_SHARE * e0.sum())
-    n = model.n_dof
-    M = np.asarray(model.mass, float)[:, None]
-    z = (w[:, None] * (ms.phi.T @ (M * y[:n])) - 1j * (ms.phi.T @ (M * y[n:])))[keep]
-    eta_x, deta_x = ms.modal(t)
-    zx = (w[:, None] * eta_x - 1j * deta_x)[keep]
-    angle = np.unwrap(np.angle(z * np.conj(zx)), axis=1)
     steps = np.round((t - t[0]) / h)
     lag = -steps[None, :] * phase_lag(RK4, ms.omega[keep][:, None] * h)
-    amplitude = np.abs(z) / np.sqrt(2.0 * e0.sum())
-    return {"angle": angle, "lag": lag, "amplitude": amplitude}
+    damped = et.summary(model, y0, t, y)["phase_modes_damped"]
+    return {"angle": angle, "lag": lag, "rounding": rounding, "damped": damped}
 
 
 def main(argv=None) -> int:
@@ -73,8 +70,8 @@ def main(argv=None) -> int:
         except ValueError:
             print(f"phase_floor.py: SCENE:H: H must be a step in seconds, got {a!r}", file=sys.stderr)
             return 2
-    bar = et.PHASE_RESOLVED_AMPLITUDE
-    print(f"bar (energy_time.PHASE_RESOLVED_AMPLITUDE): {bar:.2e}; on the lag: within {TOL:g} rad")
+    bar = et.PHASE_RESOLUTION
+    print(f"bar (energy_time.PHASE_RESOLUTION): {bar:g} rad; on the lag: within {TOL:g} rad")
     for name, h in cases:
         try:
             m = measure(name, h)
@@ -86,11 +83,12 @@ def main(argv=None) -> int:
         # a mode is on the lag up to its first sample off it
         first = np.where(left, np.argmax(off, axis=1), off.shape[1])
         on = np.arange(off.shape[1])[None, :] < first[:, None]
-        low_on = float(m["amplitude"][on].min())
-        high_off = float(m["amplitude"][~on].max()) if (~on).any() else float("nan")
-        print(f"{name} h = {h:g} s: {int(left.sum())} of {left.size} modes leave the lag; smallest amplitude still "
-              f"on it {low_on:.1e}; largest amplitude off it {high_off:.1e}; "
-              f"{'below the bar' if not high_off >= bar else 'ABOVE the bar'}")
+        low_off = float(m["rounding"][~on].min()) if (~on).any() else float("nan")
+        high_on = float(m["rounding"][on].max())
+        verdict = "no mode leaves it" if not left.any() else ("safe" if low_off > bar else "NOT SAFE")
+        print(f"{name} h = {h:g} s: {int(left.sum())} of {left.size} modes leave the lag; smallest rounding bound "
+              f"off it {low_off:.1e} rad, largest on it {high_on:.1e} rad; {verdict}; damped in the report: "
+              f"{m['damped']}")
     return 0
 
 

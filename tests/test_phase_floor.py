@@ -1,7 +1,8 @@
-"""The phase error's bar (``energy_time.PHASE_RESOLVED_AMPLITUDE``) sits
-above round-off: on shipped scenes where RK4 damps a mode away, a mode's
-measured angle is on RK4's exact lag (1e-6 rad) at every amplitude down to
-well below the bar, so no mode the bar keeps carries round-off.
+"""The phase error's bar (``energy_time.PHASE_RESOLUTION``) sits above
+round-off: on shipped scenes where RK4 damps a mode away, a mode's measured
+angle leaves RK4's exact lag (by 1e-6 rad) only where its rounding bound is
+well above the bar, so no sample the report reads carries round-off; and an
+uncoupled mode, whose angle round-off never reaches, is never cut.
 ``benchmarks/phase_floor.py`` prints the same figures."""
 import pathlib
 import subprocess
@@ -20,16 +21,22 @@ import phase_floor  # noqa: E402
 pytest.importorskip("numba")
 
 
-@pytest.mark.parametrize("scene", ["co2", "thesis-2dof-case2"])
-def test_modes_leave_rk4s_lag_only_far_below_the_bar(scene):
+@pytest.mark.parametrize("scene", ["co2", "thesis-2dof-case2", "three-blocks"])
+def test_modes_leave_rk4s_lag_only_far_above_the_bar(scene):
     m = phase_floor.measure(scene, 0.1)
     off = np.abs(m["angle"] - m["lag"]) > phase_floor.TOL
-    assert off.any()  # the case exercises the bar: a mode is damped into round-off
-    first = np.argmax(off, axis=1)
-    for k in np.where(off.any(axis=1))[0]:
-        # a mode leaves its lag only at amplitudes at least 10x below the bar
-        assert m["amplitude"][k, first[k]] < 0.1 * et.PHASE_RESOLVED_AMPLITUDE, (scene, k)
-    np.testing.assert_allclose(m["angle"][~off.any(axis=1)], m["lag"][~off.any(axis=1)], atol=phase_floor.TOL)
+    assert off.any() and m["damped"] >= 1  # the case exercises the bar: a mode is damped into round-off
+    assert m["rounding"][off].min() >= 5 * et.PHASE_RESOLUTION
+    resolved = np.logical_and.accumulate(m["rounding"] <= et.PHASE_RESOLUTION, axis=1)
+    np.testing.assert_allclose(m["angle"][resolved], m["lag"][resolved], atol=phase_floor.TOL)
+
+
+def test_an_uncoupled_mode_is_never_cut():
+    # the anisotropic oscillator's x and y are its modes: RK4 at h = 0.1 s damps
+    # the fast one to 1e-135 of the motion, and its angle stays on the lag
+    m = phase_floor.measure("oscillator-aniso-2", 0.1)
+    np.testing.assert_allclose(m["angle"], m["lag"], atol=phase_floor.TOL)
+    assert m["damped"] == 0 and m["rounding"].max() <= et.PHASE_RESOLUTION
 
 
 def test_bad_case_exits_2_with_one_line():

@@ -153,10 +153,10 @@ _TABLES = {
                                               "(linear models; NaN otherwise or when it keeps none)"),
         "phase_growth_exponent": _c("1", "float", "slope of log max |phase error| against log t, fitted as the "
                                                   "energy's (linear models; NaN otherwise)"),
-        "phase_modes_damped": _c("1", "int", "energetic modes the method damps below "
-                                             "energy_time.PHASE_RESOLVED_AMPLITUDE of the motion's amplitude, where "
-                                             "the round-off of the rest of the motion can take over their angle: "
-                                             "left out of phase_error_max (linear models; empty otherwise)"),
+        "phase_modes_damped": _c("1", "int", "energetic modes the method damps until the round-off of the rest "
+                                             "of the motion takes over their angle (resolved to less than "
+                                             "energy_time.PHASE_RESOLUTION): left out of phase_error_max (linear "
+                                             "models; empty otherwise)"),
     },
     "cheapest": {
         "error_constant": _c("1", "float", "C of error_rel ~ C h^p fitted on the method's runs (s^-p)"),

@@ -19,7 +19,7 @@ is summarised by
   coordinate ``omega_j eta_j - i eta_j'`` of every mode that holds at least
   :data:`PHASE_MIN_SHARE` of the energy (rad), its maximum over the run and
   the modes that stay resolved (``phase_error_max``; a mode the method damps
-  to round-off, :data:`PHASE_RESOLVED_AMPLITUDE`, is left out and counted in
+  to round-off, :data:`PHASE_RESOLUTION`, is left out and counted in
   ``phase_modes_damped``) and the growth exponent of its running maximum
   (``phase_growth_exponent``, fitted as the energy's): 1 for a phase that
   drifts linearly, as it does for every method of this harness (RK4 lags
@@ -40,7 +40,7 @@ import time
 import numpy as np
 
 __all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "LONG_SAMPLES", "COLUMNS", "running_max",
-           "growth_exponent", "phase_errors", "PHASE_RESOLVED_AMPLITUDE", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
+           "growth_exponent", "phase_angles", "phase_errors", "PHASE_RESOLUTION", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
            "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES",
            "reference_step_cap", "STEP_CAP_MARGIN", "STEP_CAP_CALIBRATION_PERIODS", "STEP_CAP_CEILING",
            "STEP_CAP_STATUS", "exchange_period", "EXCHANGE_MIN_SHARE"]
@@ -53,16 +53,17 @@ FIT_POINTS = 64
 #: energy of the motion at t = 0 (a mode with almost no energy has no
 #: measurable phase).
 PHASE_MIN_SHARE = 1e-6
-#: A mode's computed amplitude must stay at least this fraction of the
-#: motion's (``1e7 eps``, 2.2e-9) for its phase error to count: the round-off
-#: of the steps and of the modal projection, about ``eps`` times the motion's
-#: amplitude, then moves its angle by about 1e-7 rad at most. A method that
-#: damps a mode (RK4 near its stability limit) takes it below, where the
-#: round-off of the rest of the motion can take over its angle
-#: (``benchmarks/phase_floor.py``: RK4's measured angles leave its exact lag
-#: by 1e-6 rad only at amplitudes of 1.3e-10 or less). A sufficient bar: modes
-#: that share no round-off (uncoupled coordinates) stay resolved below it.
-PHASE_RESOLVED_AMPLITUDE = 1e7 * float(np.finfo(float).eps)
+#: A mode's phase error counts while its angle is resolved to this (rad):
+#: while ``eps`` times the sum of the absolute values of the terms its modal
+#: coordinate adds up (``|omega phi_j|^T M |q| + |phi_j|^T M |v|``), a bound
+#: on the rounding of that sum, is at most this fraction of the coordinate
+#: ``|z_j|``. A method that damps a mode (RK4 near its stability limit) takes
+#: it below, where the round-off of the rest of the motion takes over its
+#: angle (``benchmarks/phase_floor.py``: RK4's measured angles leave its
+#: exact lag by 1e-6 rad only where that bound is 7.6e-7 or more). A mode that
+#: shares no terms with the rest of the motion (uncoupled coordinates) stays
+#: resolved however small it gets.
+PHASE_RESOLUTION = 1e-7
 #: States kept by :func:`long_run` (evenly spaced in steps).
 LONG_SAMPLES = 20000
 
@@ -123,8 +124,8 @@ def growth_exponent(t, err, decades: float = FIT_DECADES, points: int = FIT_POIN
     return k, t0, t1
 
 
-def phase_errors(model, y0, t, y):
-    """Phase error (rad) of each energetic mode of a linear model along a trajectory.
+def phase_angles(model, y0, t, y):
+    """Angle of each energetic mode against the exact one, and how well it is resolved.
 
     Parameters
     ----------
@@ -139,43 +140,62 @@ def phase_errors(model, y0, t, y):
 
     Returns
     -------
-    numpy.ndarray, shape (modes, m)
-        Unwrapped ``arg(z_num) - arg(z_exact)`` of ``z = omega eta - i eta'``
-        per mode holding at least :data:`PHASE_MIN_SHARE` of the energy (a
-        positive value: the computed mode leads), NaN from the first sample
-        at which the *computed* mode's amplitude ``|z_num|`` is below
-        :data:`PHASE_RESOLVED_AMPLITUDE` times the motion's (``sqrt`` of the
-        modal energies' doubled sum at t = 0). A method that damps a mode
-        (RK4 near its stability limit loses ``1 - |R(i omega h)|^2`` of its
-        energy per step: 9% at ``omega h = 1.43``) leaves that mode's angle
-        to round-off, and the unwrapped angle of round-off is no phase error.
-        Empty (0, m) for a model that is not linear or has no such mode. The
-        unwrapping assumes the error changes by less than pi between samples.
+    (numpy.ndarray, numpy.ndarray), each shape (modes, m)
+        The unwrapped ``arg(z_num) - arg(z_exact)`` (rad) of ``z = omega eta
+        - i eta'`` per mode holding at least :data:`PHASE_MIN_SHARE` of the
+        energy at t = 0 (a positive value: the computed mode leads), and its
+        rounding bound ``eps (omega |phi|^T M |q| + |phi|^T M |v|) / |z_num|``
+        (rad; ``inf`` where ``z_num`` is 0). Both empty (0, m) for a model that
+        is not linear or has no such mode. The unwrapping assumes the error
+        changes by less than pi between samples; it runs forward, so a sample
+        does not depend on later ones.
     """
     from rk4h.references.exact import modal_solution
 
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
+    empty = np.zeros((0, t.size))
     if not getattr(model, "linear", False):
-        return np.zeros((0, t.size))
+        return empty, empty
     ms = modal_solution(model, np.asarray(y0, float))
     w = np.where(ms.zero, 1.0, ms.omega)
     e_mode = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
     keep = (~ms.zero) & (e_mode >= PHASE_MIN_SHARE * max(float(e_mode.sum()), 1e-300))
     if not keep.any():
-        return np.zeros((0, t.size))
+        return empty, empty
     n = model.n_dof
     M = np.asarray(model.mass, float)[:, None]
     eta = ms.phi.T @ (M * y[:n])
     deta = ms.phi.T @ (M * y[n:])
     eta_x, deta_x = ms.modal(t)
-    z_num = w[:, None] * eta - 1j * deta
-    z_ex = w[:, None] * eta_x - 1j * deta_x
-    d = np.unwrap(np.angle(z_num[keep] * np.conj(z_ex[keep])), axis=1)
-    # unwrapping runs forward, so the samples before a mode falls below the bar
-    # do not depend on those after it
-    resolved = np.abs(z_num[keep]) >= PHASE_RESOLVED_AMPLITUDE * math.sqrt(2.0 * float(e_mode.sum()))
-    return np.where(np.logical_and.accumulate(resolved, axis=1), d, np.nan)
+    z_num = (w[:, None] * eta - 1j * deta)[keep]
+    z_ex = (w[:, None] * eta_x - 1j * deta_x)[keep]
+    angle = np.unwrap(np.angle(z_num * np.conj(z_ex)), axis=1)
+    a = np.abs(ms.phi[:, keep]).T
+    terms = w[keep][:, None] * (a @ (M * np.abs(y[:n]))) + a @ (M * np.abs(y[n:]))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rounding = np.where(np.abs(z_num) > 0, np.finfo(float).eps * terms / np.abs(z_num), np.inf)
+    return angle, rounding
+
+
+def phase_errors(model, y0, t, y):
+    """Phase error (rad) of each energetic mode of a linear model along a trajectory.
+
+    Parameters are those of :func:`phase_angles`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (modes, m)
+        :func:`phase_angles`' angle, NaN from the first sample at which it is
+        not resolved to :data:`PHASE_RESOLUTION`. A method that damps a mode
+        (RK4 near its stability limit loses ``1 - |R(i omega h)|^2`` of its
+        energy per step: 9% at ``omega h = 1.43``) leaves that mode's angle
+        to the round-off of the rest of the motion, and the unwrapped angle of
+        round-off is no phase error. Empty (0, m) for a model that is not
+        linear or has no energetic mode.
+    """
+    angle, rounding = phase_angles(model, y0, t, y)
+    return np.where(np.logical_and.accumulate(rounding <= PHASE_RESOLUTION, axis=1), angle, np.nan)
 
 
 def summary(model, y0, t, y) -> dict:
