@@ -54,7 +54,7 @@ def measure(scene_name: str, h: float) -> dict:
     keep = (~ms.zero) & (e0 >= et.PHASE_MIN_SHARE * e0.sum())
     steps = np.round((t - t[0]) / h)
     lag = -steps[None, :] * phase_lag(RK4, ms.omega[keep][:, None] * h)
-    damped = et.summary(model, y0, t, y)["phase_modes_damped"]
+    damped = et.summary(model, y0, t, y)["phase_modes_unresolved"]
     return {"angle": angle, "lag": lag, "rounding": rounding, "damped": damped}
 
 

@@ -175,9 +175,32 @@ def test_a_mode_damped_to_round_off_has_no_phase_error():
     for k in range(kept.sum()):  # every resolved sample is on the lag
         np.testing.assert_allclose(ph[k, alive[k]], -steps[alive[k]] * lag[k], rtol=1e-6, atol=1e-9)
     s = et.summary(m, y0, res.t, res.y)
-    assert s["phase_modes_damped"] == int(damped.sum())
+    assert s["phase_modes_unresolved"] == int(damped.sum())
     assert s["phase_error_max"] == pytest.approx(n * float(lag[~damped].max()), rel=1e-6)
     assert s["phase_error_max"] < n * float(lag.max())  # the damped modes' lag is larger, and not measured
+
+
+def test_a_mode_cut_early_does_not_count_its_error_before_the_cut():
+    # a fast mode near RK4's limit lags far more before it is cut than the slow
+    # mode does over the whole run: the largest error is the slow mode's, and
+    # the fast one is counted, not read
+    from rk4h.references.exact import modal_solution
+    from rk4h.validation.metrics import phase_lag
+
+    m = rk4h.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1000.0, 1.0]})
+    y0 = m.state([0.005, 0.0])
+    ms = modal_solution(m, y0)
+    h = 1.43 / float(ms.omega.max())
+    n = 1000
+    res = rk4h.fast.solve_model(m, (0.0, n * h), y0, n_steps=n, method="rk4")
+    ph = et.phase_errors(m, y0, res.t, res.y)
+    fast_mode = int(np.argmax(ms.omega))
+    assert ph.shape[0] == 2 and np.isnan(ph[fast_mode, -1]) and not np.isnan(ph[1 - fast_mode]).any()
+    s = et.summary(m, y0, res.t, res.y)
+    slow_lag = n * float(phase_lag(RK4, ms.omega[1 - fast_mode] * h))
+    assert s["phase_modes_unresolved"] == 1
+    assert s["phase_error_max"] == pytest.approx(slow_lag, rel=1e-6)
+    assert np.nanmax(np.abs(ph[fast_mode])) > 100 * s["phase_error_max"]  # read before its cut, not counted
 
 
 def test_no_error_and_nonlinear_model_give_nan():
@@ -186,6 +209,10 @@ def test_no_error_and_nonlinear_model_give_nan():
     s = et.summary(m, m.state([0.1, 0.0]), t, np.tile(m.state([0.1, 0.0])[:, None], (1, 5)))
     assert math.isnan(s["energy_growth_exponent"])  # a constant state: no error to fit
     assert et.phase_errors(type("M", (), {"linear": False})(), None, t, None).shape == (0, 5)
+    fput = rk4h.make_model("chain", {"masses": [1.0, 1.0], "springs": [1.0, 1.0, 1.0], "beta": 1.0})
+    res = rk4h.solve(fput.rhs, (0.0, 1.0), fput.state([0.1, 0.0]), h=0.01)
+    s = et.summary(fput, fput.state([0.1, 0.0]), res.t, res.y)
+    assert all(math.isnan(s[c]) for c in ("phase_error_max", "phase_growth_exponent", "phase_modes_unresolved"))
 
 
 def test_energy_work_precision_rows_fall_with_the_step_at_each_method_s_order():

@@ -152,11 +152,13 @@ _TABLES = {
                                               "modal solution, over the modes the method keeps resolved to the end "
                                               "(linear models; NaN otherwise or when it keeps none)"),
         "phase_growth_exponent": _c("1", "float", "slope of log max |phase error| against log t, fitted as the "
-                                                  "energy's (linear models; NaN otherwise)"),
-        "phase_modes_damped": _c("1", "int", "energetic modes the method damps until the round-off of the rest "
-                                             "of the motion takes over their angle (resolved to less than "
-                                             "energy_time.PHASE_RESOLUTION): left out of phase_error_max (linear "
-                                             "models; empty otherwise)"),
+                                                  "energy's, over the modes phase_error_max reads (linear models; NaN "
+                                                  "otherwise or when it reads none)"),
+        "phase_modes_unresolved": _c("1", "int", "energetic modes whose angle's rounding estimate "
+                                                 "(energy_time.phase_angles) exceeds energy_time.PHASE_RESOLUTION at "
+                                                 "some sample, as when the method damps a mode into the round-off of "
+                                                 "the rest of the motion: left out of phase_error_max (linear models "
+                                                 "with an energetic mode; empty otherwise)"),
     },
     "cheapest": {
         "error_constant": _c("1", "float", "C of error_rel ~ C h^p fitted on the method's runs (s^-p)"),

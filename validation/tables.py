@@ -27,7 +27,7 @@ _BUILTIN = {
                        "compile_s", "nfev", "cost_unit", "n_steps", "taylor_order", "status"],
     "energy": ["scene", "solver", "setting", "h", "rtol", "drift_per_time", "theory_drift_per_time",
                "energy_drift_max", "energy_growth_exponent", "energy_fit_t0", "energy_fit_t1",
-               "phase_error_max", "phase_growth_exponent", "phase_modes_damped", "passed", "checked", "status"],
+               "phase_error_max", "phase_growth_exponent", "phase_modes_unresolved", "passed", "checked", "status"],
     "cheapest": None,  # rk4h.validation.trust.COLUMNS (filled below)
     "dispersion": ["scene", "quantity", "index", "kp_rad_m", "measured", "theory", "rel_error",
                    "passed"],
