@@ -184,30 +184,12 @@ def _helper_module():
     return sys.modules[HELPER_MODULE]
 
 
-def _compile_and_run(text, args):
+def _compile(text):
+    """``text`` as a fresh in-memory module (a cold compile at its first call)."""
     from rk4h.fast import codegen
 
     text = text + f"\n# bench_loop_parts {time.time()!r} {os.getpid()}\n"  # a new module name: a cold compile
-    mod = codegen._in_memory(codegen.module_name(text), text)
-    t0 = time.process_time()
-    mod.integrate(*args)
-    return time.process_time() - t0, mod.integrate
-
-
-def _every_step_off_grid(fn, call, nsteps, repeats=5):
-    """Best ns per step of ``fn`` writing one off-grid row (theta 0.5) in
-    every step, and a copy of the rows."""
-    d = call[3].shape[0]
-    idx = np.arange(nsteps, dtype=np.int64)
-    theta = np.full(nsteps, 0.5)
-    ys = np.empty((nsteps, d))
-    args = call[:6] + (nsteps, idx, theta, ys, np.full(d, 1e300), 0.0, np.empty(d))
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn(*args)
-        best = min(best, time.perf_counter() - t0)
-    return best / nsteps * 1e9, ys.copy()
+    return codegen._in_memory(codegen.module_name(text), text).integrate
 
 
 def main(argv=None) -> int:
@@ -223,17 +205,18 @@ def main(argv=None) -> int:
     if args.rounds < 1:
         ap.error(f"--rounds: at least 1, got {args.rounds}")
 
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_compile_options as bco  # its chain and its call of a loop
     import rk4h.fast as fast
     from rk4h.fast import codegen
     from rk4h.methods import get_method
-    from rk4h.models import Chain
 
     try:
         tab = get_method(args.method)
     except ValueError as e:
         print(f"bench_loop_parts.py: METHOD: {e}", file=sys.stderr)
         return 2
-    model = Chain([1.0 + 0.1 * i for i in range(args.n)], [1.0] * (args.n + 1))
+    model = bco.model(args.n)
     kern = fast.force_kernel(model)
     try:
         source = codegen.source(tab, kern)
@@ -246,20 +229,20 @@ def main(argv=None) -> int:
         return 2
     d = 2 * args.n
     nsteps = 2000
-    call = (np.ascontiguousarray(kern.fp, float), np.ascontiguousarray(kern.ip, np.int64), np.asarray(model.mass, float),
-            np.linspace(0.01, 0.02, d), 0.0, 1e-3, nsteps, np.array([0, nsteps - 1, nsteps], np.int64),
-            np.array([0.0, 0.5, 0.0]), np.empty((3, d)), np.full(d, 1e300), 0.0, np.empty(d))
+
+    def compile_cpu(fn):
+        return bco.run(fn, model, kern, True, nsteps)[0]
 
     load = os.getloadavg()[0]
     if args.helper:
         _helper_module()
-    _compile_and_run(variants["as generated"], call)  # numba's first use in this process: not timed
+    compile_cpu(_compile(variants["as generated"]))  # numba's first use in this process: not timed
     cpu = {name: [] for name in variants}
     loops = {}
     for _ in range(args.rounds):
         for name, text in variants.items():
-            seconds, loops[name] = _compile_and_run(text, call)
-            cpu[name].append(seconds)
+            loops[name] = _compile(text)
+            cpu[name].append(compile_cpu(loops[name]))
     full = statistics.median(cpu["as generated"])
     print(f"{args.method}, chain of {args.n} masses (dim {d}), {args.rounds} round(s), "
           f"load {load:.2f} -> {os.getloadavg()[0]:.2f}; compile + {nsteps}-step run, CPU s:")
@@ -269,7 +252,8 @@ def main(argv=None) -> int:
               + " ".join(f"{v:.3f}" for v in values))
     if args.helper:
         steps = 20000
-        (ns0, ys0), (ns1, ys1) = (_every_step_off_grid(loops[k], call, steps) for k in variants)
+        (_, ns0, ys0), (_, ns1, ys1) = (bco.run(loops[k], model, kern, True, steps, every_step=True)
+                                        for k in variants)
         print(f"  an off-grid row in every step ({steps} steps, best of 5): {ns0:.1f} ns per step as generated, "
               f"{ns1:.1f} with the helper ({ns1 / ns0:.2f}x); rows equal bit for bit: {np.array_equal(ys0, ys1)}")
     return 0

@@ -1,5 +1,5 @@
 """Where a damped mode's phase turns to round-off: RK4's measured phase error
-against its exact lag, step by step, beside the rounding bound that decides
+against its exact lag, step by step, beside the rounding estimate that decides
 where the report stops reading it (``energy_time.PHASE_RESOLUTION``).
 
     python benchmarks/phase_floor.py [SCENE:H ...]
@@ -8,13 +8,13 @@ where the report stops reading it (``energy_time.PHASE_RESOLUTION``).
 
 For each shipped linear scene and RK4 step ``H`` (s): the scene's RK4 run
 (``rk4h.solve`` on the scene's output grid, as the report's run), each
-energetic mode's unwrapped angle against the exact one and its rounding bound
+energetic mode's unwrapped angle against the exact one and its rounding estimate
 (``energy_time.phase_angles``), and RK4's exact lag after ``n`` steps,
 ``-n (theta - arg R(i theta))``. Printed per scene: how many modes leave the
-lag by more than 1e-6 rad, the smallest rounding bound at which a mode has left
+lag by more than 1e-6 rad, the smallest rounding estimate at which a mode has left
 it (the bar is safe when that is above ``PHASE_RESOLUTION``: every sample the
-report reads is on the lag), the largest bound at which a mode is still on it,
-and how many modes the report counts as damped.
+report reads is on the lag), the largest estimate at which a mode is still on it,
+and how many modes the report counts as unresolved.
 """
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ TOL = 1e-6  # rad: "on the lag"
 
 
 def measure(scene_name: str, h: float) -> dict:
-    """The scene's RK4 run at step ``h``: per mode and sample, the measured
-    angle, RK4's exact lag and the angle's rounding bound (rad)."""
+    """The scene's RK4 run at step ``h``: per energetic mode and sample, the measured
+    angle, RK4's exact lag and the angle's rounding estimate (rad)."""
     import rk4h
     from rk4h.methods import RK4
     from rk4h.references.exact import modal_solution
@@ -50,12 +50,11 @@ def measure(scene_name: str, h: float) -> dict:
     y = rk4h.solve(model.rhs, (t[0], t[-1]), y0, h=h, t_eval=t, method="rk4").y
     angle, rounding = et.phase_angles(model, y0, t, y)
     ms = modal_solution(model, y0)
-    e0 = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
-    keep = (~ms.zero) & (e0 >= et.PHASE_MIN_SHARE * e0.sum())
+    keep = et.energetic_modes(ms)
     steps = np.round((t - t[0]) / h)
     lag = -steps[None, :] * phase_lag(RK4, ms.omega[keep][:, None] * h)
-    damped = et.summary(model, y0, t, y)["phase_modes_unresolved"]
-    return {"angle": angle, "lag": lag, "rounding": rounding, "damped": damped}
+    unresolved = et.summary(model, y0, t, y)["phase_modes_unresolved"]
+    return {"angle": angle, "lag": lag, "rounding": rounding, "unresolved": unresolved}
 
 
 def main(argv=None) -> int:
@@ -86,9 +85,9 @@ def main(argv=None) -> int:
         low_off = float(m["rounding"][~on].min()) if (~on).any() else float("nan")
         high_on = float(m["rounding"][on].max())
         verdict = "no mode leaves it" if not left.any() else ("safe" if low_off > bar else "NOT SAFE")
-        print(f"{name} h = {h:g} s: {int(left.sum())} of {left.size} modes leave the lag; smallest rounding bound "
-              f"off it {low_off:.1e} rad, largest on it {high_on:.1e} rad; {verdict}; damped in the report: "
-              f"{m['damped']}")
+        print(f"{name} h = {h:g} s: {int(left.sum())} of {left.size} modes leave the lag; smallest rounding estimate "
+              f"off it {low_off:.1e} rad, largest on it {high_on:.1e} rad; {verdict}; unresolved in the report: "
+              f"{m['unresolved']}")
     return 0
 
 

@@ -1,6 +1,6 @@
 """The phase error's bar (``energy_time.PHASE_RESOLUTION``) sits above
 round-off: on shipped scenes where RK4 damps a mode away, a mode's measured
-angle leaves RK4's exact lag (by 1e-6 rad) only where its rounding bound is
+angle leaves RK4's exact lag (by 1e-6 rad) only where its rounding estimate is
 well above the bar, so no sample the report reads carries round-off; and an
 uncoupled mode, whose angle round-off never reaches, is never cut.
 ``benchmarks/phase_floor.py`` prints the same figures."""
@@ -25,7 +25,7 @@ pytest.importorskip("numba")
 def test_modes_leave_rk4s_lag_only_far_above_the_bar(scene):
     m = phase_floor.measure(scene, 0.1)
     off = np.abs(m["angle"] - m["lag"]) > phase_floor.TOL
-    assert off.any() and m["damped"] >= 1  # the case exercises the bar: a mode is damped into round-off
+    assert off.any() and m["unresolved"] >= 1  # the case exercises the bar: a mode is damped into round-off
     assert m["rounding"][off].min() >= 5 * et.PHASE_RESOLUTION
     resolved = np.logical_and.accumulate(m["rounding"] <= et.PHASE_RESOLUTION, axis=1)
     np.testing.assert_allclose(m["angle"][resolved], m["lag"][resolved], atol=phase_floor.TOL)
@@ -36,7 +36,7 @@ def test_an_uncoupled_mode_is_never_cut():
     # the fast one to 1e-135 of the motion, and its angle stays on the lag
     m = phase_floor.measure("oscillator-aniso-2", 0.1)
     np.testing.assert_allclose(m["angle"], m["lag"], atol=phase_floor.TOL)
-    assert m["damped"] == 0 and m["rounding"].max() <= et.PHASE_RESOLUTION
+    assert m["unresolved"] == 0 and m["rounding"].max() <= et.PHASE_RESOLUTION
 
 
 def test_bad_case_exits_2_with_one_line():

@@ -39,8 +39,9 @@ import time
 
 import numpy as np
 
-__all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "LONG_SAMPLES", "COLUMNS", "running_max",
-           "growth_exponent", "phase_angles", "phase_errors", "PHASE_RESOLUTION", "summary", "is_symplectic", "equal_cost_step", "slowest_period",
+__all__ = ["FIT_DECADES", "FIT_POINTS", "PHASE_MIN_SHARE", "PHASE_RESOLUTION", "LONG_SAMPLES", "COLUMNS",
+           "running_max", "growth_exponent", "energetic_modes", "phase_angles", "phase_errors", "summary",
+           "is_symplectic", "equal_cost_step", "slowest_period",
            "long_run", "dense_samples", "SAMPLES_PER_FAST_PERIOD", "MAX_SAMPLES", "MAX_VALUES", "work_precision_rows", "WP_HORIZONS", "WP_SCENES",
            "reference_step_cap", "STEP_CAP_MARGIN", "STEP_CAP_CALIBRATION_PERIODS", "STEP_CAP_CEILING",
            "STEP_CAP_STATUS", "exchange_period", "EXCHANGE_MIN_SHARE"]
@@ -129,6 +130,14 @@ def growth_exponent(t, err, decades: float = FIT_DECADES, points: int = FIT_POIN
     return k, t0, t1
 
 
+def energetic_modes(ms) -> np.ndarray:
+    """Mask of the modes of a modal solution ``ms``
+    (:func:`rk4h.references.exact.modal_solution`) that have a phase: nonzero
+    frequency and at least :data:`PHASE_MIN_SHARE` of the energy at t = 0."""
+    e_mode = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
+    return (~ms.zero) & (e_mode >= PHASE_MIN_SHARE * max(float(e_mode.sum()), 1e-300))
+
+
 def phase_angles(model, y0, t, y):
     """Angle of each energetic mode against the exact one, and how well it is resolved.
 
@@ -147,8 +156,8 @@ def phase_angles(model, y0, t, y):
     -------
     (numpy.ndarray, numpy.ndarray), each shape (modes, m)
         The unwrapped ``arg(z_num) - arg(z_exact)`` (rad) of ``z = omega eta
-        - i eta'`` per mode holding at least :data:`PHASE_MIN_SHARE` of the
-        energy at t = 0 (a positive value: the computed mode leads), and an
+        - i eta'`` per energetic mode (:func:`energetic_modes`; a positive
+        value: the computed mode leads), and an
         estimate of its rounding, ``eps (omega |phi|^T M |q| + |phi|^T M |v|)
         / |z_num|`` (rad; ``inf`` where ``z_num`` is 0; see
         :data:`PHASE_RESOLUTION`). Both empty (0, m) for a model that
@@ -165,8 +174,7 @@ def phase_angles(model, y0, t, y):
         return empty, empty
     ms = modal_solution(model, np.asarray(y0, float))
     w = np.where(ms.zero, 1.0, ms.omega)
-    e_mode = 0.5 * (ms.deta0 ** 2 + (ms.omega * ms.eta0) ** 2)
-    keep = (~ms.zero) & (e_mode >= PHASE_MIN_SHARE * max(float(e_mode.sum()), 1e-300))
+    keep = energetic_modes(ms)
     if not keep.any():
         return empty, empty
     n = model.n_dof
@@ -193,11 +201,11 @@ def phase_errors(model, y0, t, y):
     -------
     numpy.ndarray, shape (modes, m)
         :func:`phase_angles`' angle, NaN from the first sample at which its
-        rounding estimate exceeds :data:`PHASE_RESOLUTION`. A method that damps a mode
-        (RK4 near its stability limit loses ``1 - |R(i omega h)|^2`` of its
-        energy per step: 9% at ``omega h = 1.43``) leaves that mode's angle
-        to the round-off of the rest of the motion, and the unwrapped angle of
-        round-off is no phase error. Empty (0, m) for a model that is not
+        rounding estimate exceeds :data:`PHASE_RESOLUTION`. A method that
+        damps a mode (RK4 near its stability limit loses ``1 - |R(i omega
+        h)|^2`` of its energy per step: 9% at ``omega h = 1.43``) leaves that
+        mode's angle to the round-off of the rest of the motion, and the
+        unwrapped angle of round-off is no phase error. Empty (0, m) for a model that is not
         linear or has no energetic mode.
     """
     angle, rounding = phase_angles(model, y0, t, y)
